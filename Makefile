@@ -1,0 +1,30 @@
+# Two commands do all the set-up on a fresh Debian machine: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.hearth-installed
+
+.PHONY: demo test install bench clean
+
+$(STAMP): pyproject.toml scripts/sysdeps.sh
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
+	  echo "make: could not create $(VENV); on Debian run: apt-get install -y python3-venv" >&2; exit 1; }
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	scripts/sysdeps.sh $(VENV)
+	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, filterpy, transitions"
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/hearth demo
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+bench: $(STAMP)
+	$(VENV)/bin/hearth bench all --json
+
+clean:
+	rm -rf $(VENV) build *.egg-info runs

@@ -1,0 +1,37 @@
+"""The executive's exception family: mission files, parameters, running."""
+from __future__ import annotations
+
+
+class MissionError(Exception):
+    """A problem with a mission file, its parameters or a run.
+
+    ``file``/``line`` locate a problem in a mission file, ``param`` names a bad parameter;
+    ``str(err)`` is the one line the CLI prints.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 param: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.line = line
+        self.param = param
+
+    def __str__(self) -> str:
+        if self.file is not None:
+            return f"{self.file}:{self.line if self.line is not None else 0}: {self.message}"
+        if self.param is not None:
+            return f"parameter {self.param}: {self.message}"
+        return self.message
+
+
+class MissionValidationError(MissionError):
+    """Several problems found while loading one mission; each is a MissionError."""
+
+    def __init__(self, problems: list[MissionError]):
+        first = problems[0]
+        super().__init__(first.message, file=first.file, line=first.line, param=first.param)
+        self.problems = problems
+
+    def __str__(self) -> str:
+        return "\n".join(str(p) for p in self.problems)

@@ -1,0 +1,42 @@
+"""The world model's exception family: every error says where the problem is."""
+from __future__ import annotations
+
+
+class WorldError(Exception):
+    """A problem with a world file or the map.
+
+    ``file`` and ``line`` locate a problem in a file; ``node`` names a map node.
+    ``str(err)`` is the one line the CLI prints: ``path:line: message`` or
+    ``node ID: message``.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 node: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.line = line
+        self.node = node
+
+    def __str__(self) -> str:
+        if self.file is not None:
+            return f"{self.file}:{self.line if self.line is not None else 0}: {self.message}"
+        if self.node is not None:
+            return f"node {self.node}: {self.message}"
+        return self.message
+
+
+class WorldValidationError(WorldError):
+    """Several problems found while validating one file; each is a WorldError."""
+
+    def __init__(self, problems: list[WorldError]):
+        super().__init__(problems[0].message, file=problems[0].file, line=problems[0].line,
+                         node=problems[0].node)
+        self.problems = problems
+
+    def __str__(self) -> str:
+        return "\n".join(str(p) for p in self.problems)
+
+
+class UnknownNode(WorldError):
+    """A query named a node id the map does not have."""
