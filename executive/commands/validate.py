@@ -1,0 +1,39 @@
+"""`hearth validate FILE...`: check world files (.xml) and mission files (.yaml/.yml).
+
+Nothing is printed on success (exit 0); otherwise one ``path:line: message`` line per
+problem and exit status 2.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("validate", help="check world (.xml) and mission (.yaml) files",
+                       description="Check world files (XML, schema and semantics) and mission "
+                                   "files (YAML). Prints nothing and exits 0 when all are "
+                                   "valid; otherwise one 'path:line: message' line per problem "
+                                   "and exit status 2.")
+    p.add_argument("files", nargs="+", metavar="FILE")
+    p.set_defaults(func=_run)
+
+
+def problems_in(path: str) -> list[str]:
+    suffix = Path(path).suffix.lower()
+    if not Path(path).exists():
+        return [f"{path}:0: no such file"]
+    if suffix in (".yaml", ".yml"):
+        from executive.missionfile import validate_file as validate_mission
+        return [str(e) for e in validate_mission(path)]
+    from worldmodel.io import validate_file as validate_world
+    return [str(e) for e in validate_world(path)]
+
+
+def _run(args) -> int:
+    bad = False
+    for path in args.files:
+        for line in problems_in(path):
+            print(line, file=sys.stderr)
+            bad = True
+    return 2 if bad else 0
