@@ -1,0 +1,482 @@
+"""Safe loading, validation and atomic saving of world files (XML, schema in schema/world.xsd).
+
+The parser never resolves entities, never loads a DTD and never touches the network; a file
+with a DOCTYPE at all is rejected, which stops external-entity and billion-laughs files before
+any expansion. Problems are reported as ``WorldError`` with file and line.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+from typing import Callable, Optional
+
+from lxml import etree
+
+from worldmodel.errors import WorldError, WorldValidationError
+from worldmodel.nodes import (
+    Apartment, DefaultPosition, GraspPoint, Handle, HistoryEntry, Joint, Knob, KnobState,
+    LargeArticulatedObject, LargeObject, Model, ParkingPosition, Part, Room, SearchStat,
+    SmallObject, Surface, Switch, Visual,
+)
+from worldmodel.pose import Pose
+
+SCHEMA_PATH = Path(__file__).with_name("schema") / "world.xsd"
+FORMAT_VERSION = "1"
+MAX_FILE_BYTES = 512 * 1024 * 1024
+
+
+def _parser() -> etree.XMLParser:
+    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False,
+                           dtd_validation=False, huge_tree=False, remove_comments=True,
+                           remove_pis=True)
+
+
+@lru_cache(maxsize=1)
+def _schema() -> etree.XMLSchema:
+    return etree.XMLSchema(etree.parse(str(SCHEMA_PATH), _parser()))
+
+
+# --------------------------------------------------------------------------------------
+# reading
+
+def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
+    try:
+        tree = etree.ElementTree(etree.fromstring(data, _parser()))
+    except etree.XMLSyntaxError as err:
+        line = err.lineno if getattr(err, "lineno", None) else 0
+        msg = err.msg if hasattr(err, "msg") else str(err)
+        raise WorldError(f"XML syntax error: {msg}", file=name, line=line) from None
+    docinfo = tree.docinfo
+    if docinfo.doctype or docinfo.internalDTD is not None or docinfo.externalDTD is not None:
+        line = _doctype_line(data)
+        raise WorldError("DOCTYPE declarations (DTDs and entities) are not allowed in world "
+                         "files", file=name, line=line)
+    return tree
+
+
+def _doctype_line(data: bytes) -> int:
+    idx = data.find(b"<!DOCTYPE")
+    return data.count(b"\n", 0, idx) + 1 if idx >= 0 else 1
+
+
+def _floats(text: str, n: int, el, name: str, attr: str) -> tuple:
+    parts = text.split()
+    if len(parts) != n:
+        raise WorldError(f"{attr} needs {n} numbers, got {text!r}", file=name, line=el.sourceline)
+    return tuple(float(p) for p in parts)
+
+
+def _b(v: Optional[str], default: bool) -> bool:
+    if v is None:
+        return default
+    return v.strip() in ("true", "1")
+
+
+def _pose_of(el, child: str = "pose") -> Pose:
+    p = el.find(child)
+    return _pose_attrs(p) if p is not None else Pose()
+
+
+def _pose_attrs(el) -> Pose:
+    g = el.get
+    return Pose(float(g("x", 0)), float(g("y", 0)), float(g("z", 0)), float(g("roll", 0)),
+                float(g("pitch", 0)), float(g("yaw", 0)))
+
+
+class _Reader:
+    def __init__(self, name: str):
+        self.name = name
+
+    def rgb(self, el, attr: str, default):
+        v = el.get(attr)
+        return default if v is None else _floats(v, 3, el, self.name, attr)
+
+    def model(self, el) -> Model:
+        if el is None:
+            return Model()
+        visuals = []
+        for v in el:
+            if not isinstance(v.tag, str):
+                continue
+            visuals.append(Visual(
+                shape=v.tag, pose=_pose_of(v),
+                size=_floats(v.get("size"), 3, v, self.name, "size") if v.get("size") else (0.0, 0.0, 0.0),
+                radius=float(v.get("radius", 0)), length=float(v.get("length", 0)),
+                file=v.get("file"), scale=float(v.get("scale", 1)),
+                color=self.rgb(v, "color", (0.7, 0.7, 0.7)), material=v.get("material", "matte"),
+                name=v.get("name", ""), line=v.sourceline))
+        return Model(visuals=visuals, ref=el.get("ref"), line=el.sourceline)
+
+    def handle(self, el) -> Handle:
+        return Handle(id=el.get("id"), pose=_pose_of(el), radius=float(el.get("radius", 0.01)),
+                      length=float(el.get("length", 0.2)), standoff=float(el.get("standoff", 0.04)),
+                      color=self.rgb(el, "color", (0.75, 0.75, 0.78)),
+                      material=el.get("material", "shiny"), line=el.sourceline)
+
+    def knob(self, el) -> Knob:
+        states = [KnobState(s.get("name"), float(s.get("angle")), line=s.sourceline)
+                  for s in el.findall("state")]
+        state = el.get("state")
+        angle = el.get("angle")
+        if angle is None:
+            angle = next((s.angle for s in states if s.name == state), 0.0)
+        return Knob(id=el.get("id"), pose=_pose_of(el), states=states, state=state,
+                    angle=float(angle), radius=float(el.get("radius", 0.02)),
+                    depth=float(el.get("depth", 0.025)),
+                    color=self.rgb(el, "color", (0.85, 0.85, 0.85)),
+                    marker_color=self.rgb(el, "markerColor", (0.05, 0.05, 0.05)),
+                    off_state=el.get("off", ""), line=el.sourceline)
+
+    def joint(self, el) -> Joint:
+        return Joint(type=el.get("type"), origin=_pose_of(el, "origin"),
+                     axis=_floats(el.get("axis", "0 0 1"), 3, el, self.name, "axis"),
+                     lower=float(el.get("lower", 0)), upper=float(el.get("upper", 0)),
+                     state=float(el.get("state", 0)), line=el.sourceline)
+
+    def part(self, el) -> Part:
+        return Part(id=el.get("id"), type=el.get("type"), name=el.get("name", ""),
+                    joint=self.joint(el.find("joint")), model=self.model(el.find("model")),
+                    handles=[self.handle(h) for h in el.findall("handle")],
+                    knobs=[self.knob(k) for k in el.findall("knob")],
+                    parts=[self.part(p) for p in el.findall("part")], line=el.sourceline)
+
+    def small(self, el) -> SmallObject:
+        return SmallObject(
+            id=el.get("id"), type=el.get("type"), pose=_pose_of(el),
+            relation=el.get("relation", "on"), name=el.get("name", ""),
+            description=(el.findtext("description") or "").strip(), color=el.get("color", ""),
+            graspable=_b(el.get("graspable"), True),
+            grasp_points=[GraspPoint(_pose_attrs(g), line=g.sourceline) for g in el.findall("graspPoint")],
+            default_positions=[DefaultPosition(d.get("parent"), d.get("relation", "on"),
+                                               _pose_attrs(d), line=d.sourceline)
+                               for d in el.findall("defaultPosition")],
+            model=self.model(el.find("model")), line=el.sourceline)
+
+    def large(self, el):
+        parking_el = el.find("parking")
+        kw = dict(
+            id=el.get("id"), type=el.get("type"), pose=_pose_of(el), name=el.get("name", ""),
+            description=(el.findtext("description") or "").strip(),
+            model=self.model(el.find("model")),
+            parking=[ParkingPosition(p.get("id"), Pose(float(p.get("x")), float(p.get("y")), 0.0,
+                                                       0.0, 0.0, float(p.get("yaw", 0))),
+                                     line=p.sourceline)
+                     for p in parking_el.findall("position")],
+            default_parking=parking_el.get("default"),
+            graspable=_b(el.get("graspable"), False), static=_b(el.get("static"), True),
+            affordances=(el.get("affordances") or "").split(),
+            surfaces=[Surface(s.get("id"), _pose_of(s), float(s.get("sizeX")), float(s.get("sizeY")),
+                              s.get("relation", "on"), line=s.sourceline)
+                      for s in el.findall("surface")],
+            children=[self.small(s) for s in el.findall("SmallObject")], line=el.sourceline)
+        if el.tag == "LargeArticulatedObject":
+            return LargeArticulatedObject(
+                **kw, parts=[self.part(p) for p in el.findall("part")],
+                handles=[self.handle(h) for h in el.findall("handle")],
+                knobs=[self.knob(k) for k in el.findall("knob")])
+        return LargeObject(**kw)
+
+    def room(self, el) -> Room:
+        b = el.get("bounds")
+        return Room(id=el.get("id"), name=el.get("name"), pose=_pose_of(el),
+                    pointcloud=el.get("pointcloud"),
+                    bounds=_floats(b, 4, el, self.name, "bounds") if b else None,
+                    switches=[Switch(s.get("id"), s.get("type"), _pose_of(s), s.get("name", ""),
+                                     _b(s.get("on"), False), line=s.sourceline)
+                              for s in el.findall("switch")],
+                    objects=[self.large(o) for o in el
+                             if o.tag in ("LargeObject", "LargeArticulatedObject")],
+                    line=el.sourceline)
+
+    def apartment(self, root) -> Apartment:
+        lib = {}
+        lib_el = root.find("library")
+        if lib_el is not None:
+            for m in lib_el.findall("model"):
+                lib[m.get("id")] = self.model(m)
+                lib[m.get("id")].ref = None
+        hist = [HistoryEntry(float(c.get("time")), c.get("node"), c.get("field"), c.get("old"),
+                             c.get("new"), c.get("source", ""))
+                for c in root.findall("history/change")]
+        stats = [SearchStat(s.get("object"), s.get("place"), int(s.get("searched", 0)),
+                            int(s.get("found", 0))) for s in root.findall("searchStats/stat")]
+        return Apartment(id=root.get("id"), name=root.get("name", ""),
+                         rooms=[self.room(r) for r in root.findall("room")], library=lib,
+                         history=hist, search_stats=stats, version=root.get("version"),
+                         line=root.sourceline)
+
+
+def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = None,
+                clock=None):
+    """Parse, schema-validate and semantically check world XML; return a ``World``.
+
+    Raises ``WorldValidationError`` listing every problem (each with file and line).
+    """
+    from worldmodel.world import World
+    from worldmodel.validate import semantic_problems
+
+    tree = _parse_tree(data, name)
+    root = tree.getroot()
+    schema = _schema()
+    if not schema.validate(tree):
+        problems = [WorldError(_clean_schema_message(e.message), file=name, line=e.line)
+                    for e in schema.error_log]
+        raise WorldValidationError(problems)
+    if root.get("version") != FORMAT_VERSION:
+        raise WorldError(f"unsupported world format version {root.get('version')!r} "
+                         f"(this Hearth reads version {FORMAT_VERSION})", file=name,
+                         line=root.sourceline)
+    try:
+        apartment = _Reader(name).apartment(root)
+    except WorldError:
+        raise
+    except (TypeError, ValueError) as err:  # pragma: no cover - the schema catches these
+        raise WorldError(f"bad value: {err}", file=name, line=root.sourceline) from None
+    problems = semantic_problems(apartment, name, base_dir)
+    if problems:
+        raise WorldValidationError(problems)
+    return World(apartment, path=None, base_dir=base_dir, clock=clock)
+
+
+def _clean_schema_message(msg: str) -> str:
+    # lxml prefixes "Element 'x', attribute 'y': ..." -- already readable; drop schema URIs.
+    return msg.replace("{http://www.w3.org/2001/XMLSchema}", "xs:")
+
+
+def load_world(path, clock=None):
+    """Load a world file. Raises ``WorldError`` (with file and line) on any problem."""
+    path = Path(path)
+    name = str(path)
+    try:
+        size = path.stat().st_size
+    except FileNotFoundError:
+        raise WorldError("no such file", file=name, line=0) from None
+    if size > MAX_FILE_BYTES:
+        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
+    data = path.read_bytes()
+    world = parse_world(data, name, base_dir=path.parent.resolve(), clock=clock)
+    world.path = path
+    return world
+
+
+def validate_file(path) -> list[WorldError]:
+    """Every problem in a world file (empty when it is valid)."""
+    try:
+        load_world(path)
+    except WorldValidationError as err:
+        return list(err.problems)
+    except WorldError as err:
+        return [err]
+    return []
+
+
+# --------------------------------------------------------------------------------------
+# writing
+
+def _num(v: float) -> str:
+    r = repr(float(v))
+    return r[:-2] if r.endswith(".0") else r
+
+
+def _set_pose(parent, pose: Pose, tag: str = "pose") -> None:
+    if pose == Pose():
+        return
+    el = etree.SubElement(parent, tag)
+    for k, v in pose.as_dict().items():
+        if v != 0.0:
+            el.set(k, _num(v))
+
+
+def _set_pose_attrs(el, pose: Pose) -> None:
+    for k, v in pose.as_dict().items():
+        if v != 0.0:
+            el.set(k, _num(v))
+
+
+def _vec(v) -> str:
+    return " ".join(_num(x) for x in v)
+
+
+def _write_model(parent, model: Model, tag: str = "model", extra: Optional[dict] = None) -> None:
+    if not model.visuals and model.ref is None and extra is None:
+        return
+    el = etree.SubElement(parent, tag)
+    for k, v in (extra or {}).items():
+        el.set(k, v)
+    if model.ref is not None:
+        el.set("ref", model.ref)
+    for v in model.visuals:
+        ve = etree.SubElement(el, v.shape)
+        if v.shape == "box":
+            ve.set("size", _vec(v.size))
+        if v.shape in ("cylinder", "sphere"):
+            ve.set("radius", _num(v.radius))
+        if v.shape == "cylinder":
+            ve.set("length", _num(v.length))
+        if v.shape == "mesh":
+            ve.set("file", v.file or "")
+            if v.scale != 1.0:
+                ve.set("scale", _num(v.scale))
+        ve.set("color", _vec(v.color))
+        if v.material != "matte":
+            ve.set("material", v.material)
+        if v.name:
+            ve.set("name", v.name)
+        _set_pose(ve, v.pose)
+
+
+def _write_handle(parent, h: Handle) -> None:
+    el = etree.SubElement(parent, "handle", id=h.id, radius=_num(h.radius), length=_num(h.length),
+                          standoff=_num(h.standoff), color=_vec(h.color), material=h.material)
+    _set_pose(el, h.pose)
+
+
+def _write_knob(parent, k: Knob) -> None:
+    el = etree.SubElement(parent, "knob", id=k.id, state=k.state, angle=_num(k.angle),
+                          radius=_num(k.radius), depth=_num(k.depth), color=_vec(k.color),
+                          markerColor=_vec(k.marker_color))
+    if k.off_state:
+        el.set("off", k.off_state)
+    _set_pose(el, k.pose)
+    for s in k.states:
+        etree.SubElement(el, "state", name=s.name, angle=_num(s.angle))
+
+
+def _write_part(parent, p: Part) -> None:
+    el = etree.SubElement(parent, "part", id=p.id, type=p.type)
+    if p.name:
+        el.set("name", p.name)
+    j = p.joint
+    je = etree.SubElement(el, "joint", type=j.type, axis=_vec(j.axis), lower=_num(j.lower),
+                          upper=_num(j.upper), state=_num(j.state))
+    _set_pose(je, j.origin, "origin")
+    _write_model(el, p.model)
+    for h in p.handles:
+        _write_handle(el, h)
+    for k in p.knobs:
+        _write_knob(el, k)
+    for c in p.parts:
+        _write_part(el, c)
+
+
+def _write_small(parent, s: SmallObject) -> None:
+    el = etree.SubElement(parent, "SmallObject", id=s.id, type=s.type, relation=s.relation,
+                          graspable="true" if s.graspable else "false")
+    if s.name:
+        el.set("name", s.name)
+    if s.color:
+        el.set("color", s.color)
+    if s.description:
+        etree.SubElement(el, "description").text = s.description
+    _set_pose(el, s.pose)
+    _write_model(el, s.model)
+    for g in s.grasp_points:
+        _set_pose_attrs(etree.SubElement(el, "graspPoint"), g.pose)
+    for d in s.default_positions:
+        de = etree.SubElement(el, "defaultPosition", parent=d.parent, relation=d.relation)
+        _set_pose_attrs(de, d.pose)
+
+
+def _write_large(parent, o) -> None:
+    el = etree.SubElement(parent, o.kind, id=o.id, type=o.type)
+    if o.name:
+        el.set("name", o.name)
+    el.set("graspable", "true" if o.graspable else "false")
+    el.set("static", "true" if o.static else "false")
+    if o.affordances:
+        el.set("affordances", " ".join(o.affordances))
+    if o.description:
+        etree.SubElement(el, "description").text = o.description
+    _set_pose(el, o.pose)
+    _write_model(el, o.model)
+    pk = etree.SubElement(el, "parking", default=o.default_parking)
+    for p in o.parking:
+        etree.SubElement(pk, "position", id=p.id, x=_num(p.pose.x), y=_num(p.pose.y),
+                         yaw=_num(p.pose.yaw))
+    for s in o.surfaces:
+        se = etree.SubElement(el, "surface", id=s.id, sizeX=_num(s.size_x), sizeY=_num(s.size_y),
+                              relation=s.relation)
+        _set_pose(se, s.pose)
+    if isinstance(o, LargeArticulatedObject):
+        for h in o.handles:
+            _write_handle(el, h)
+        for k in o.knobs:
+            _write_knob(el, k)
+        for p in o.parts:
+            _write_part(el, p)
+    for c in o.children:
+        _write_small(el, c)
+
+
+def to_xml(apartment: Apartment) -> bytes:
+    root = etree.Element("apartment", id=apartment.id, version=apartment.version or FORMAT_VERSION)
+    if apartment.name:
+        root.set("name", apartment.name)
+    if apartment.library:
+        lib = etree.SubElement(root, "library")
+        for mid, m in apartment.library.items():
+            _write_model(lib, m, extra={"id": mid})
+    for r in apartment.rooms:
+        re_ = etree.SubElement(root, "room", id=r.id, name=r.name)
+        if r.pointcloud:
+            re_.set("pointcloud", r.pointcloud)
+        if r.bounds is not None:
+            re_.set("bounds", _vec(r.bounds))
+        _set_pose(re_, r.pose)
+        for s in r.switches:
+            se = etree.SubElement(re_, "switch", id=s.id, type=s.type, on="true" if s.on else "false")
+            if s.name:
+                se.set("name", s.name)
+            _set_pose(se, s.pose)
+        for o in r.objects:
+            _write_large(re_, o)
+    if apartment.search_stats:
+        st = etree.SubElement(root, "searchStats")
+        for s in apartment.search_stats:
+            etree.SubElement(st, "stat", object=s.object, place=s.place, searched=str(s.searched),
+                             found=str(s.found))
+    if apartment.history:
+        h = etree.SubElement(root, "history")
+        for c in apartment.history:
+            etree.SubElement(h, "change", time=_num(c.time), node=c.node, field=c.field,
+                             old=c.old, new=c.new, source=c.source)
+    return etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+
+
+def atomic_write(path, data: bytes) -> None:
+    """Write ``data`` to ``path`` so that readers see the old file or the new one, never a
+    half-written one: a temporary file in the same directory, fsync, rename, fsync the dir."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    try:
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:  # pragma: no cover - some filesystems refuse directory fsync
+        pass
+
+
+def save_world(world, path=None) -> Path:
+    """Save atomically (see ``atomic_write``); returns the path written."""
+    path = Path(path or world.path)
+    with world.lock:
+        data = to_xml(world.apartment)
+    atomic_write(path, data)
+    return path

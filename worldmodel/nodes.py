@@ -1,0 +1,304 @@
+"""Typed nodes of the hierarchical semantic map (RAMCIP D3.1 section 3.2).
+
+apartment -> room (switches) -> LargeObject / LargeArticulatedObject (parts with joints,
+handles, knobs) -> SmallObject. Every pose is relative to its parent node's frame; lengths
+are metres, angles radians. ``line`` fields remember where a node stood in its file and do
+not take part in equality.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional, Union
+
+from worldmodel.pose import Pose
+
+RGB = tuple[float, float, float]
+
+SHAPES = ("box", "cylinder", "sphere", "mesh")
+MATERIALS = ("matte", "dark", "shiny", "glass")
+JOINT_TYPES = ("revolute", "prismatic", "fixed")
+RELATIONS = ("on", "in", "under")
+SWITCH_TYPES = ("rotational", "prismatic")
+
+
+def _line():
+    return field(default=None, compare=False, repr=False)
+
+
+@dataclass
+class Visual:
+    """One primitive or mesh of a model, in its node's frame.
+
+    box: ``size`` (x, y, z) centred on ``pose``; cylinder: ``radius``, ``length`` along the
+    local z axis, centred; sphere: ``radius``; mesh: ``file`` (relative to the world file)
+    scaled by ``scale``. ``material`` drives the simulated sensor (dark and shiny surfaces
+    drop depth readings). ``name`` tags special parts ("marker" on a knob face, "face" of a
+    door).
+    """
+    shape: str
+    pose: Pose = field(default_factory=Pose)
+    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 0.0
+    length: float = 0.0
+    file: Optional[str] = None
+    scale: float = 1.0
+    color: RGB = (0.7, 0.7, 0.7)
+    material: str = "matte"
+    name: str = ""
+    line: Optional[int] = _line()
+
+
+@dataclass
+class Model:
+    """A node's geometry: visuals inline, or ``ref`` to a model of the apartment's library."""
+    visuals: list[Visual] = field(default_factory=list)
+    ref: Optional[str] = None
+    line: Optional[int] = _line()
+
+
+@dataclass
+class ParkingPosition:
+    """A robot base pose (x, y, yaw used) relative to its large object."""
+    id: str
+    pose: Pose
+    line: Optional[int] = _line()
+
+
+@dataclass
+class Surface:
+    """A supporting surface (table top, shelf): centre of its top face and its extent."""
+    id: str
+    pose: Pose
+    size_x: float
+    size_y: float
+    relation: str = "on"
+    line: Optional[int] = _line()
+
+
+@dataclass
+class GraspPoint:
+    pose: Pose
+    line: Optional[int] = _line()
+
+
+@dataclass
+class DefaultPosition:
+    """A place where a small object is usually found."""
+    parent: str
+    relation: str
+    pose: Pose
+    line: Optional[int] = _line()
+
+
+@dataclass
+class SmallObject:
+    id: str
+    type: str
+    pose: Pose
+    relation: str = "on"
+    name: str = ""
+    description: str = ""
+    color: str = ""
+    graspable: bool = True
+    grasp_points: list[GraspPoint] = field(default_factory=list)
+    default_positions: list[DefaultPosition] = field(default_factory=list)
+    model: Model = field(default_factory=Model)
+    line: Optional[int] = _line()
+
+    kind = "SmallObject"
+
+    @property
+    def words(self) -> list[str]:
+        return [self.type, self.name, self.description, self.color, self.id]
+
+
+@dataclass
+class Joint:
+    """How a part moves relative to its parent: ``origin`` places the joint frame in the
+    parent frame; the part moves about/along ``axis`` (joint frame) by ``state`` (radians for
+    revolute, metres for prismatic), within [lower, upper]."""
+    type: str
+    origin: Pose = field(default_factory=Pose)
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    lower: float = 0.0
+    upper: float = 0.0
+    state: float = 0.0
+    line: Optional[int] = _line()
+
+
+@dataclass
+class Handle:
+    """A bar handle. Frame: origin at the bar's centre, +x out of the face the handle is
+    mounted on, +z along the bar. ``standoff`` is the distance from the face to the bar axis."""
+    id: str
+    pose: Pose
+    radius: float = 0.01
+    length: float = 0.2
+    standoff: float = 0.04
+    color: RGB = (0.75, 0.75, 0.78)
+    material: str = "shiny"
+    line: Optional[int] = _line()
+
+    kind = "Handle"
+
+
+@dataclass
+class KnobState:
+    name: str
+    angle: float
+    line: Optional[int] = _line()
+
+
+@dataclass
+class Knob:
+    """A rotary knob with discrete states. Frame: origin at the centre of its back face on the
+    panel, +z out of the panel (the rotation axis), +y up at angle 0. The marker on its front
+    face points along +y rotated by ``angle`` about +z."""
+    id: str
+    pose: Pose
+    states: list[KnobState]
+    state: str
+    angle: float = 0.0
+    radius: float = 0.02
+    depth: float = 0.025
+    color: RGB = (0.85, 0.85, 0.85)
+    marker_color: RGB = (0.05, 0.05, 0.05)
+    off_state: str = ""
+    line: Optional[int] = _line()
+
+    kind = "Knob"
+
+    def state_angle(self, name: str) -> float:
+        for s in self.states:
+            if s.name == name:
+                return s.angle
+        raise KeyError(name)
+
+    @property
+    def off(self) -> str:
+        """Name of the state that means off (``off_state``, else a state named "off", else the
+        first state)."""
+        if self.off_state:
+            return self.off_state
+        for s in self.states:
+            if s.name == "off":
+                return s.name
+        return self.states[0].name
+
+
+@dataclass
+class Part:
+    """A moving (or fixed) part of an articulated object: a door, a drawer, a panel."""
+    id: str
+    type: str
+    joint: Joint
+    name: str = ""
+    model: Model = field(default_factory=Model)
+    handles: list[Handle] = field(default_factory=list)
+    knobs: list[Knob] = field(default_factory=list)
+    parts: list["Part"] = field(default_factory=list)
+    line: Optional[int] = _line()
+
+    kind = "Part"
+
+
+@dataclass
+class LargeObject:
+    id: str
+    type: str
+    pose: Pose
+    name: str = ""
+    description: str = ""
+    model: Model = field(default_factory=Model)
+    parking: list[ParkingPosition] = field(default_factory=list)
+    default_parking: str = ""
+    graspable: bool = False
+    static: bool = True
+    affordances: list[str] = field(default_factory=list)
+    surfaces: list[Surface] = field(default_factory=list)
+    children: list[SmallObject] = field(default_factory=list)
+    line: Optional[int] = _line()
+
+    kind = "LargeObject"
+
+    @property
+    def words(self) -> list[str]:
+        return [self.type, self.name, self.description, self.id]
+
+
+@dataclass
+class LargeArticulatedObject(LargeObject):
+    parts: list[Part] = field(default_factory=list)
+    handles: list[Handle] = field(default_factory=list)
+    knobs: list[Knob] = field(default_factory=list)
+
+    kind = "LargeArticulatedObject"
+
+
+@dataclass
+class Switch:
+    id: str
+    type: str
+    pose: Pose
+    name: str = ""
+    on: bool = False
+    line: Optional[int] = _line()
+
+    kind = "Switch"
+
+
+@dataclass
+class Room:
+    id: str
+    name: str
+    pose: Pose = field(default_factory=Pose)
+    pointcloud: Optional[str] = None
+    bounds: Optional[tuple[float, float, float, float]] = None   # xmin, ymin, xmax, ymax
+    switches: list[Switch] = field(default_factory=list)
+    objects: list[Union[LargeObject, LargeArticulatedObject]] = field(default_factory=list)
+    line: Optional[int] = _line()
+
+    kind = "Room"
+
+    @property
+    def words(self) -> list[str]:
+        return [self.name, self.id]
+
+
+@dataclass
+class HistoryEntry:
+    """One recorded change: ``field`` of ``node`` went from ``old`` to ``new`` (text)."""
+    time: float
+    node: str
+    field: str
+    old: str
+    new: str
+    source: str = ""
+
+
+@dataclass
+class SearchStat:
+    """How often object ``object`` was looked for at ``place`` and found there (HOBBIT's
+    learned c_prob). Kept with the map."""
+    object: str
+    place: str
+    searched: int = 0
+    found: int = 0
+
+
+@dataclass
+class Apartment:
+    id: str
+    name: str = ""
+    rooms: list[Room] = field(default_factory=list)
+    library: dict[str, Model] = field(default_factory=dict)
+    history: list[HistoryEntry] = field(default_factory=list)
+    search_stats: list[SearchStat] = field(default_factory=list)
+    version: str = "1"
+    line: Optional[int] = _line()
+
+    kind = "Apartment"
+
+
+AnyNode = Union[Apartment, Room, Switch, LargeObject, LargeArticulatedObject, Part, Handle, Knob,
+                SmallObject]

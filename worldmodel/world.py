@@ -1,0 +1,462 @@
+"""The in-memory semantic map: queries, updates with history, change notifications.
+
+``World`` wraps an ``Apartment`` tree and keeps indexes (id -> node, id -> parent, word ->
+ids). Every update goes through a method here so that history is recorded, indexes stay
+right and subscribers hear about it. All methods are thread-safe.
+"""
+from __future__ import annotations
+
+import copy
+import re
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Optional
+
+import numpy as np
+
+from worldmodel.errors import UnknownNode, WorldError
+from worldmodel.nodes import (
+    Apartment, Handle, HistoryEntry, Knob, LargeArticulatedObject, LargeObject, ParkingPosition,
+    Part, Room, SearchStat, SmallObject, Surface, Switch,
+)
+from worldmodel.pose import Pose, rotation_about_axis, transform_points, translation_along_axis
+from worldmodel.validate import LIMIT_EPS, iter_nodes
+
+STOPWORDS = frozenset({"the", "a", "an", "my", "me", "of", "please", "some", "your", "our", "this",
+                       "that", "is", "where", "find", "bring", "get"})
+
+
+def tokens(text: str) -> list[str]:
+    """Lower-case word tokens with a plural 's' removed ("cups" -> "cup")."""
+    out = []
+    for t in re.findall(r"[a-z0-9]+", text.lower()):
+        if len(t) > 3 and t.endswith("s") and not t.endswith("ss"):
+            t = t[:-1]
+        out.append(t)
+    return out
+
+
+@dataclass(frozen=True)
+class MapChange:
+    """What subscribers receive for every update."""
+    time: float
+    node: str
+    field: str
+    old: Any
+    new: Any
+    source: str
+
+
+@dataclass(frozen=True)
+class Match:
+    node: Any
+    score: float
+
+
+class World:
+    def __init__(self, apartment: Apartment, path=None, base_dir=None, clock=None):
+        self.apartment = apartment
+        self.path = path
+        self.base_dir = base_dir
+        self.clock = clock
+        self.lock = threading.RLock()
+        self._subscribers: list[Callable[[MapChange], None]] = []
+        self._reindex()
+
+    # -- indexes ------------------------------------------------------------------------
+    def _reindex(self) -> None:
+        self._nodes: dict[str, Any] = {}
+        self._parent: dict[str, Any] = {}
+        self._words: dict[str, set[str]] = {}
+        for node, parent in iter_nodes(self.apartment):
+            self._add_index(node, parent)
+
+    def _add_index(self, node, parent) -> None:
+        self._nodes[node.id] = node
+        self._parent[node.id] = parent
+        for w in self._node_words(node):
+            self._words.setdefault(w, set()).add(node.id)
+
+    def _drop_words(self, node) -> None:
+        for w in self._node_words(node):
+            ids = self._words.get(w)
+            if ids is not None:
+                ids.discard(node.id)
+
+    @staticmethod
+    def _node_words(node) -> set[str]:
+        parts = getattr(node, "words", None)
+        if parts is None:
+            parts = [getattr(node, "type", ""), getattr(node, "name", ""), node.id]
+        ws: set[str] = set()
+        for p in parts:
+            ws.update(tokens(p or ""))
+            if p and " " not in p:
+                ws.add(p.lower())
+        return ws
+
+    # -- basic access -------------------------------------------------------------------
+    def now(self) -> float:
+        return self.clock.wall() if self.clock is not None else time.time()
+
+    def copy(self) -> "World":
+        """A deep copy (for a simulator's truth, or a scenario). Subscribers are not copied."""
+        with self.lock:
+            return World(copy.deepcopy(self.apartment), path=self.path, base_dir=self.base_dir,
+                         clock=self.clock)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, World) and self.apartment == other.apartment
+
+    def get(self, node_id: str):
+        try:
+            return self._nodes[node_id]
+        except KeyError:
+            raise UnknownNode("no such node in the map", node=node_id) from None
+
+    def __contains__(self, node_id: str) -> bool:
+        return node_id in self._nodes
+
+    def ids(self) -> list[str]:
+        return list(self._nodes)
+
+    def nodes(self, kind: Optional[str] = None) -> list:
+        return [n for n in self._nodes.values() if kind is None or n.kind == kind]
+
+    @property
+    def rooms(self) -> list[Room]:
+        return self.apartment.rooms
+
+    def large_objects(self) -> list[LargeObject]:
+        return [n for n in self._nodes.values() if isinstance(n, LargeObject)]
+
+    def small_objects(self) -> list[SmallObject]:
+        return [n for n in self._nodes.values() if isinstance(n, SmallObject)]
+
+    def knobs(self, node_id: Optional[str] = None) -> list[Knob]:
+        if node_id is None:
+            return self.nodes("Knob")
+        return [n for n in self.descendants(node_id) if isinstance(n, Knob)]
+
+    def parent(self, node_id: str):
+        self.get(node_id)
+        p = self._parent[node_id]
+        return None if isinstance(p, Apartment) else p
+
+    def chain(self, node_id: str) -> list:
+        """The node and its ancestors up to (not including) the apartment."""
+        out = [self.get(node_id)]
+        while True:
+            p = self._parent[out[-1].id]
+            if isinstance(p, Apartment) or p is None:
+                return out
+            out.append(p)
+
+    def room_of(self, node_id: str) -> Room:
+        for n in self.chain(node_id):
+            if isinstance(n, Room):
+                return n
+        raise UnknownNode("node is in no room", node=node_id)  # pragma: no cover
+
+    def large_object_of(self, node_id: str) -> LargeObject:
+        """The large object a node belongs to (itself if it is one)."""
+        for n in self.chain(node_id):
+            if isinstance(n, LargeObject):
+                return n
+        raise WorldError("node belongs to no large object", node=node_id)
+
+    def descendants(self, node_id: str) -> list:
+        root = self.get(node_id)
+        out = []
+        for n, p in iter_nodes(self.apartment):
+            if p is not None and not isinstance(p, Apartment):
+                if any(a is root for a in self.chain(n.id)[1:]):
+                    out.append(n)
+        return out
+
+    def children_of(self, node_id: str) -> list:
+        node = self.get(node_id)
+        return [n for n in self._nodes.values() if self._parent.get(n.id) is node]
+
+    # -- queries ------------------------------------------------------------------------
+    def find(self, words: str, kinds: Optional[Iterable[str]] = None) -> list[Match]:
+        """Nodes whose type, name, description, colour or id contain every word of ``words``.
+
+        "blue cup" matches a cup described as blue. Stop words ("the", "my") are ignored.
+        Best matches first: small objects before large ones, then fewer extra words.
+        """
+        toks = [t for t in tokens(words) if t not in STOPWORDS]
+        if not toks:
+            return []
+        with self.lock:
+            sets = [self._words.get(t, set()) for t in toks]
+            hit = set.intersection(*sets) if sets else set()
+            kinds = set(kinds) if kinds else None
+            out = []
+            for nid in hit:
+                node = self._nodes[nid]
+                if kinds and node.kind not in kinds:
+                    continue
+                extra = len(self._node_words(node)) - len(toks)
+                score = len(toks) - 0.01 * extra + (0.5 if isinstance(node, SmallObject) else 0)
+                out.append(Match(node, score))
+        out.sort(key=lambda m: (-m.score, m.node.id))
+        return out
+
+    def parking_positions(self, node_id: str) -> list[tuple[ParkingPosition, Pose]]:
+        """(parking position, world base pose x/y/yaw) for the large object a node belongs
+        to, the default first."""
+        obj = self.large_object_of(node_id)
+        T = self.T_world(obj.id)
+        out = []
+        for p in obj.parking:
+            Tw = T @ p.pose.matrix()
+            yaw = float(np.arctan2(Tw[1, 0], Tw[0, 0]))
+            out.append((p, Pose.planar(float(Tw[0, 3]), float(Tw[1, 3]), yaw)))
+        out.sort(key=lambda item: item[0].id != obj.default_parking)
+        return out
+
+    def parking_pose(self, object_id: str, parking_id: str) -> Pose:
+        for p, pose in self.parking_positions(object_id):
+            if p.id == parking_id:
+                return pose
+        raise UnknownNode(f"no parking position {parking_id!r}", node=object_id)
+
+    def local_T(self, node) -> np.ndarray:
+        """``T_parent_node`` including joint motion for parts."""
+        if isinstance(node, Part):
+            j = node.joint
+            T = j.origin.matrix()
+            if j.type == "revolute":
+                T = T @ rotation_about_axis(j.axis, j.state)
+            elif j.type == "prismatic":
+                T = T @ translation_along_axis(j.axis, j.state)
+            return T
+        if isinstance(node, Knob):
+            return node.pose.matrix() @ rotation_about_axis((0, 0, 1), node.angle)
+        return node.pose.matrix()
+
+    def T_world(self, node_id: str) -> np.ndarray:
+        """``T_world_node``: maps points in the node's frame to the world frame, through
+        the parent chain including joint states (a door at 30 degrees moves its handle)."""
+        with self.lock:
+            T = np.eye(4)
+            for n in reversed(self.chain(node_id)):
+                T = T @ self.local_T(n)
+            return T
+
+    def world_pose(self, node_id: str) -> Pose:
+        return Pose.from_matrix(self.T_world(node_id))
+
+    def landmarks(self) -> list[LargeObject]:
+        """Large objects that do not move (static), usable for localisation."""
+        return [o for o in self.large_objects() if o.static]
+
+    def bounds_world(self, node_id: str) -> np.ndarray:
+        """(2, 3) axis-aligned world bounds [min, max] of a node's geometry (with children)."""
+        from worldmodel.geometry import node_mesh
+        mesh = node_mesh(self, node_id)
+        pts = np.asarray(mesh.vertices)
+        if len(pts) == 0:
+            p = self.T_world(node_id)[:3, 3]
+            return np.stack([p, p])
+        return np.stack([pts.min(0), pts.max(0)])
+
+    def in_frustum(self, T_world_camera: np.ndarray, intrinsics, max_range: float = 4.0,
+                   kinds: Iterable[str] = ("LargeObject", "LargeArticulatedObject", "SmallObject"),
+                   min_visible: float = 0.0) -> list[str]:
+        """Ids of nodes whose world bounds fall (partly) in the camera frustum.
+
+        ``intrinsics`` has fx, fy, cx, cy, width, height (pixels); the camera frame is
+        x right, y down, z forward (OpenCV). A node counts when any corner of its bounds, or
+        its centre, projects inside the image in front of the camera within ``max_range``.
+        """
+        T_camera_world = np.linalg.inv(T_world_camera)
+        out = []
+        for node in self.nodes():
+            if node.kind not in kinds:
+                continue
+            b = self.bounds_world(node.id)
+            corners = np.array([[x, y, z] for x in b[:, 0] for y in b[:, 1] for z in b[:, 2]]
+                               + [b.mean(0)])
+            pc = transform_points(T_camera_world, corners)
+            z = pc[:, 2]
+            ok = (z > 0.05) & (z < max_range)
+            if not ok.any():
+                continue
+            u = intrinsics.fx * pc[ok, 0] / z[ok] + intrinsics.cx
+            v = intrinsics.fy * pc[ok, 1] / z[ok] + intrinsics.cy
+            inside = (u >= 0) & (u < intrinsics.width) & (v >= 0) & (v < intrinsics.height)
+            if inside.mean() > min_visible if min_visible > 0 else inside.any():
+                out.append(node.id)
+        return out
+
+    def history(self, node_id: Optional[str] = None) -> list[HistoryEntry]:
+        with self.lock:
+            return [h for h in self.apartment.history if node_id is None or h.node == node_id]
+
+    def describe_location(self, node_id: str) -> str:
+        """Words for where a small object is: "on the kitchen table"."""
+        node = self.get(node_id)
+        parent = self.parent(node_id)
+        if isinstance(node, SmallObject) and parent is not None:
+            pname = parent.name or parent.type
+            return f"{node.relation} the {pname}"
+        room = self.room_of(node_id)
+        return f"in the {room.name}"
+
+    def label(self, node_id: str) -> str:
+        """A short name people use: "blue cup", "kitchen table"."""
+        n = self.get(node_id)
+        if getattr(n, "name", ""):
+            return n.name
+        if isinstance(n, SmallObject) and n.color:
+            return f"{n.color} {n.type}"
+        return getattr(n, "type", n.id)
+
+    # -- updates ------------------------------------------------------------------------
+    def subscribe(self, callback: Callable[[MapChange], None]) -> Callable[[], None]:
+        """Call ``callback(MapChange)`` after every update; returns an unsubscribe function."""
+        with self.lock:
+            self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with self.lock:
+                if callback in self._subscribers:
+                    self._subscribers.remove(callback)
+        return unsubscribe
+
+    def _record(self, node_id: str, field: str, old: Any, new: Any, source: str) -> MapChange:
+        t = self.now()
+        self.apartment.history.append(HistoryEntry(t, node_id, field, _text(old), _text(new), source))
+        return MapChange(t, node_id, field, old, new, source)
+
+    def _notify(self, changes: list[MapChange]) -> None:
+        for ch in changes:
+            for cb in list(self._subscribers):
+                cb(ch)
+
+    def move_object(self, object_id: str, new_parent: str, pose: Pose, relation: str = "on",
+                    source: str = "") -> None:
+        """Move a small object to ``new_parent`` (a large object) at ``pose`` (in the new
+        parent's frame)."""
+        if relation not in ("on", "in", "under"):
+            raise WorldError(f"relation must be on, in or under, not {relation!r}", node=object_id)
+        with self.lock:
+            obj = self.get(object_id)
+            if not isinstance(obj, SmallObject):
+                raise WorldError("only small objects can be moved", node=object_id)
+            target = self.get(new_parent)
+            if not isinstance(target, LargeObject):
+                raise WorldError(f"new parent {new_parent!r} is not a large object", node=object_id)
+            old_parent = self._parent[object_id]
+            changes = []
+            if old_parent is not target:
+                old_parent.children.remove(obj)
+                target.children.append(obj)
+                self._parent[object_id] = target
+                changes.append(self._record(object_id, "parent", old_parent.id, target.id, source))
+            if obj.relation != relation:
+                changes.append(self._record(object_id, "relation", obj.relation, relation, source))
+                obj.relation = relation
+            changes.append(self._record(object_id, "pose", obj.pose, pose, source))
+            obj.pose = pose
+        self._notify(changes)
+
+    def set_joint_state(self, part_id: str, value: float, source: str = "") -> None:
+        """Set a part's joint state (radians for revolute, metres for prismatic)."""
+        with self.lock:
+            part = self.get(part_id)
+            if not isinstance(part, Part):
+                raise WorldError("not a part with a joint", node=part_id)
+            j = part.joint
+            if j.type == "fixed":
+                raise WorldError("a fixed joint has no state", node=part_id)
+            if not (j.lower - LIMIT_EPS <= value <= j.upper + LIMIT_EPS):
+                raise WorldError(f"joint state {value} outside limits [{j.lower}, {j.upper}]",
+                                 node=part_id)
+            ch = self._record(part_id, "joint.state", j.state, float(value), source)
+            j.state = float(value)
+        self._notify([ch])
+
+    def set_knob_state(self, knob_id: str, state: str, angle: Optional[float] = None,
+                       source: str = "") -> None:
+        """Set a knob's discrete state (and its angle; default: the state's angle)."""
+        with self.lock:
+            knob = self.get(knob_id)
+            if not isinstance(knob, Knob):
+                raise WorldError("not a knob", node=knob_id)
+            try:
+                a = knob.state_angle(state) if angle is None else float(angle)
+            except KeyError:
+                raise WorldError(f"unknown knob state {state!r}; states: "
+                                 f"{[s.name for s in knob.states]}", node=knob_id) from None
+            changes = []
+            if knob.state != state:
+                changes.append(self._record(knob_id, "knob.state", knob.state, state, source))
+            if knob.angle != a:
+                changes.append(self._record(knob_id, "knob.angle", knob.angle, a, source))
+            knob.state, knob.angle = state, a
+        self._notify(changes)
+
+    def set_pose(self, node_id: str, pose: Pose, source: str = "") -> None:
+        """Set any node's pose relative to its parent (e.g. a registered large object)."""
+        with self.lock:
+            node = self.get(node_id)
+            if not hasattr(node, "pose") or isinstance(node, Part):
+                raise WorldError("node has no pose of its own", node=node_id)
+            ch = self._record(node_id, "pose", node.pose, pose, source)
+            node.pose = pose
+        self._notify([ch])
+
+    def add_small_object(self, obj: SmallObject, parent_id: str, source: str = "") -> None:
+        with self.lock:
+            if obj.id in self._nodes:
+                raise WorldError("id already used", node=obj.id)
+            parent = self.get(parent_id)
+            if not isinstance(parent, LargeObject):
+                raise WorldError(f"parent {parent_id!r} is not a large object", node=obj.id)
+            parent.children.append(obj)
+            self._add_index(obj, parent)
+            ch = self._record(obj.id, "added", "", parent_id, source)
+        self._notify([ch])
+
+    def remove_small_object(self, object_id: str, source: str = "") -> None:
+        with self.lock:
+            obj = self.get(object_id)
+            if not isinstance(obj, SmallObject):
+                raise WorldError("only small objects can be removed", node=object_id)
+            parent = self._parent[object_id]
+            parent.children.remove(obj)
+            self._drop_words(obj)
+            del self._nodes[object_id]
+            del self._parent[object_id]
+            ch = self._record(object_id, "removed", parent.id, "", source)
+        self._notify([ch])
+
+    def record_search(self, object_key: str, place: str, found: bool, source: str = "") -> None:
+        """Count a search for ``object_key`` (an object id or type) at ``place`` (a large
+        object id); the learned probability is found / searched."""
+        with self.lock:
+            stat = next((s for s in self.apartment.search_stats
+                         if s.object == object_key and s.place == place), None)
+            if stat is None:
+                stat = SearchStat(object_key, place)
+                self.apartment.search_stats.append(stat)
+            stat.searched += 1
+            stat.found += int(found)
+            ch = MapChange(self.now(), place, "search", object_key, bool(found), source)
+        self._notify([ch])
+
+    def search_stats(self, object_key: str) -> dict[str, SearchStat]:
+        with self.lock:
+            return {s.place: s for s in self.apartment.search_stats if s.object == object_key}
+
+
+def _text(v: Any) -> str:
+    if isinstance(v, Pose):
+        return " ".join(repr(round(x, 6)) for x in v.as_tuple())
+    if isinstance(v, float):
+        return repr(v)
+    return "" if v is None else str(v)
