@@ -54,7 +54,8 @@ def front_parking(prefix: str, depth: float, dist: float = 0.75, spread: float =
             ParkingPosition(f"{prefix}_right", Pose(depth / 2 + dist, -spread, 0, 0, 0, math.pi))]
 
 
-def table(oid, name, x, y, sx, sy, h, yaw=0.0, color=WOOD, children=()):
+def table(oid, name, x, y, sx, sy, h, yaw=0.0, color=WOOD, children=(),
+          sides=("south", "north", "west")):
     legs = [box(0.05, 0.05, h - 0.03, sxs * (sx / 2 - 0.05), sys_ * (sy / 2 - 0.05), (h - 0.03) / 2,
                 color=color) for sxs in (-1, 1) for sys_ in (-1, 1)]
     top = box(sx, sy, 0.03, 0, 0, h - 0.015, color=color, name="top")
@@ -62,6 +63,7 @@ def table(oid, name, x, y, sx, sy, h, yaw=0.0, color=WOOD, children=()):
     parking = [ParkingPosition(f"{oid}_south", Pose(0, -(sy / 2 + d), 0, 0, 0, math.pi / 2)),
                ParkingPosition(f"{oid}_north", Pose(0, sy / 2 + d, 0, 0, 0, -math.pi / 2)),
                ParkingPosition(f"{oid}_west", Pose(-(sx / 2 + d), 0, 0, 0, 0, 0.0))]
+    parking = [p for p in parking if p.id.rsplit("_", 1)[1] in sides]
     return LargeObject(id=oid, type="table", name=name, pose=Pose(x, y, 0, 0, 0, yaw),
                        model=Model([top, *legs]), parking=parking, default_parking=parking[0].id,
                        affordances=["supporting_surface"],
@@ -236,23 +238,23 @@ def build() -> Apartment:
                         [box(0.08, 0.08, 0.12, 0, 0, 0.06, color=(0.95, 0.8, 0.2), name="body")],
                         0.35, -0.2, top, "kitchen_table", description="sugar jar"),
                   cup("blue_cup", "blue", (0.1, 0.2, 0.8), -0.1, -0.2, top, "kitchen_table")])
-    side_table = table("side_table", "side table", 1.0, 1.0, 0.8, 0.6, 0.72, color=(0.45, 0.3, 0.2))
+    side_table = table("side_table", "side table", 1.4, 1.3, 0.8, 0.6, 0.72, color=(0.45, 0.3, 0.2))
     chair = LargeObject(
-        id="chair", type="chair", name="kitchen chair", pose=Pose(3.0, 1.45, 0, 0, 0, math.pi / 2),
+        id="chair", type="chair", name="kitchen chair", pose=Pose(3.9, 2.2, 0, 0, 0, math.pi),
         static=False,
         model=Model([box(0.42, 0.42, 0.03, 0, 0, 0.45, color=WOOD),
                      box(0.03, 0.42, 0.45, -0.2, 0, 0.7, color=WOOD),
                      *[box(0.03, 0.03, 0.44, sx * 0.18, sy * 0.18, 0.22, color=WOOD)
                        for sx in (-1, 1) for sy in (-1, 1)]]),
-        parking=[ParkingPosition("chair_front", Pose(0.9, 0, 0, 0, 0, math.pi))],
-        default_parking="chair_front", affordances=["seat"])
+        parking=[ParkingPosition("chair_back", Pose(-0.75, 0, 0, 0, 0, 0.0))],
+        default_parking="chair_back", affordances=["seat"])
     kitchen = Room("kitchen", "kitchen", bounds=(0.0, 0.0, 6.0, 5.0),
                    switches=[Switch("kitchen_light", "rotational", Pose(0.05, 2.5, 1.2, 0, 0, 0),
                                     name="kitchen light")],
                    objects=[kitchen_table, side_table, chair, cupboard(), drawer_unit(), fridge(),
                             oven()])
-    counter = table("bathroom_counter", "bathroom counter", 7.0, 0.45, 0.9, 0.5, 0.85,
-                    color=(0.85, 0.85, 0.85))
+    counter = table("bathroom_counter", "bathroom counter", 7.2, 0.3, 0.9, 0.5, 0.85,
+                    color=(0.85, 0.85, 0.85), sides=("north",))
     bathroom = Room("bathroom", "bathroom", bounds=(6.2, 0.0, 9.0, 3.0),
                     switches=[Switch("bathroom_light", "prismatic", Pose(6.25, 2.5, 1.2),
                                      name="bathroom light")],

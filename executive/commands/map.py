@@ -1,0 +1,47 @@
+"""`hearth map show|find`: look at a world file."""
+from __future__ import annotations
+
+import json
+
+from worldmodel.describe import find_report, hierarchy_lines
+from worldmodel.io import load_world
+
+
+def register(sub) -> None:
+    p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words",
+                       description="Inspect the hierarchical semantic map of a world file.")
+    msub = p.add_subparsers(dest="map_command", metavar="ACTION", required=True)
+    show = msub.add_parser("show", help="print the hierarchy with states")
+    show.add_argument("world", metavar="WORLD")
+    show.add_argument("--node", help="print only this node and what it holds")
+    show.set_defaults(func=_show)
+    find = msub.add_parser("find", help="find a node by words, e.g. 'blue cup'")
+    find.add_argument("world", metavar="WORLD")
+    find.add_argument("words", nargs="+", metavar="WORD")
+    find.add_argument("--json", action="store_true", help="print JSON")
+    find.set_defaults(func=_find)
+
+
+def _show(args) -> int:
+    world = load_world(args.world)
+    print("\n".join(hierarchy_lines(world, args.node)))
+    return 0
+
+
+def _find(args) -> int:
+    world = load_world(args.world)
+    report = find_report(world, " ".join(args.words))
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0 if report["match"] else 1
+    if not report["match"]:
+        print(f"nothing in the map matches {report['query']!r}")
+        return 1
+    m = report["match"]
+    print(f"{m['label']} ({m['id']}) is {report['location']} in the {report['room']['name']}")
+    print(f"  chain: {' -> '.join(report['chain'])}")
+    for p in report["parking_positions"]:
+        print(f"  parking {p['id']}: x={p['x']:.2f} y={p['y']:.2f} yaw={p['yaw']:.2f}")
+    if report["candidates"]:
+        print("  also matching: " + ", ".join(c["id"] for c in report["candidates"]))
+    return 0
