@@ -7,6 +7,7 @@ any expansion. Problems are reported as ``WorldError`` with file and line.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from functools import lru_cache
 from pathlib import Path
@@ -42,11 +43,16 @@ def _schema() -> etree.XMLSchema:
 # reading
 
 def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
+    # Refuse DTDs before libxml2 sees them: no entity is ever declared, let alone expanded.
+    if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
+        raise WorldError("DOCTYPE declarations (DTDs and entities) are not allowed",
+                         file=name, line=_doctype_line(data))
     try:
         tree = etree.ElementTree(etree.fromstring(data, _parser()))
     except etree.XMLSyntaxError as err:
         line = err.lineno if getattr(err, "lineno", None) else 0
         msg = err.msg if hasattr(err, "msg") else str(err)
+        msg = re.sub(r", line \d+, column \d+$", "", msg)
         raise WorldError(f"XML syntax error: {msg}", file=name, line=line) from None
     docinfo = tree.docinfo
     if docinfo.doctype or docinfo.internalDTD is not None or docinfo.externalDTD is not None:
@@ -58,6 +64,8 @@ def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
 
 def _doctype_line(data: bytes) -> int:
     idx = data.find(b"<!DOCTYPE")
+    if idx < 0:
+        idx = data.find(b"<!ENTITY")
     return data.count(b"\n", 0, idx) + 1 if idx >= 0 else 1
 
 

@@ -69,13 +69,16 @@ class World:
         self._nodes: dict[str, Any] = {}
         self._parent: dict[str, Any] = {}
         self._words: dict[str, set[str]] = {}
+        self._nwords: dict[str, int] = {}
         for node, parent in iter_nodes(self.apartment):
             self._add_index(node, parent)
 
     def _add_index(self, node, parent) -> None:
         self._nodes[node.id] = node
         self._parent[node.id] = parent
-        for w in self._node_words(node):
+        words = self._node_words(node)
+        self._nwords[node.id] = len(words)
+        for w in words:
             self._words.setdefault(w, set()).add(node.id)
 
     def _drop_words(self, node) -> None:
@@ -190,15 +193,15 @@ class World:
         if not toks:
             return []
         with self.lock:
-            sets = [self._words.get(t, set()) for t in toks]
-            hit = set.intersection(*sets) if sets else set()
+            sets = sorted((self._words.get(t, set()) for t in toks), key=len)
+            hit = sets[0].intersection(*sets[1:]) if sets else set()
             kinds = set(kinds) if kinds else None
             out = []
             for nid in hit:
                 node = self._nodes[nid]
                 if kinds and node.kind not in kinds:
                     continue
-                extra = len(self._node_words(node)) - len(toks)
+                extra = self._nwords[nid] - len(toks)
                 score = len(toks) - 0.01 * extra + (0.5 if isinstance(node, SmallObject) else 0)
                 out.append(Match(node, score))
         out.sort(key=lambda m: (-m.score, m.node.id))
