@@ -1,0 +1,45 @@
+"""Driving the robot base."""
+from __future__ import annotations
+
+from skills.actions import RobotActionSkill
+from skills.base import Port
+from skills.values import as_pose
+
+
+class NavigateTo(RobotActionSkill):
+    """Drive to a base pose, or to a map node's parking position (its default, or ``parking``).
+
+    ``target``: a node id, a pose (x, y, yaw) or a search place (a mapping with x, y, yaw).
+    """
+
+    NAME = "NavigateTo"
+    AUTONOMY = 1
+    DESCRIPTION = "drive the base to a pose or to a node's parking position"
+    INPUTS = (Port("target", "any", description="node id, pose, or search place"),
+              Port("parking", "string", required=False, default=None,
+                   description="parking position id (default: the node's default)"))
+    OUTPUTS = (Port("pose", "pose", required=False, description="the goal pose (world, x/y/yaw)"),)
+
+    def start(self):
+        target = self.input("target")
+        parking = self.input("parking")
+        if isinstance(target, str):
+            if parking:
+                goal = self.world.parking_pose(target, parking)
+            else:
+                goal = self.world.parking_positions(target)[0][1]
+            self._what = f"to {target}" + (f" ({parking})" if parking else "")
+        else:
+            if isinstance(target, dict) and target.get("parking") and target.get("place"):
+                self._what = f"to {target['place']} ({target['parking']})"
+            else:
+                self._what = "to pose"
+            goal = as_pose(target)
+        self._goal = goal
+        return self.robot.navigate_to(goal)
+
+    def describe(self) -> str:
+        return f"navigating {getattr(self, '_what', '')}".strip()
+
+    def succeeded(self, action) -> None:
+        self.set_output("pose", self._goal)

@@ -1,0 +1,134 @@
+"""Where to look first: ordering search places by the HOBBIT cost.
+
+    c(x, y) = c_bat(y) - k1 * c_prob(x, y) + k2 * c_pen(y)
+
+for object x and place y (a large object that can hold small objects, seen from one of its
+parking positions):
+
+- ``c_bat(y)``: the path length in metres from the robot to the place's nearest parking
+  position (straight-line distance times a detour factor, plus a fixed cost per room change);
+  the robot's battery and time go with it.
+- ``c_prob(x, y)``: the probability of finding x at y, learned from past searches kept with the
+  map (``searchStats``): a Beta posterior ``(found + s * p0) / (searched + s)`` whose prior
+  ``p0`` comes from the map (the believed parent, the object's default positions, other
+  surfaces) with strength ``s``.
+- ``c_pen(y)``: 1 when the place is in the room the user is in (searching there disturbs the
+  user), else 0.
+
+The weights are documented in docs/missions-end-to-end.md: k1 = 20 m (a place 20 m further away
+is worth searching first when it is one whole unit of probability likelier), k2 = 1.5 m.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+from worldmodel.nodes import LargeObject, SmallObject
+from worldmodel.pose import Pose
+
+
+@dataclass(frozen=True)
+class SearchWeights:
+    k1: float = 20.0          # metres per unit of probability
+    k2: float = 1.5           # metres of penalty for the user's room
+    detour: float = 1.3       # path length / straight-line distance
+    room_change_m: float = 2.0
+    prior_parent: float = 0.6
+    prior_default: float = 0.35
+    prior_surface: float = 0.08
+    prior_strength: float = 2.0
+
+
+@dataclass(frozen=True)
+class SearchPlace:
+    """One place to look: a large object and the parking position to look from."""
+    place: str
+    parking: str
+    pose: Pose
+    cost: float
+    probability: float
+    path_m: float
+    in_user_room: bool
+    relation: str = "on"
+
+    def as_dict(self) -> dict:
+        return {"place": self.place, "parking": self.parking, "x": self.pose.x, "y": self.pose.y,
+                "yaw": self.pose.yaw, "cost": round(self.cost, 4),
+                "probability": round(self.probability, 4), "path_m": round(self.path_m, 3),
+                "in_user_room": self.in_user_room, "relation": self.relation}
+
+
+def candidate_places(world) -> list[LargeObject]:
+    """Large objects that can hold small objects: those with surfaces or that hold some now."""
+    return [o for o in world.large_objects() if o.surfaces or o.children]
+
+
+def prior(world, obj: SmallObject, place: LargeObject, w: SearchWeights,
+          believed_parent: Optional[str]) -> float:
+    if place.id == believed_parent:
+        return w.prior_parent
+    if any(d.parent == place.id for d in obj.default_positions):
+        return w.prior_default
+    return w.prior_surface
+
+
+def probability(world, object_id: str, place_id: str, w: SearchWeights = SearchWeights(),
+                believed_parent: Optional[str] = None) -> float:
+    obj = world.get(object_id)
+    place = world.get(place_id)
+    p0 = prior(world, obj, place, w, believed_parent)
+    stat = world.search_stats(object_id).get(place_id)
+    n, k = (stat.searched, stat.found) if stat else (0, 0)
+    return (k + w.prior_strength * p0) / (n + w.prior_strength)
+
+
+def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[str] = None,
+                 weights: SearchWeights = SearchWeights(), exclude: tuple[str, ...] = (),
+                 believed_parent: Optional[str] = None, learned: bool = True) -> list[SearchPlace]:
+    """Places to search for ``object_id``, cheapest first.
+
+    ``believed_parent`` defaults to the object's parent in the map. With ``learned=False`` the
+    statistics are ignored (the fixed order the benchmark compares against).
+    """
+    obj = world.get(object_id)
+    if believed_parent is None:
+        p = world.parent(object_id)
+        believed_parent = p.id if p is not None else None
+    robot_room = _room_at(world, robot_pose)
+    out = []
+    for place in candidate_places(world):
+        if place.id in exclude:
+            continue
+        best = None
+        for pk, pose in world.parking_positions(place.id):
+            d = math.hypot(pose.x - robot_pose.x, pose.y - robot_pose.y) * weights.detour
+            if best is None or d < best[2]:
+                best = (pk, pose, d)
+        if best is None:
+            continue
+        room = world.room_of(place.id).id
+        path = best[2] + (weights.room_change_m if robot_room and room != robot_room else 0.0)
+        if learned:
+            prob = probability(world, object_id, place.id, weights, believed_parent)
+        else:
+            prob = prior(world, obj, place, weights, believed_parent)
+        pen = 1.0 if user_room is not None and room == user_room else 0.0
+        cost = path - weights.k1 * prob + weights.k2 * pen
+        relation = place.surfaces[0].relation if place.surfaces else "on"
+        out.append(SearchPlace(place.id, best[0].id, best[1], cost, prob, path, pen > 0, relation))
+    out.sort(key=lambda s: (s.cost, s.place))
+    return out
+
+
+def _room_at(world, pose: Pose) -> Optional[str]:
+    for room in world.rooms:
+        if room.bounds is None:
+            continue
+        x0, y0, x1, y1 = room.bounds
+        T = room.pose.matrix()
+        # Rooms are axis-aligned in the demo; bounds are in the room frame.
+        px, py = pose.x - T[0, 3], pose.y - T[1, 3]
+        if x0 <= px <= x1 and y0 <= py <= y1:
+            return room.id
+    return None
