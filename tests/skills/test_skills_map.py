@@ -1,0 +1,163 @@
+"""Map skills and robot-action skills ticked on their own, with a scripted robot."""
+from __future__ import annotations
+
+import math
+
+import py_trees
+import pytest
+
+from skills.base import Bindings, Key, Literal
+from skills.manipulation import OpenArticulated
+from skills.map import ClosedParts, DescribeLocation, PlanSearch, RecordSearch, ResolveObject, UpdateObjectLocation
+from skills.navigation import NavigateTo
+from worldmodel import Pose
+
+S = py_trees.common.Status
+
+
+class ScriptedAction:
+    def __init__(self, ticks=2, ok=True, reason=""):
+        self.ticks, self.ok, self.reason, self.cancelled = ticks, ok, reason, False
+        self.progress = 0.0
+
+    def status(self):
+        if self.cancelled:
+            return "cancelled"
+        if self.ticks > 0:
+            self.ticks -= 1
+            return "running"
+        return "succeeded" if self.ok else "failed"
+
+    def cancel(self):
+        self.cancelled = True
+
+
+class FakeRobot:
+    def __init__(self):
+        self.calls = []
+        self.next = ScriptedAction()
+
+    def base_pose(self):
+        return Pose.planar(1.0, 3.0, 0.0)
+
+    def navigate_to(self, pose):
+        self.calls.append(("navigate_to", pose))
+        return self.next
+
+    def open_articulated(self, part, handle, target):
+        self.calls.append(("open", part, handle, target))
+        return self.next
+
+
+@pytest.fixture(autouse=True)
+def clean_blackboard():
+    py_trees.blackboard.Blackboard.clear()
+    yield
+    py_trees.blackboard.Blackboard.clear()
+
+
+def make(cls, world, robot=None, inputs=None, outputs=None):
+    b = Bindings({k: (v if isinstance(v, Key) else Literal(v)) for k, v in (inputs or {}).items()},
+                 {k: Key(v) for k, v in (outputs or {}).items()})
+    skill = cls(bindings=b)
+    skill.setup(world=world, robot=robot or FakeRobot())
+    return skill
+
+
+def tick(skill, n=1):
+    for _ in range(n):
+        skill.tick_once()
+    return skill.status
+
+
+def bb(key):
+    return py_trees.blackboard.Blackboard.get(key)
+
+
+def test_resolve_blue_cup_gives_id_parent_and_room(demo_world):
+    s = make(ResolveObject, demo_world, inputs={"object": "the blue cup"},
+             outputs={"object_id": "/oid", "parent_id": "/parent", "room": "/room"})
+    assert tick(s) == S.SUCCESS
+    assert (bb("/oid"), bb("/parent"), bb("/room")) == ("blue_cup", "kitchen_table", "kitchen")
+
+
+def test_resolve_ambiguous_cup_asks_which_one(demo_world):
+    s = make(ResolveObject, demo_world, inputs={"object": "cup"}, outputs={"object_id": "/oid"})
+    assert tick(s) == S.FAILURE
+    assert "which cup" in s.feedback_message
+    assert "red cup" in s.feedback_message and "blue cup" in s.feedback_message
+
+
+def test_resolve_unknown_object_says_so(demo_world):
+    s = make(ResolveObject, demo_world, inputs={"object": "purple elephant"})
+    assert tick(s) == S.FAILURE and "don't know" in s.feedback_message
+
+
+def test_plan_search_starts_at_the_believed_place_and_learns(demo_world):
+    s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box"}, outputs={"places": "/places"})
+    assert tick(s) == S.SUCCESS
+    assert bb("/places")[0]["place"] == "bathroom_cabinet"
+    # The pill box keeps turning up on the bathroom counter: the order learns it.
+    for _ in range(6):
+        demo_world.record_search("pill_box", "bathroom_cabinet", False)
+        demo_world.record_search("pill_box", "bathroom_counter", True)
+    s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box"}, outputs={"places": "/places"})
+    tick(s)
+    assert bb("/places")[0]["place"] == "bathroom_counter"
+    fixed = make(PlanSearch, demo_world, inputs={"object_id": "pill_box", "learned": False},
+                 outputs={"places": "/fixed"})
+    tick(fixed)
+    assert bb("/fixed")[0]["place"] == "bathroom_cabinet"
+
+
+def test_record_search_and_update_location_write_the_map(demo_world):
+    tick(make(RecordSearch, demo_world, inputs={"object_id": "blue_cup",
+                                                "place": {"place": "side_table"}, "found": True}))
+    assert demo_world.search_stats("blue_cup")["side_table"].found == 1
+    s = make(UpdateObjectLocation, demo_world,
+             inputs={"object_id": "blue_cup", "place": {"place": "side_table", "relation": "on"},
+                     "pose": {"x": 1.5, "y": 1.3, "z": 0.72, "yaw": 0.3}},
+             outputs={"location": "/where"})
+    assert tick(s) == S.SUCCESS
+    assert bb("/where") == "on the side table"
+    assert demo_world.world_pose("blue_cup").x == pytest.approx(1.5)
+    assert demo_world.history("blue_cup")[0].source == "UpdateObjectLocation"
+    d = make(DescribeLocation, demo_world, inputs={"object_id": "blue_cup"}, outputs={"text": "/t"})
+    tick(d)
+    assert bb("/t") == "the blue cup was on the side table in the kitchen"
+
+
+def test_closed_parts_lists_doors_of_a_closed_cupboard_only(demo_world):
+    s = make(ClosedParts, demo_world, inputs={"place": "cupboard"}, outputs={"parts": "/p"})
+    tick(s)
+    assert [p["part"] for p in bb("/p")] == ["cupboard_door_left", "cupboard_door_right"]
+    s = make(ClosedParts, demo_world, inputs={"place": "kitchen_table"}, outputs={"parts": "/p"})
+    tick(s)
+    assert bb("/p") == []
+
+
+def test_navigate_runs_until_the_action_ends_and_cancels_when_halted(demo_world):
+    robot = FakeRobot()
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven"}, outputs={"pose": "/goal"})
+    assert tick(s) == S.RUNNING
+    goal = robot.calls[0][1]
+    assert (round(goal.x, 3), round(goal.y, 3)) == (3.0, 3.78)
+    assert tick(s, 2) == S.SUCCESS and bb("/goal") == goal
+    robot.next = ScriptedAction(ticks=10)
+    s = make(NavigateTo, demo_world, robot, inputs={"target": {"x": 1, "y": 2, "yaw": 0}})
+    assert tick(s) == S.RUNNING
+    s.stop(S.INVALID)
+    assert robot.next.cancelled
+
+
+def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
+    robot = FakeRobot()
+    robot.next = ScriptedAction(ticks=0)
+    s = make(OpenArticulated, demo_world, robot,
+             inputs={"part": {"part": "cupboard_door_left", "handle": "cupboard_handle_left"}})
+    assert tick(s) == S.SUCCESS
+    assert demo_world.get("cupboard_door_left").joint.state == pytest.approx(math.radians(90))
+    robot.next = ScriptedAction(ticks=0, ok=False, reason="the door is locked")
+    s = make(OpenArticulated, demo_world, robot, inputs={"part": "fridge_door"})
+    assert tick(s) == S.FAILURE and "locked" in s.feedback_message
+    assert demo_world.get("fridge_door").joint.state == 0.0
