@@ -35,7 +35,8 @@ class Port:
     description: str = ""
 
     def __post_init__(self):
-        if self.type not in PORT_TYPES:
+        # A union such as "node_id|pose" accepts any of its alternatives.
+        if any(t.strip() not in PORT_TYPES for t in self.type.split("|")):
             raise ValueError(f"port {self.name}: unknown type {self.type!r}")
 
 
@@ -67,6 +68,12 @@ class Skill(py_trees.behaviour.Behaviour):
     #: objects near the user. The executive asks an operator when above the granted level.
     AUTONOMY: ClassVar[int] = 0
     DESCRIPTION: ClassVar[str] = ""
+    #: Seconds (clock time) the executive waits for ``is_halting()`` to turn False after
+    #: halting this skill, before it gives up on it and reports the cancel anyway.
+    HALT_TIMEOUT: ClassVar[float] = 5.0
+    #: Set by the executive: called as ``output_hook(skill, port, key, value)`` after each
+    #: ``set_output``, so outputs reach the event stream and the execution log.
+    output_hook = None
 
     def __init__(self, name: str | None = None, bindings: Bindings | None = None):
         super().__init__(name=name or self.NAME)
@@ -124,6 +131,15 @@ class Skill(py_trees.behaviour.Behaviour):
         b = self.bindings.outputs.get(name)
         if b is not None:
             self._bb.set(b.key, value)
+            if self.output_hook is not None:
+                self.output_hook(self, name, b.key, value)
+
+    def is_halting(self) -> bool:
+        """After ``terminate(INVALID)``: True while a robot action this skill started is still
+        stopping (e.g. the base is braking). The executive keeps polling, once per tick, and
+        reports a cancel only when every halted skill says False or ``HALT_TIMEOUT`` passes.
+        The default: stopping is immediate."""
+        return False
 
 
 def registry() -> dict[str, type[Skill]]:

@@ -1,0 +1,683 @@
+"""The Executive: runs missions one at a time, ticking a py_trees tree in a background thread.
+
+    ex = Executive(world, robot, clock=SimClock(), tick_hz=10)
+    h = ex.submit("missions/go_to_rest.yaml", presence="away")
+    h.subscribe(print)                   # Event objects, from the tick thread
+    ex.set_parameter("presence", "home") # a watch guard restarts what depends on it
+    h.wait(5.0); h.result                # MissionResult(outcome, reason, outputs, ...)
+
+Lifecycle (a ``transitions`` machine per mission): ``queued -> running -> succeeded |
+failed``, ``running -> halting -> cancelled | preempted``, ``queued -> cancelled``.
+``halting`` lasts while halted skills report ``is_halting()`` (bounded by their
+HALT_TIMEOUT); the mission is reported cancelled only after it.
+
+Concurrency: every decision is taken on the tick thread (or the caller of ``tick()`` when
+``background=False``) under one lock. ``cancel()``, ``submit()`` and ``set_parameter()``
+only record requests under that lock; the next step acts on them before ticking. A cancel
+is therefore never lost: on a queued mission it takes effect at once; during start-up
+(skill setup) or while halting it is recorded and honoured; after the end it returns False.
+
+Time: with a simulated clock (``clock.simulated``) each tick advances it by ``1/tick_hz``
+and the thread does not sleep, so runs are deterministic and fast; with a wall clock the
+thread sleeps to keep the rate.
+"""
+from __future__ import annotations
+
+import heapq
+import itertools
+import json
+import logging
+import os
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from py_trees import common
+from transitions import Machine
+
+from executive import nodes
+from executive.errors import MissionError
+from executive.missionfile import Mission, load_mission, plain
+from executive.tree import BuiltTree, SkillFactory, build_tree
+
+Status = common.Status
+log = logging.getLogger("hearth.executive")
+
+STATES = ["queued", "running", "halting", "succeeded", "failed", "cancelled", "preempted"]
+TERMINAL = ("succeeded", "failed", "cancelled", "preempted")
+LOG_FORMAT = 1
+_ns_counter = itertools.count(1)
+
+
+@dataclass
+class Event:
+    """One thing that happened in a run.
+
+    ``kind``: ``run`` (lifecycle; data ``state``, ``reason``), ``status`` (``status``,
+    ``previous``; ``halted`` when a node was stopped from above), ``feedback``
+    (``message``), ``write`` (``key``, ``value``, ``port``: a declared key written by
+    ``path``), ``param`` (``name``, ``value``), ``restart`` (a watch guard restarted,
+    ``changed``), ``map`` (``node``, ``field``, ``old``, ``new``, ``source``, ``map_time``),
+    ``halted`` (mission-level halting finished; ``waited``), ``tick`` (wall-clock runs only).
+    ``tick`` is the tick number (0-based), ``time`` the clock time in seconds.
+    """
+    kind: str
+    run: str
+    tick: int
+    time: float
+    path: str | None = None
+    data: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"e": self.kind, "run": self.run, "tick": self.tick, "t": round(self.time, 9)}
+        if self.path is not None:
+            out["path"] = self.path
+        out.update(self.data)
+        return out
+
+
+@dataclass
+class MissionResult:
+    """How a mission ended: ``outcome`` is succeeded, failed, cancelled or preempted;
+    ``reason`` says why in words; ``outputs`` are the mission's blackboard keys at the end;
+    ``ticks`` the number of ticks; ``duration`` clock seconds from start to end."""
+    outcome: str
+    reason: str
+    outputs: dict[str, Any]
+    ticks: int = 0
+    duration: float = 0.0
+    log_path: str | None = None
+
+
+class _Lifecycle:
+    """The transitions model of one mission (attribute ``state``)."""
+
+
+class MissionHandle:
+    """What ``submit`` returns: watch, wait for and cancel one mission. Thread-safe."""
+
+    def __init__(self, executive: "Executive", run_id: str, mission: Mission, priority: int,
+                 params: dict[str, Any]):
+        self._ex = executive
+        self.id = run_id
+        self.mission = mission
+        self.priority = priority
+        self.params = params
+        self.result: MissionResult | None = None
+        self.log_path: str | None = None
+        self._done = threading.Event()
+        self._subscribers: list[Callable[[Event], None]] = []
+        self._life = _Lifecycle()
+        self._machine = Machine(model=self._life, states=STATES, initial="queued",
+                                auto_transitions=False)
+        m = self._machine
+        m.add_transition("start", "queued", "running")
+        m.add_transition("succeed", "running", "succeeded")
+        m.add_transition("fail", ["queued", "running"], "failed")
+        m.add_transition("halt", "running", "halting")
+        m.add_transition("cancel_queued", "queued", "cancelled")
+        m.add_transition("end_cancel", "halting", "cancelled")
+        m.add_transition("end_preempt", "halting", "preempted")
+        # Requests recorded by other threads, acted on by the tick thread.
+        self._cancel_request: tuple[str, str] | None = None   # (final state, reason)
+
+    @property
+    def status(self) -> str:
+        """queued, running, halting, succeeded, failed, cancelled or preempted."""
+        return self._life.state
+
+    @property
+    def done(self) -> bool:
+        return self._done.is_set()
+
+    def cancel(self, reason: str = "cancelled") -> bool:
+        """Ask the mission to stop. True if it will end cancelled (or was already being
+        halted); False if it had already ended. Never blocks on the robot."""
+        return self._ex._request_cancel(self, "cancelled", reason)
+
+    def wait(self, timeout: float | None = None) -> MissionResult | None:
+        """Block until the mission ends (``timeout`` in real seconds); its result or None."""
+        self._done.wait(timeout)
+        return self.result
+
+    def subscribe(self, callback: Callable[[Event], None]) -> Callable[[], None]:
+        """Call ``callback(event)`` for each event of this mission (from the tick thread).
+        Returns a function that unsubscribes."""
+        with self._ex._lock:
+            self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with self._ex._lock:
+                if callback in self._subscribers:
+                    self._subscribers.remove(callback)
+        return unsubscribe
+
+    def __repr__(self) -> str:
+        return f"<MissionHandle {self.id} {self.mission.name} {self.status}>"
+
+
+class _Run:
+    """A started mission: its tree, tick counter, log, change tracking and halting state."""
+
+    def __init__(self, ex: "Executive", handle: MissionHandle):
+        self.ex = ex
+        self.handle = handle
+        self.tree: BuiltTree | None = None
+        self.tick = 0
+        self.t0 = 0.0
+        self.last: dict[Any, Status] = {}
+        self.running: set = set()
+        self.feedback: dict[Any, str] = {}
+        self.halting: list = []
+        self.halt_deadline = 0.0
+        self.halt_started = 0.0
+        self.logfile = None
+        self.leaves: set[int] = set()
+
+
+class Executive:
+    """Owns a world model and a robot adapter; runs submitted missions.
+
+    ``world``: the belief map (if it has ``subscribe(callback) -> unsubscribe``, its changes
+    become ``map`` events). ``robot``: the robot adapter (``robot.stop()`` is called after a
+    cancel or preempt if it exists). ``clock``: WallClock (default) or SimClock.
+    ``tick_hz``: ticks per second. ``runs_dir``: where execution logs go (None: no logs).
+    ``skills``: name -> Skill class (default: the ``skills`` package registry).
+    ``equal_priority``: "queue" (default) or "preempt" (a new mission of the same priority
+    preempts the running one). ``make_skill``: how skill nodes are instantiated (skill
+    substitution; see executive.testing). ``background``: run the tick thread (False: call
+    ``tick()`` yourself, as tests and ``hearth step`` do).
+    """
+
+    def __init__(self, world: Any = None, robot: Any = None, clock: Any = None,
+                 tick_hz: float = 10.0, runs_dir: str | os.PathLike | None = "runs",
+                 skills: dict[str, type] | None = None, equal_priority: str = "queue",
+                 make_skill: SkillFactory | None = None, background: bool = True,
+                 setup_kwargs: dict[str, Any] | None = None):
+        if tick_hz <= 0:
+            raise ValueError("tick_hz must be positive")
+        if equal_priority not in ("queue", "preempt"):
+            raise ValueError("equal_priority is 'queue' or 'preempt'")
+        if clock is None:
+            from robot.clock import WallClock
+            clock = WallClock()
+        self.world = world
+        self.robot = robot
+        self.clock = clock
+        self.tick_hz = float(tick_hz)
+        self.period = 1.0 / self.tick_hz
+        self.runs_dir = Path(runs_dir) if runs_dir is not None else None
+        self.skills = skills
+        self.equal_priority = equal_priority
+        self.make_skill = make_skill
+        self.setup_kwargs = dict(setup_kwargs or {})
+        self._lock = threading.RLock()
+        self._wake = threading.Condition(self._lock)
+        self._queue: list[tuple[int, int, MissionHandle]] = []
+        self._seq = itertools.count()
+        self._current: _Run | None = None
+        self._starting: MissionHandle | None = None
+        self._params: dict[str, Any] = {}
+        self._param_changes: list[tuple[str, Any]] = []
+        self._subscribers: list[Callable[[Event], None]] = []
+        self._map_events: list[dict[str, Any]] = []
+        self._closed = False
+        self._unsubscribe_world = None
+        if world is not None and callable(getattr(world, "subscribe", None)):
+            self._unsubscribe_world = world.subscribe(self._on_map_change)
+        self._thread: threading.Thread | None = None
+        if background:
+            self._thread = threading.Thread(target=self._loop, name="hearth-tick", daemon=True)
+            self._thread.start()
+
+    # -- public API ----------------------------------------------------------------------
+    def load(self, mission: str | os.PathLike | Mission) -> Mission:
+        if isinstance(mission, Mission):
+            return mission
+        return load_mission(mission, self.skills)
+
+    def submit(self, mission: str | os.PathLike | Mission, priority: int = 0,
+               **params: Any) -> MissionHandle:
+        """Queue a mission (a path or a loaded Mission) with parameter values.
+
+        Raises MissionValidationError / MissionError(param=) at once for a bad mission or
+        parameter. A higher ``priority`` preempts the running mission; equal priorities
+        queue (or preempt, see ``equal_priority``)."""
+        mission = self.load(mission)
+        with self._lock:
+            if self._closed:
+                raise MissionError("the executive has been shut down")
+            values = mission.resolve_parameters(params, self._params)
+            run_id = self._new_run_id(mission.name)
+            handle = MissionHandle(self, run_id, mission, priority, values)
+            heapq.heappush(self._queue, (-priority, next(self._seq), handle))
+            cur = self._current.handle if self._current is not None else self._starting
+            if cur is not None and not cur.done and (
+                    priority > cur.priority
+                    or (priority == cur.priority and self.equal_priority == "preempt")):
+                self._request_cancel(cur, "preempted", f"preempted by {mission.name} ({run_id})")
+            self._wake.notify_all()
+        return handle
+
+    def set_parameter(self, name: str, value: Any) -> None:
+        """Set a runtime parameter (e.g. ``presence``) for this and later missions. A running
+        mission that declares it with ``runtime: true`` sees the new value from its next
+        tick; watch guards on it restart their subtree."""
+        with self._lock:
+            run = self._current
+            if run is not None:
+                spec = run.handle.mission.parameters.get(name)
+                if spec is not None:
+                    spec.check(value)
+            self._params[name] = value
+            self._param_changes.append((name, value))
+            self._wake.notify_all()
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        with self._lock:
+            return dict(self._params)
+
+    def subscribe(self, callback: Callable[[Event], None]) -> Callable[[], None]:
+        """Events of every mission. Returns an unsubscribe function."""
+        with self._lock:
+            self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if callback in self._subscribers:
+                    self._subscribers.remove(callback)
+        return unsubscribe
+
+    @property
+    def current(self) -> MissionHandle | None:
+        with self._lock:
+            return self._current.handle if self._current is not None else None
+
+    @property
+    def current_tree(self) -> BuiltTree | None:
+        with self._lock:
+            return self._current.tree if self._current is not None else None
+
+    @property
+    def queued(self) -> list[MissionHandle]:
+        with self._lock:
+            return [h for _, _, h in sorted(self._queue) if h.status == "queued"]
+
+    def idle(self) -> bool:
+        with self._lock:
+            return self._current is None and self._starting is None and not any(
+                h.status == "queued" for _, _, h in self._queue)
+
+    def tick(self) -> bool:
+        """One executive step: start a queued mission, apply parameter changes and cancel
+        requests, then tick (or keep halting). Returns False when there was nothing to do.
+        Only for ``background=False``; the tick thread calls it otherwise."""
+        did = self._step()
+        if did and getattr(self.clock, "simulated", False):
+            self.clock.advance(self.period)
+        return did
+
+    def run_until_idle(self, max_ticks: int = 1_000_000) -> int:
+        """Tick (background=False) until no mission is running or queued; ticks done."""
+        n = 0
+        while n < max_ticks and self.tick():
+            n += 1
+        return n
+
+    def shutdown(self, timeout: float = 5.0) -> None:
+        """Cancel everything, wait (``timeout`` real seconds) for the tick thread, detach."""
+        with self._lock:
+            self._closed = True
+            for _, _, h in self._queue:
+                self._request_cancel(h, "cancelled", "executive shut down")
+            if self._current is not None:
+                self._request_cancel(self._current.handle, "cancelled", "executive shut down")
+            self._wake.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        else:
+            self.run_until_idle(max_ticks=100_000)
+        if self._unsubscribe_world is not None:
+            try:
+                self._unsubscribe_world()
+            except Exception:  # noqa: BLE001
+                pass
+            self._unsubscribe_world = None
+
+    def __enter__(self) -> "Executive":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.shutdown()
+
+    # -- requests ------------------------------------------------------------------------
+    def _request_cancel(self, handle: MissionHandle, final: str, reason: str) -> bool:
+        with self._lock:
+            state = handle.status
+            if state in TERMINAL:
+                return False
+            if state == "queued" and handle is not self._starting:
+                handle._life.cancel_queued()
+                self._queue = [q for q in self._queue if q[2] is not handle]
+                heapq.heapify(self._queue)
+                self._finish(handle, None, "cancelled", reason)
+                return True
+            if handle._cancel_request is None or (
+                    final == "cancelled" and handle._cancel_request[0] == "preempted"):
+                # A user cancel during a preempt turns it into a cancel; never the reverse.
+                handle._cancel_request = (final, reason)
+            self._wake.notify_all()
+            return True
+
+    def _on_map_change(self, change: Any) -> None:
+        data = {a: plain(getattr(change, a, None)) for a in ("node", "field", "old", "new",
+                                                              "source")}
+        data["map_time"] = getattr(change, "time", None)
+        with self._lock:
+            self._map_events.append(data)
+
+    # -- the loop ------------------------------------------------------------------------
+    def _loop(self) -> None:
+        simulated = getattr(self.clock, "simulated", False)
+        next_tick = self.clock.now()
+        while True:
+            with self._lock:
+                while not self._closed and self.idle():
+                    self._wake.wait(0.5)
+                if self._closed and self.idle():
+                    return
+            try:
+                did = self._step()
+            except Exception:  # noqa: BLE001 - the thread must survive a broken skill
+                log.exception("executive step failed")
+                did = True
+            if simulated:
+                if did:
+                    self.clock.advance(self.period)
+            else:
+                next_tick += self.period
+                delay = next_tick - self.clock.now()
+                if delay > 0:
+                    self.clock.sleep(delay)
+                else:
+                    next_tick = self.clock.now()
+
+    def _step(self) -> bool:
+        with self._lock:
+            run = self._current
+            if run is None:
+                handle = self._pop_next()
+                if handle is None:
+                    self._param_changes.clear()
+                    self._map_events.clear()
+                    return False
+                self._starting = handle
+        if run is None:
+            run = self._start(handle)   # outside the lock: skill setup may take a while
+            with self._lock:
+                self._starting = None
+                if run is None:
+                    return True
+                self._current = run
+        with self._lock:
+            self._apply_requests(run)
+            if run.handle.status == "halting":
+                self._poll_halting(run)
+            else:
+                self._tick(run)
+            run.tick += 1
+            return True
+
+    def _pop_next(self) -> MissionHandle | None:
+        while self._queue:
+            _, _, h = heapq.heappop(self._queue)
+            if h.status == "queued":
+                return h
+        return None
+
+    def _start(self, handle: MissionHandle) -> _Run | None:
+        run = _Run(self, handle)
+        run.t0 = self.clock.now()
+        try:
+            with self._lock:
+                handle._life.start()
+                ns = f"/hearth/r{next(_ns_counter)}"
+                run.tree = build_tree(handle.mission, handle.params, ns, self.make_skill)
+                for node in run.tree.root.iterate():
+                    if hasattr(node, "output_hook"):
+                        node.output_hook = self._make_output_hook(run)
+                    if isinstance(node, nodes.Watch):
+                        node.on_restart = self._make_restart_hook(run)
+                    if not node.children:
+                        run.leaves.add(id(node))
+                self._open_log(run)
+                self._emit(run, "run", None, state="running", reason="started")
+            run.tree.setup(world=self.world, robot=self.robot, clock=self.clock,
+                           executive=self, **self.setup_kwargs)
+        except Exception as err:  # noqa: BLE001 - a skill that cannot set up fails the mission
+            with self._lock:
+                if handle.status == "running":
+                    handle._life.fail()
+                else:
+                    handle._life.start()
+                    handle._life.fail()
+                reason = f"setup failed: {err}"
+                self._emit(run, "run", None, state="failed", reason=reason)
+                self._end(run, "failed", reason)
+            return None
+        return run
+
+    def _apply_requests(self, run: _Run) -> None:
+        tree = run.tree
+        if self._param_changes:
+            declared = run.handle.mission.parameters
+            for name, value in self._param_changes:
+                spec = declared.get(name)
+                if spec is not None and spec.runtime:
+                    tree.write_param(name, value)
+                    self._emit(run, "param", None, name=name, value=plain(value))
+            self._param_changes.clear()
+        if self._map_events:
+            for data in self._map_events:
+                self._emit(run, "map", None, **data)
+            self._map_events.clear()
+        req = run.handle._cancel_request
+        if req is not None and run.handle.status == "running":
+            final, reason = req
+            run.handle._life.halt()
+            self._emit(run, "run", None, state="halting", reason=reason, final=final)
+            running = nodes.running_skills(tree.root)
+            if tree.root.status != Status.INVALID:
+                tree.root.stop(Status.INVALID)
+            self._diff(run, {})
+            run.halting = nodes.still_halting(running)
+            run.halt_started = self.clock.now()
+            run.halt_deadline = run.halt_started + nodes.halt_timeout(run.halting)
+
+    def _poll_halting(self, run: _Run) -> None:
+        run.halting = nodes.still_halting(run.halting)
+        now = self.clock.now()
+        if run.halting and now < run.halt_deadline:
+            return
+        if run.halting:
+            names = ", ".join(run.tree.path_of.get(id(s), s.name) for s in run.halting)
+            log.warning("gave up waiting for %s to stop", names)
+        final, reason = run.handle._cancel_request
+        self._emit(run, "halted", None, waited=round(now - run.halt_started, 9),
+                   timed_out=[run.tree.path_of.get(id(s), s.name) for s in run.halting])
+        stop = getattr(self.robot, "stop", None)
+        if callable(stop):
+            try:
+                stop()
+            except Exception:  # noqa: BLE001
+                log.exception("robot.stop() failed")
+        if final == "preempted":
+            run.handle._life.end_preempt()
+        else:
+            run.handle._life.end_cancel()
+        self._emit(run, "run", None, state=final, reason=reason)
+        self._end(run, final, reason)
+
+    def _tick(self, run: _Run) -> None:
+        root = run.tree.root
+        if not getattr(self.clock, "simulated", False):
+            self._emit(run, "tick", None)
+        visited: dict = {}
+        try:
+            for node in root.tick():
+                visited[node] = node.status
+        except Exception as err:  # noqa: BLE001 - a crashing skill fails the mission
+            log.exception("tick failed")
+            running = [n for n in root.iterate() if n.status == Status.RUNNING]
+            for n in running:
+                try:
+                    n.stop(Status.INVALID)
+                except Exception:  # noqa: BLE001
+                    pass
+            run.handle._life.fail()
+            reason = f"{type(err).__name__}: {err}"
+            self._emit(run, "run", None, state="failed", reason=reason)
+            self._end(run, "failed", reason)
+            return
+        self._diff(run, visited)
+        status = root.status
+        if status in (Status.SUCCESS, Status.FAILURE):
+            reason = self._reason(run, status)
+            if status == Status.SUCCESS:
+                run.handle._life.succeed()
+                final = "succeeded"
+            else:
+                run.handle._life.fail()
+                final = "failed"
+            self._emit(run, "run", None, state=final, reason=reason)
+            self._end(run, final, reason)
+
+    def _reason(self, run: _Run, status: Status) -> str:
+        """In words: the deepest failing node's feedback, or 'completed'."""
+        if status == Status.SUCCESS:
+            return "completed"
+        node = run.tree.root
+        while True:
+            failed = [c for c in node.children if c.status == Status.FAILURE]
+            if not failed:
+                break
+            node = failed[-1]
+        path = run.tree.path_of.get(id(node), node.name)
+        return f"{path} failed" + (f": {node.feedback_message}" if node.feedback_message else "")
+
+    def _diff(self, run: _Run, visited: dict) -> None:
+        """Status and feedback events for what changed in this tick."""
+        last, path_of, leaves = run.last, run.tree.path_of, run.leaves
+        RUNNING = Status.RUNNING
+        for node, st in visited.items():
+            prev = last.get(node, Status.INVALID)
+            if st != prev or (prev != RUNNING and id(node) in leaves):
+                self._emit(run, "status", path_of[id(node)], status=st.value, previous=prev.value)
+            fb = node.feedback_message
+            if fb != run.feedback.get(node, "") and fb:
+                run.feedback[node] = fb
+                self._emit(run, "feedback", path_of[id(node)], message=fb)
+            last[node] = st
+        # Nodes stopped from above (halted) or finished after being yielded.
+        check = set(run.running)
+        check.update(n for n in visited if n.status != visited[n])
+        for node in check:
+            st = node.status
+            if st != last.get(node, Status.INVALID):
+                self._emit(run, "status", path_of[id(node)], status=st.value,
+                           previous=last.get(node, Status.INVALID).value, halted=True)
+                last[node] = st
+        run.running = {n for n in set(run.running) | set(visited) if n.status == RUNNING}
+
+    def _make_output_hook(self, run: _Run) -> Callable:
+        def hook(node: Any, port: str, key: str, value: Any) -> None:
+            self._emit(run, "write", run.tree.path_of.get(id(node)), port=port,
+                       key=run.tree.short_key(key), value=plain(value))
+        return hook
+
+    def _make_restart_hook(self, run: _Run) -> Callable:
+        def hook(node: Any, changed: dict) -> None:
+            self._emit(run, "restart", run.tree.path_of.get(id(node)),
+                       changed={k: [plain(o), plain(n)] for k, (o, n) in changed.items()})
+        return hook
+
+    # -- events and logs -------------------------------------------------------------------
+    def _emit(self, run: _Run, kind: str, path: str | None, **data: Any) -> None:
+        if not (run.logfile or run.handle._subscribers or self._subscribers):
+            return
+        ev = Event(kind, run.handle.id, run.tick, self.clock.now(), path, data)
+        if run.logfile is not None:
+            run.logfile.write(json.dumps(ev.to_json(), default=repr) + "\n")
+        for cb in list(run.handle._subscribers) + list(self._subscribers):
+            try:
+                cb(ev)
+            except Exception:  # noqa: BLE001 - a broken subscriber must not stop the robot
+                log.exception("event subscriber failed")
+
+    def _open_log(self, run: _Run) -> None:
+        if self.runs_dir is None:
+            return
+        self.runs_dir.mkdir(parents=True, exist_ok=True)
+        path = self.runs_dir / f"{run.handle.id}.jsonl"
+        run.logfile = open(path, "w", encoding="utf-8")  # noqa: SIM115 - closed in _end
+        run.handle.log_path = str(path)
+        m = run.handle.mission
+        sources = {}
+        for f in m.files:
+            try:
+                sources[f] = Path(f).read_text(encoding="utf-8")
+            except OSError:
+                pass
+        header = {"e": "start", "format": LOG_FORMAT, "run": run.handle.id, "tick": 0,
+                  "t": run.t0, "wall": self.clock.wall(), "mission": m.name, "file": m.file,
+                  "sources": sources, "params": plain(run.handle.params),
+                  "priority": run.handle.priority, "tick_hz": self.tick_hz,
+                  "clock": "sim" if getattr(self.clock, "simulated", False) else "wall",
+                  "ns": run.tree.ns}
+        run.logfile.write(json.dumps(header, default=repr) + "\n")
+
+    def _end(self, run: _Run, outcome: str, reason: str) -> None:
+        outputs = run.tree.outputs() if run.tree is not None else {}
+        result = MissionResult(outcome=outcome, reason=reason, outputs=plain(outputs),
+                               ticks=run.tick + (1 if outcome in ("succeeded", "failed") else 0),
+                               duration=self.clock.now() - run.t0,
+                               log_path=run.handle.log_path)
+        if run.logfile is not None:
+            run.logfile.write(json.dumps({"e": "end", "run": run.handle.id, "tick": run.tick,
+                                          "t": self.clock.now(), "outcome": outcome,
+                                          "reason": reason, "outputs": result.outputs},
+                                         default=repr) + "\n")
+            run.logfile.close()
+            run.logfile = None
+        if run.tree is not None:
+            run.tree.teardown()
+        if self._current is run:
+            self._current = None
+        self._finish(run.handle, run, outcome, reason, result)
+
+    def _finish(self, handle: MissionHandle, run: _Run | None, outcome: str, reason: str,
+                result: MissionResult | None = None) -> None:
+        handle.result = result or MissionResult(outcome=outcome, reason=reason, outputs={})
+        handle._done.set()
+        if run is None:
+            ev = Event("run", handle.id, 0, self.clock.now(), None,
+                       {"state": outcome, "reason": reason})
+            for cb in list(handle._subscribers) + list(self._subscribers):
+                try:
+                    cb(ev)
+                except Exception:  # noqa: BLE001
+                    log.exception("event subscriber failed")
+        self._wake.notify_all()
+
+    def _new_run_id(self, name: str) -> str:
+        import time as _time
+        stamp = _time.strftime("%Y%m%dT%H%M%S", _time.gmtime(self.clock.wall()))
+        n = next(self._seq)
+        rid = f"{stamp}-{name}-{n}"
+        if self.runs_dir is not None:
+            while (self.runs_dir / f"{rid}.jsonl").exists():
+                n = next(self._seq)
+                rid = f"{stamp}-{name}-{n}"
+        return rid

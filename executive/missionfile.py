@@ -1,0 +1,1049 @@
+"""Mission files: YAML with line numbers, a JSON Schema, typed parameters, compile-time checks.
+
+``load_mission(path)`` reads a mission file (and the files it includes), checks everything
+that can be checked before anything runs, and returns a :class:`Mission`: a tree of
+:class:`NodeSpec` with every skill input and output resolved to a literal, a mission
+parameter or a blackboard key. Nothing here creates behaviours; ``executive.tree`` builds a
+py_trees tree from a Mission, once per run.
+
+Problems are :class:`~executive.errors.MissionError` with file and line; ``load_mission``
+raises :class:`~executive.errors.MissionValidationError` carrying all of them, and
+``validate_file`` returns them. The file format is documented in docs/missions.md.
+
+YAML is read with a ``SafeLoader`` subclass: no Python objects, no tags beyond plain data.
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Callable
+
+import jsonschema
+import yaml
+
+from executive.errors import MissionError, MissionValidationError
+
+FORMAT_VERSION = 1
+
+#: Node kinds a mission file may use, with the attribute holding the child/children.
+COMPOSITES = ("sequence", "selector", "parallel")
+DECORATORS = ("retry", "timeout", "repeat", "inverter", "force_success", "force_failure",
+              "for_each", "guard", "watch")
+LEAVES = ("skill", "condition", "succeed", "fail")
+KINDS = COMPOSITES + DECORATORS + LEAVES + ("include", "state_machine")
+COMMON_ATTRS = ("name", "comment")
+
+IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+_KEY_RE = re.compile(r"^\{(" + IDENT + r")\}$")
+_PARAM_RE = re.compile(r"^\$(" + IDENT + r")$")
+_IDENT_RE = re.compile(r"^" + IDENT + r"$")
+
+
+# ---------------------------------------------------------------------------------------
+# YAML with line numbers
+# ---------------------------------------------------------------------------------------
+class LineDict(dict):
+    """A YAML mapping that remembers its line and each key's line (1-based)."""
+    line = 0
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.key_lines: dict[Any, int] = {}
+
+
+class LineList(list):
+    """A YAML sequence that remembers its line and each item's line (1-based)."""
+    line = 0
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.item_lines: list[int] = []
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that records lines and refuses duplicate keys."""
+
+
+def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> LineDict:
+    loader.flatten_mapping(node)
+    out = LineDict()
+    out.line = node.start_mark.line + 1
+    for key_node, value_node in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        line = key_node.start_mark.line + 1
+        if not isinstance(key, (str, int, float, bool)) or key is None:
+            raise MissionError(f"mapping keys must be plain scalars, not {key!r}", line=line)
+        if key in out:
+            raise MissionError(f"duplicate key {key!r}", line=line)
+        out[key] = loader.construct_object(value_node, deep=True)
+        out.key_lines[key] = line
+    return out
+
+
+def _construct_sequence(loader: _Loader, node: yaml.SequenceNode) -> LineList:
+    out = LineList(loader.construct_object(child, deep=True) for child in node.value)
+    out.line = node.start_mark.line + 1
+    out.item_lines = [child.start_mark.line + 1 for child in node.value]
+    return out
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_sequence)
+
+
+def load_yaml(path: str | Path) -> Any:
+    """Parse a YAML file into LineDict/LineList/scalars; errors carry file and line."""
+    path = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MissionError("no such file", file=path, line=0) from None
+    except UnicodeDecodeError:
+        raise MissionError("not a UTF-8 text file", file=path, line=0) from None
+    return load_yaml_text(text, path)
+
+
+def load_yaml_text(text: str, path: str = "<string>") -> Any:
+    try:
+        return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    except MissionError as err:
+        raise MissionError(err.message, file=path, line=err.line) from None
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark or err.context_mark
+        line = mark.line + 1 if mark is not None else 0
+        what = err.problem or err.context or "syntax error"
+        raise MissionError(f"YAML syntax error: {what}", file=path, line=line) from None
+    except yaml.YAMLError as err:
+        raise MissionError(f"YAML error: {err}", file=path, line=0) from None
+
+
+def line_of(data: Any, path: list | tuple) -> int:
+    """The line of the value at ``path`` (keys/indices) in loaded YAML, or the nearest parent's."""
+    line = getattr(data, "line", 0)
+    cur = data
+    for step in path:
+        if isinstance(cur, LineDict) and step in cur:
+            line = cur.key_lines.get(step, line)
+            cur = cur[step]
+        elif isinstance(cur, LineList) and isinstance(step, int) and step < len(cur):
+            line = cur.item_lines[step]
+            cur = cur[step]
+        else:
+            break
+    return line
+
+
+# ---------------------------------------------------------------------------------------
+# Types
+# ---------------------------------------------------------------------------------------
+TYPES = ("string", "number", "integer", "boolean", "node_id", "pose", "list", "dict", "any")
+_POSE_KEYS = {"x", "y", "z", "roll", "pitch", "yaw"}
+_COMPATIBLE = {("integer", "number"), ("node_id", "string"), ("string", "node_id")}
+
+
+def _alternatives(type_name: str) -> list[str]:
+    return [t.strip() for t in type_name.split("|")]
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def check_value(type_name: str, value: Any) -> bool:
+    """Whether ``value`` is of mission type ``type_name`` (unions like ``node_id|pose`` allowed).
+
+    A pose is a mapping with numeric x, y (and optional z, roll, pitch, yaw; metres and
+    radians), a list of 3 (x, y, yaw) or 6 numbers, or an object with x and y attributes.
+    """
+    for t in _alternatives(type_name):
+        if t == "any":
+            return True
+        if t in ("string", "node_id") and isinstance(value, str):
+            return True
+        if t == "number" and _is_number(value):
+            return True
+        if t == "integer" and isinstance(value, int) and not isinstance(value, bool):
+            return True
+        if t == "boolean" and isinstance(value, bool):
+            return True
+        if t == "list" and isinstance(value, (list, tuple)):
+            return True
+        if t == "dict" and isinstance(value, dict):
+            return True
+        if t == "pose" and _is_pose(value):
+            return True
+    return False
+
+
+def _is_pose(value: Any) -> bool:
+    if isinstance(value, dict):
+        return ({"x", "y"} <= set(value) and set(value) <= _POSE_KEYS
+                and all(_is_number(v) for v in value.values()))
+    if isinstance(value, (list, tuple)):
+        return len(value) in (3, 6) and all(_is_number(v) for v in value)
+    return hasattr(value, "x") and hasattr(value, "y") and not isinstance(value, (str, bytes))
+
+
+def compatible(source: str, target: str) -> bool:
+    """Whether a value declared ``source`` may flow into a port declared ``target``."""
+    for s in _alternatives(source):
+        for t in _alternatives(target):
+            if s == t or "any" in (s, t) or (s, t) in _COMPATIBLE:
+                return True
+    return False
+
+
+def infer_type(value: Any) -> str:
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "number"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, (list, tuple)):
+        return "list"
+    if isinstance(value, dict):
+        return "dict"
+    return "any"
+
+
+def parse_param_text(name: str, type_name: str, text: str) -> Any:
+    """Turn a command-line ``--param name=text`` into a value of ``type_name``.
+
+    Strings and node ids are taken verbatim; other types are read as YAML scalars/flow
+    collections (``[1, 2, 0.5]``, ``{x: 1, y: 2}``, ``true``). Raises MissionError(param=).
+    """
+    if any(t in ("string", "node_id") for t in _alternatives(type_name)):
+        return text
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise MissionError(f"cannot read {text!r} as {type_name}", param=name) from None
+    if _alternatives(type_name) == ["number"] and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not check_value(type_name, value):
+        raise MissionError(f"expected {type_name}, got {text!r}", param=name)
+    return value
+
+
+def plain(value: Any) -> Any:
+    """LineDict/LineList -> dict/list, recursively (for values handed to skills and logs)."""
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) and not isinstance(value, str):
+        return [plain(v) for v in value]
+    return value
+
+
+# ---------------------------------------------------------------------------------------
+# References: what an input, a condition operand or a for-each source points at
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Lit:
+    """A constant from the mission file."""
+    value: Any
+
+
+@dataclass(frozen=True)
+class BBKey:
+    """A mission blackboard key, scoped: ``pose``, or ``search_at_1/pose`` inside an include."""
+    key: str
+
+
+@dataclass(frozen=True)
+class Param:
+    """A mission parameter (lives on the blackboard, so runtime parameters change live)."""
+    name: str
+
+
+Ref = Lit | BBKey | Param
+
+
+@dataclass(frozen=True)
+class Expr:
+    """A condition: ``left`` alone (truthiness), or ``left op right``; ``negate`` for ``not``."""
+    text: str
+    left: Ref
+    op: str | None = None
+    right: Ref | None = None
+    negate: bool = False
+
+    def refs(self) -> list[Ref]:
+        return [r for r in (self.left, self.right) if r is not None]
+
+
+_OPERAND = r"""\{[A-Za-z_]\w*\}|\$[A-Za-z_]\w*|'[^']*'|"[^"]*"|\[[^\]]*\]|[^\s=!<>'"]+"""
+_EXPR_RE = re.compile(r"^\s*(not\s+)?(" + _OPERAND + r")\s*(?:(==|!=|<=|>=|<|>|not\s+in|in)\s*("
+                      + _OPERAND + r"))?\s*$")
+OPERATORS = ("==", "!=", "<", "<=", ">", ">=", "in", "not in")
+
+
+def parse_operand(token: str) -> Ref:
+    m = _KEY_RE.match(token)
+    if m:
+        return BBKey(m.group(1))
+    m = _PARAM_RE.match(token)
+    if m:
+        return Param(m.group(1))
+    return Lit(plain(yaml.safe_load(token)))
+
+
+def parse_expression(text: str) -> Expr:
+    """Parse ``{key} OP value`` / ``$param OP value`` / ``[not] {key}``; ValueError if not."""
+    m = _EXPR_RE.match(text)
+    if not m:
+        raise ValueError(f"cannot read condition {text!r}: use '{{key}} OP value' with OP one of "
+                         f"{', '.join(OPERATORS)}, or '[not] {{key}}'")
+    negate, left, op, right = m.groups()
+    if op is not None and negate:
+        raise ValueError(f"condition {text!r}: 'not' only applies to a single operand")
+    try:
+        lref = parse_operand(left)
+        rref = parse_operand(right) if right is not None else None
+    except yaml.YAMLError:
+        raise ValueError(f"cannot read a value in condition {text!r}") from None
+    if isinstance(lref, Lit) and (rref is None or isinstance(rref, Lit)):
+        raise ValueError(f"condition {text!r} compares constants only; name a {{key}} or $param")
+    op = " ".join(op.split()) if op else None
+    return Expr(text=text, left=lref, op=op, right=rref, negate=bool(negate))
+
+
+# ---------------------------------------------------------------------------------------
+# The compiled mission
+# ---------------------------------------------------------------------------------------
+@dataclass
+class ParamSpec:
+    name: str
+    type: str
+    default: Any = None
+    required: bool = True
+    runtime: bool = False
+    enum: list | None = None
+    items: str | None = None
+    description: str = ""
+    line: int = 0
+
+    def check(self, value: Any) -> None:
+        """Raise MissionError(param=name) unless ``value`` fits this parameter."""
+        if not check_value(self.type, value):
+            raise MissionError(f"expected {self.type}, got {value!r}", param=self.name)
+        if self.items and isinstance(value, (list, tuple)):
+            for item in value:
+                if not check_value(self.items, item):
+                    raise MissionError(f"expected a list of {self.items}, got item {item!r}",
+                                       param=self.name)
+        if self.enum is not None and value not in self.enum:
+            raise MissionError(f"expected one of {self.enum}, got {value!r}", param=self.name)
+
+
+@dataclass
+class NodeSpec:
+    """One node of a compiled mission tree.
+
+    ``path`` is unique in the tree (``/root/child/...``); ``attrs`` holds the kind's
+    attributes (``reactive``, ``policy``, ``threshold``, ``times``, ``seconds``, ``expr``,
+    ``source``, ``target``, ``until``, ``params``, ``message``, ``initial``, ``states``,
+    ``outcomes``); a skill has ``skill`` (its class), ``inputs`` (port -> Ref) and
+    ``outputs`` (port -> BBKey).
+    """
+    kind: str
+    name: str
+    path: str
+    file: str
+    line: int
+    children: list["NodeSpec"] = field(default_factory=list)
+    attrs: dict[str, Any] = field(default_factory=dict)
+    skill: type | None = None
+    skill_name: str = ""
+    inputs: dict[str, Ref] = field(default_factory=dict)
+    outputs: dict[str, BBKey] = field(default_factory=dict)
+
+    def walk(self):
+        yield self
+        for child in self.children:
+            yield from child.walk()
+
+    @property
+    def label(self) -> str:
+        return f"{self.skill_name} {self.name}" if self.kind == "skill" and self.name != self.skill_name \
+            else (self.skill_name if self.kind == "skill" else f"{self.kind} {self.name}")
+
+
+@dataclass
+class Mission:
+    """A checked mission: parameters, initial blackboard, the compiled tree, declared keys."""
+    name: str
+    description: str
+    file: str
+    parameters: dict[str, ParamSpec]
+    root: NodeSpec
+    blackboard: dict[str, Any]
+    key_types: dict[str, str]
+    files: list[str]
+
+    def nodes(self):
+        return self.root.walk()
+
+    def runtime_parameters(self) -> list[str]:
+        return [p.name for p in self.parameters.values() if p.runtime]
+
+    def resolve_parameters(self, given: dict[str, Any] | None = None,
+                           runtime: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Parameter values for one run: ``given`` (submit keywords) over executive
+        ``runtime`` values (for runtime parameters) over defaults. Checks types, unknown and
+        missing parameters (MissionError with ``param``)."""
+        given = dict(given or {})
+        runtime = runtime or {}
+        values: dict[str, Any] = {}
+        for name in given:
+            if name not in self.parameters:
+                known = ", ".join(sorted(self.parameters)) or "none"
+                raise MissionError(f"unknown parameter of mission {self.name} (known: {known})",
+                                   param=name)
+        for name, spec in self.parameters.items():
+            if name in given:
+                value = given[name]
+            elif spec.runtime and name in runtime:
+                value = runtime[name]
+            elif spec.default is not None:
+                value = plain(spec.default)
+            elif spec.required:
+                raise MissionError(f"required by mission {self.name} but not given", param=name)
+            else:
+                value = None
+            if value is not None:
+                spec.check(value)
+            values[name] = value
+        return values
+
+
+# ---------------------------------------------------------------------------------------
+# Compiler
+# ---------------------------------------------------------------------------------------
+_SCHEMA: dict | None = None
+
+
+def schema() -> dict:
+    """The mission JSON Schema (``executive/schema/mission.schema.json``)."""
+    global _SCHEMA
+    if _SCHEMA is None:
+        text = resources.files("executive").joinpath("schema/mission.schema.json").read_text()
+        _SCHEMA = json.loads(text)
+    return _SCHEMA
+
+
+_VALIDATORS: dict[str, jsonschema.Draft202012Validator] = {}
+
+
+def _validator(ref: str) -> jsonschema.Draft202012Validator:
+    """A validator for one node kind whose children are only checked to be mappings (the
+    compiler checks each child itself, so every error points at its own node)."""
+    if ref not in _VALIDATORS:
+        defs = dict(schema()["$defs"])
+        defs["child"] = {"type": "object"}
+        defs["children"] = {"type": "array", "minItems": 1, "items": {"type": "object"}}
+        _VALIDATORS[ref] = jsonschema.Draft202012Validator({"$ref": ref, "$defs": defs})
+    return _VALIDATORS[ref]
+
+
+@dataclass
+class _Scope:
+    """Where names resolve while compiling one tree (the mission's, or an include's)."""
+    file: str
+    prefix: str                        # blackboard key prefix, "" at mission level
+    params: dict[str, Ref]             # $name -> what it stands for
+    param_types: dict[str, str]
+    stack: tuple                       # (file, subtree) chain, for cycle detection
+    subtrees: dict[str, Any]           # this file's subtrees section
+    data: Any                          # this file's loaded YAML
+
+
+class _Compiler:
+    def __init__(self, skills: dict[str, type], resolve_file: Callable[[str], str] | None = None):
+        self.skills = skills
+        self.errors: list[MissionError] = []
+        self.writers: dict[str, tuple[str, str, int]] = {}
+        self.readers: list[tuple[str, str, str, int]] = []
+        self.files: list[str] = []
+        self.params: dict[str, ParamSpec] = {}
+        self.include_counter = 0
+        self._docs: dict[str, Any] = {}
+
+    # -- errors ------------------------------------------------------------------------
+    def error(self, message: str, file: str, line: int) -> None:
+        self.errors.append(MissionError(message, file=file, line=line))
+
+    # -- files -------------------------------------------------------------------------
+    def load_doc(self, path: str) -> Any:
+        if path in self._docs:
+            return self._docs[path]
+        data = load_yaml(path)
+        self._docs[path] = data
+        if path not in self.files:
+            self.files.append(path)
+        if not isinstance(data, LineDict):
+            raise MissionError("a mission file is a YAML mapping with name and tree", file=path,
+                               line=getattr(data, "line", 1) or 1)
+        self.check_top(data, path)
+        return data
+
+    def check_top(self, data: LineDict, path: str) -> None:
+        """Schema-check everything but the trees (those are checked node by node)."""
+        top = {k: v for k, v in data.items() if k not in ("tree", "subtrees")}
+        top["tree"] = {}
+        sub = dict(schema())
+        sub["properties"] = dict(sub["properties"], tree={"type": "object"},
+                                 subtrees={"type": "object"})
+        for err in jsonschema.Draft202012Validator(sub).iter_errors(top):
+            self.error(_schema_message(err), path, line_of(data, list(err.absolute_path)))
+        subtrees = data.get("subtrees")
+        if isinstance(subtrees, dict):
+            for name, st in subtrees.items():
+                if not _IDENT_RE.match(str(name)):
+                    self.error(f"subtree name {name!r} is not an identifier", path,
+                               subtrees.key_lines.get(name, 0))
+                if not isinstance(st, LineDict):
+                    self.error(f"subtree {name}: expected a mapping with tree", path,
+                               subtrees.key_lines.get(name, 0))
+                    continue
+                top = {k: v for k, v in st.items() if k != "tree"}
+                top["tree"] = {}
+                s2 = {"$defs": schema()["$defs"], **schema()["$defs"]["subtree"]}
+                s2["properties"] = dict(s2["properties"], tree={"type": "object"})
+                for err in jsonschema.Draft202012Validator(s2).iter_errors(top):
+                    self.error(f"subtree {name}: {_schema_message(err)}", path,
+                               line_of(st, list(err.absolute_path)) or st.line)
+
+    def parse_params(self, section: Any, file: str, allow_runtime: bool) -> dict[str, ParamSpec]:
+        out: dict[str, ParamSpec] = {}
+        if not isinstance(section, LineDict):
+            return out
+        for name, spec in section.items():
+            line = section.key_lines.get(name, 0)
+            if not isinstance(spec, dict) or "type" not in spec or spec["type"] not in TYPES:
+                continue  # the schema check has reported it
+            p = ParamSpec(name=name, type=spec["type"], default=plain(spec.get("default")),
+                          required=bool(spec.get("required", spec.get("default") is None)),
+                          runtime=bool(spec.get("runtime", False)), enum=plain(spec.get("enum")),
+                          items=spec.get("items"), description=spec.get("description", ""),
+                          line=line)
+            if p.runtime and not allow_runtime:
+                self.error(f"subtree parameter {name}: only mission parameters can be runtime",
+                           file, line)
+            if p.default is not None:
+                try:
+                    p.check(p.default)
+                except MissionError as err:
+                    self.error(f"parameter {name}: default {err.message}", file, line)
+            out[name] = p
+        return out
+
+    # -- entry -------------------------------------------------------------------------
+    def compile(self, path: str) -> Mission | None:
+        data = self.load_doc(path)
+        self.params = self.parse_params(data.get("parameters"), path, allow_runtime=True)
+        blackboard: dict[str, Any] = {}
+        bb = data.get("blackboard")
+        if isinstance(bb, LineDict):
+            for key, value in bb.items():
+                blackboard[str(key)] = plain(value)
+                self.writers.setdefault(str(key), (infer_type(value), path, bb.key_lines[key]))
+        scope = _Scope(file=path, prefix="", params={n: Param(n) for n in self.params},
+                       param_types={n: p.type for n, p in self.params.items()},
+                       stack=((path, None),), subtrees=data.get("subtrees") or {}, data=data)
+        root = None
+        if "tree" in data:
+            name = data.get("name")
+            root = self.node(data["tree"], scope, "", data.key_lines.get("tree", data.line),
+                             default_name=name if isinstance(name, str) else None)
+        self.check_keys()
+        if self.errors or root is None:
+            return None
+        return Mission(name=str(data.get("name")), description=str(data.get("description", "")),
+                       file=path, parameters=self.params, root=root, blackboard=blackboard,
+                       key_types={k: w[0] for k, w in self.writers.items()}, files=self.files)
+
+    def check_keys(self) -> None:
+        for key, type_name, file, line in self.readers:
+            w = self.writers.get(key)
+            if w is None:
+                shown = key.rsplit("/", 1)[-1]
+                self.error(f"reads key {{{shown}}} that nothing writes", file, line)
+            elif not compatible(w[0], type_name):
+                self.error(f"key {{{key.rsplit('/', 1)[-1]}}} holds {w[0]} (written at "
+                           f"{w[1]}:{w[2]}) but {type_name} is expected here", file, line)
+
+    # -- refs --------------------------------------------------------------------------
+    def key(self, scope: _Scope, name: str) -> str:
+        return scope.prefix + name
+
+    def ref(self, value: Any, scope: _Scope, line: int, what: str) -> Ref | None:
+        """Resolve a mission-file value: '{key}', '$param' or a literal."""
+        if isinstance(value, str):
+            m = _KEY_RE.match(value)
+            if m:
+                return BBKey(self.key(scope, m.group(1)))
+            m = _PARAM_RE.match(value)
+            if m:
+                if m.group(1) not in scope.params:
+                    known = ", ".join(sorted(scope.params)) or "none"
+                    self.error(f"{what}: unknown parameter ${m.group(1)} (declared: {known})",
+                               scope.file, line)
+                    return None
+                return scope.params[m.group(1)]
+        return Lit(plain(value))
+
+    def ref_type(self, ref: Ref) -> str | None:
+        if isinstance(ref, Param):
+            return self.params[ref.name].type
+        return None
+
+    def use(self, ref: Ref, type_name: str, file: str, line: int, what: str) -> None:
+        """Record/check that ``ref`` is read where ``type_name`` is expected."""
+        if isinstance(ref, Lit):
+            if not check_value(type_name, ref.value):
+                self.error(f"{what}: expected {type_name}, got {ref.value!r}", file, line)
+        elif isinstance(ref, Param):
+            ptype = self.params[ref.name].type
+            if not compatible(ptype, type_name):
+                self.error(f"{what}: parameter ${ref.name} is {ptype}, {type_name} expected",
+                           file, line)
+        else:
+            self.readers.append((ref.key, type_name, file, line))
+
+    def write(self, key: str, type_name: str, file: str, line: int) -> None:
+        old = self.writers.get(key)
+        if old is not None and not compatible(old[0], type_name):
+            self.error(f"key {{{key.rsplit('/', 1)[-1]}}} is written as {type_name} here but as "
+                       f"{old[0]} at {old[1]}:{old[2]}", file, line)
+        if old is None or old[0] == "any":
+            self.writers[key] = (type_name, file, line)
+
+    # -- nodes -------------------------------------------------------------------------
+    def node(self, data: Any, scope: _Scope, parent_path: str, line: int,
+             siblings: set[str] | None = None, default_name: str | None = None
+             ) -> NodeSpec | None:
+        file = scope.file
+        if not isinstance(data, LineDict):
+            self.error(f"a tree node is a mapping with one kind ({', '.join(KINDS)}), "
+                       f"not {type(data).__name__}", file, line)
+            return None
+        line = data.line or line
+        kinds = [k for k in data if k in KINDS]
+        if not kinds:
+            unknown = [k for k in data if k not in COMMON_ATTRS]
+            if unknown:
+                self.error(f"unknown node kind {unknown[0]!r} (known: {', '.join(KINDS)})", file,
+                           data.key_lines.get(unknown[0], line))
+            else:
+                self.error("node has no kind", file, line)
+            return None
+        if len(kinds) > 1:
+            self.error(f"node has several kinds: {', '.join(kinds)}", file, line)
+            return None
+        kind = kinds[0]
+        ok = True
+        for err in _validator(f"#/$defs/{kind}").iter_errors(data):
+            self.error(_schema_message(err), file, line_of(data, list(err.absolute_path)) or line)
+            ok = False
+        if not ok:
+            return None
+        default = data[kind] if kind in ("skill", "include") and isinstance(data[kind], str) else kind
+        if kind == "include":
+            default = str(default).rsplit("#", 1)[-1].rsplit("/", 1)[-1].removesuffix(".yaml")
+        name = str(data.get("name") or default_name or default)
+        if siblings is not None:
+            base, n = name, 2
+            while name in siblings:
+                name, n = f"{base}_{n}", n + 1
+            siblings.add(name)
+        path = f"{parent_path}/{name}"
+        spec = NodeSpec(kind=kind, name=name, path=path, file=file, line=line)
+        handler = getattr(self, f"node_{kind}")
+        return handler(spec, data, scope)
+
+    def child(self, spec: NodeSpec, data: LineDict, scope: _Scope) -> NodeSpec | None:
+        c = self.node(data[spec.kind], scope, spec.path, data.key_lines.get(spec.kind, spec.line))
+        if c is None:
+            return None
+        spec.children = [c]
+        return spec
+
+    def children(self, spec: NodeSpec, data: LineDict, scope: _Scope) -> NodeSpec | None:
+        seen: set[str] = set()
+        items = data[spec.kind]
+        out = []
+        for i, item in enumerate(items):
+            c = self.node(item, scope, spec.path, items.item_lines[i], seen)
+            if c is not None:
+                out.append(c)
+        if len(out) != len(items):
+            return None
+        spec.children = out
+        return spec
+
+    def node_sequence(self, spec, data, scope):
+        spec.attrs["reactive"] = bool(data.get("reactive", False))
+        return self.children(spec, data, scope)
+
+    node_selector = node_sequence
+
+    def node_parallel(self, spec, data, scope):
+        policy = data.get("policy", "all")
+        spec.attrs["policy"] = policy
+        if policy == "threshold":
+            if "threshold" not in data:
+                self.error("parallel with policy threshold needs threshold: N", spec.file, spec.line)
+                return None
+            if data["threshold"] > len(data["parallel"]):
+                self.error(f"threshold {data['threshold']} exceeds the {len(data['parallel'])} "
+                           "children", spec.file, data.key_lines["threshold"])
+                return None
+            spec.attrs["threshold"] = int(data["threshold"])
+        elif "threshold" in data:
+            self.error("threshold only applies to policy: threshold", spec.file,
+                       data.key_lines["threshold"])
+            return None
+        return self.children(spec, data, scope)
+
+    def node_retry(self, spec, data, scope):
+        spec.attrs["times"] = int(data["times"])
+        return self.child(spec, data, scope)
+
+    def node_repeat(self, spec, data, scope):
+        spec.attrs["times"] = int(data.get("times", -1))
+        return self.child(spec, data, scope)
+
+    def node_timeout(self, spec, data, scope):
+        spec.attrs["seconds"] = float(data["seconds"])
+        return self.child(spec, data, scope)
+
+    def node_inverter(self, spec, data, scope):
+        return self.child(spec, data, scope)
+
+    node_force_success = node_force_failure = node_inverter
+
+    def node_for_each(self, spec, data, scope):
+        line = data.key_lines["in"]
+        source = self.ref(data["in"], scope, line, "for_each in")
+        if source is None:
+            return None
+        item_type = "any"
+        if isinstance(source, Param):
+            item_type = self.params[source.name].items or "any"
+        self.use(source, "list", spec.file, line, "for_each in")
+        target = self.key(scope, data["as"])
+        self.write(target, item_type, spec.file, data.key_lines["as"])
+        spec.attrs.update(source=source, target=target, until=data.get("until", "failure"))
+        return self.child(spec, data, scope)
+
+    def expression(self, spec, text, scope, line) -> Expr | None:
+        try:
+            expr = parse_expression(text)
+        except ValueError as err:
+            self.error(str(err), spec.file, line)
+            return None
+        resolved = []
+        for r in (expr.left, expr.right):
+            if r is None:
+                resolved.append(None)
+                continue
+            if isinstance(r, BBKey):
+                r = BBKey(self.key(scope, r.key))
+                self.readers.append((r.key, "any", spec.file, line))
+            elif isinstance(r, Param):
+                if r.name not in scope.params:
+                    self.error(f"condition: unknown parameter ${r.name}", spec.file, line)
+                    return None
+                r = scope.params[r.name]
+            resolved.append(r)
+        if expr.op in ("<", "<=", ">", ">="):
+            for r in resolved:
+                if isinstance(r, Lit) and not _is_number(r.value):
+                    self.error(f"condition {text!r}: {expr.op} compares numbers, not {r.value!r}",
+                               spec.file, line)
+                    return None
+        return Expr(text=text, left=resolved[0], op=expr.op, right=resolved[1],
+                    negate=expr.negate)
+
+    def node_condition(self, spec, data, scope):
+        expr = self.expression(spec, data["condition"], scope, data.key_lines["condition"])
+        if expr is None:
+            return None
+        spec.attrs["expr"] = expr
+        return spec
+
+    def node_guard(self, spec, data, scope):
+        expr = self.expression(spec, data["while"], scope, data.key_lines["while"])
+        if expr is None:
+            return None
+        spec.attrs["expr"] = expr
+        return self.child(spec, data, scope)
+
+    def node_watch(self, spec, data, scope):
+        names = []
+        for i, raw in enumerate(data["params"]):
+            line = data["params"].item_lines[i]
+            pname = raw.lstrip("$")
+            ref = scope.params.get(pname)
+            if ref is None:
+                self.error(f"watch: unknown parameter ${pname}", spec.file, line)
+                return None
+            if not isinstance(ref, Param) or not self.params[ref.name].runtime:
+                self.error(f"watch: ${pname} is not a runtime parameter (declare it with "
+                           "runtime: true)", spec.file, line)
+                return None
+            names.append(ref.name)
+        spec.attrs["params"] = names
+        return self.child(spec, data, scope)
+
+    def node_succeed(self, spec, data, scope):
+        spec.attrs["message"] = data.get(spec.kind) or ""
+        return spec
+
+    node_fail = node_succeed
+
+    def node_skill(self, spec, data, scope):
+        name = data["skill"]
+        cls = self.skills.get(name)
+        if cls is None:
+            close = [s for s in sorted(self.skills) if s.lower() == name.lower()]
+            hint = f"; did you mean {close[0]}?" if close else ""
+            self.error(f"unknown skill {name!r}{hint}", spec.file, data.key_lines["skill"])
+            return None
+        spec.skill, spec.skill_name = cls, name
+        inputs = data.get("inputs") or LineDict()
+        outputs = data.get("outputs") or LineDict()
+        ok = True
+        for port_name, value in inputs.items():
+            line = inputs.key_lines.get(port_name, spec.line)
+            port = cls.port(port_name)
+            if port is None:
+                known = ", ".join(p.name for p in cls.INPUTS) or "none"
+                self.error(f"skill {name} has no input {port_name!r} (inputs: {known})",
+                           spec.file, line)
+                ok = False
+                continue
+            ref = self.ref(value, scope, line, f"{name}.{port_name}")
+            if ref is None:
+                ok = False
+                continue
+            self.use(ref, port.type, spec.file, line, f"input {port_name} of {name}")
+            spec.inputs[port_name] = ref
+        for port in cls.INPUTS:
+            if port.required and port.default is None and port.name not in inputs:
+                self.error(f"skill {name}: missing required input {port.name!r} ({port.type})",
+                           spec.file, spec.line)
+                ok = False
+        for port_name, value in outputs.items():
+            line = outputs.key_lines.get(port_name, spec.line)
+            port = cls.port(port_name, outputs=True)
+            if port is None:
+                known = ", ".join(p.name for p in cls.OUTPUTS) or "none"
+                self.error(f"skill {name} has no output {port_name!r} (outputs: {known})",
+                           spec.file, line)
+                ok = False
+                continue
+            ref = self.ref(value if _KEY_RE.match(value) or _PARAM_RE.match(value)
+                           else "{" + value + "}", scope, line, f"{name}.{port_name}")
+            if ref is None or not _IDENT_RE.match(value.strip("{}$")):
+                if ref is not None:
+                    self.error(f"output {port_name}: {value!r} is not a key name", spec.file, line)
+                ok = False
+                continue
+            if not isinstance(ref, BBKey):
+                self.error(f"output {port_name} of {name}: {value} is not bound to a blackboard "
+                           "key here", spec.file, line)
+                ok = False
+                continue
+            self.write(ref.key, port.type, spec.file, line)
+            spec.outputs[port_name] = ref
+        return spec if ok else None
+
+    def node_include(self, spec, data, scope):
+        target = data["include"]
+        line = data.key_lines["include"]
+        file, sub = scope.file, target
+        if "#" in target or target.endswith((".yaml", ".yml")):
+            fpart, _, sub = target.partition("#")
+            file = str((Path(scope.file).parent / fpart).resolve()) if fpart else scope.file
+            file = _display_path(file)
+            sub = sub or None
+            try:
+                doc = self.load_doc(file)
+            except MissionError as err:
+                self.error(f"include {target!r}: {err}", scope.file, line)
+                return None
+        else:
+            doc = scope.data if file == scope.file else self.load_doc(file)
+        key = (file, sub)
+        if key in scope.stack:
+            chain = " -> ".join(f"{Path(f).name}#{s}" if s else Path(f).name
+                                for f, s in scope.stack + (key,))
+            self.error(f"cyclic include: {chain}", scope.file, line)
+            return None
+        if sub is None:
+            body, params_section = doc, doc.get("parameters")
+        else:
+            subtrees = doc.get("subtrees") or {}
+            if sub not in subtrees or not isinstance(subtrees[sub], LineDict):
+                known = ", ".join(sorted(subtrees)) or "none"
+                self.error(f"include: no subtree {sub!r} in {Path(file).name} (subtrees: {known})",
+                           scope.file, line)
+                return None
+            body = subtrees[sub]
+            params_section = body.get("parameters")
+        if "tree" not in body:
+            self.error(f"include {target!r}: it has no tree", scope.file, line)
+            return None
+        declared = self.parse_params(params_section, file, allow_runtime=sub is None)
+        given = data.get("params") or LineDict()
+        bound: dict[str, Ref] = {}
+        ok = True
+        for pname, value in given.items():
+            pline = given.key_lines.get(pname, line)
+            if pname not in declared:
+                known = ", ".join(sorted(declared)) or "none"
+                self.error(f"include {target}: unknown parameter {pname!r} (declared: {known})",
+                           scope.file, pline)
+                ok = False
+                continue
+            ref = self.ref(value, scope, pline, f"include {target} param {pname}")
+            if ref is None:
+                ok = False
+                continue
+            self.use(ref, declared[pname].type, scope.file, pline, f"include param {pname}")
+            bound[pname] = ref
+        for pname, p in declared.items():
+            if pname not in bound:
+                if p.default is not None:
+                    bound[pname] = Lit(plain(p.default))
+                elif p.required:
+                    self.error(f"include {target}: missing parameter {pname!r} ({p.type})",
+                               scope.file, line)
+                    ok = False
+        if not ok:
+            return None
+        self.include_counter += 1
+        inner = _Scope(file=file, prefix=f"{scope.prefix}{spec.name}_{self.include_counter}/",
+                       params=bound, param_types={n: p.type for n, p in declared.items()},
+                       stack=scope.stack + (key,), subtrees=doc.get("subtrees") or {}, data=doc)
+        spec.attrs["target"] = target
+        c = self.node(body["tree"], inner, spec.path, body.key_lines.get("tree", body.line))
+        if c is None:
+            return None
+        spec.children = [c]
+        return spec
+
+    def node_state_machine(self, spec, data, scope):
+        sm = data["state_machine"]
+        states: LineDict = sm["states"]
+        outcomes: LineDict = sm["outcomes"]
+        ok = True
+        if sm["initial"] not in states:
+            self.error(f"state_machine: initial state {sm['initial']!r} is not a state",
+                       spec.file, sm.key_lines["initial"])
+            ok = False
+        for name in outcomes:
+            if name in states:
+                self.error(f"state_machine: {name!r} is both a state and an outcome", spec.file,
+                           outcomes.key_lines[name])
+                ok = False
+        table = []
+        seen: set[str] = set()
+        for sname, sdata in states.items():
+            sline = states.key_lines[sname]
+            child = self.node(sdata["do"], scope, spec.path, sdata.key_lines["do"], seen)
+            if child is None:
+                ok = False
+                continue
+            child.attrs["state"] = sname
+            possible = list(child.attrs["outcomes"]) if child.kind == "state_machine" \
+                else ["success", "failure"]
+            trans: LineDict = sdata["transitions"]
+            for outcome, target in trans.items():
+                tline = trans.key_lines[outcome]
+                if outcome not in possible:
+                    self.error(f"state {sname}: {outcome!r} is not an outcome of its node "
+                               f"(outcomes: {', '.join(possible)})", spec.file, tline)
+                    ok = False
+                if target not in states and target not in outcomes:
+                    self.error(f"state {sname}: transition to unknown state or outcome "
+                               f"{target!r}", spec.file, tline)
+                    ok = False
+            for outcome in possible:
+                if outcome not in trans:
+                    self.error(f"state {sname}: outcome {outcome!r} has no transition", spec.file,
+                               sline)
+                    ok = False
+            spec.children.append(child)
+            table.append((sname, dict(trans)))
+        if not ok:
+            return None
+        spec.attrs.update(initial=sm["initial"], states=table, outcomes=dict(outcomes))
+        return spec
+
+
+def _display_path(path: str) -> str:
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd()))
+    except ValueError:
+        return path
+
+
+def _schema_message(err: jsonschema.ValidationError) -> str:
+    where = ".".join(str(p) for p in err.absolute_path)
+    if err.validator == "additionalProperties":
+        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
+        msg = f"unknown attribute {extra[0]!r}" if extra else err.message
+    elif err.validator == "required":
+        msg = err.message.replace("is a required property", "is required")
+    elif err.validator == "pattern":
+        msg = f"{err.instance!r} is not a valid name"
+    elif err.validator in ("enum", "const"):
+        allowed = err.schema.get("enum", [err.schema.get("const")])
+        msg = f"{err.instance!r} is not one of {allowed}"
+    else:
+        msg = err.message
+    return f"{where}: {msg}" if where else msg
+
+
+# ---------------------------------------------------------------------------------------
+# Public API
+# ---------------------------------------------------------------------------------------
+def _registry(skills: dict[str, type] | None) -> dict[str, type]:
+    if skills is not None:
+        return skills
+    from skills.base import registry
+    return registry()
+
+
+def compile_mission(path: str | Path, skills: dict[str, type] | None = None
+                    ) -> tuple[Mission | None, list[MissionError]]:
+    comp = _Compiler(_registry(skills))
+    try:
+        mission = comp.compile(str(path))
+    except MissionError as err:
+        return None, comp.errors + [err]
+    return mission, comp.errors
+
+
+def load_mission(path: str | Path, skills: dict[str, type] | None = None) -> Mission:
+    """Load and check a mission file; raises MissionValidationError listing every problem.
+
+    ``skills`` maps skill names to classes (default: ``skills.base.registry()``).
+    """
+    mission, errors = compile_mission(path, skills)
+    if errors or mission is None:
+        raise MissionValidationError(errors or [MissionError("invalid mission", file=str(path))])
+    return mission
+
+
+def validate_file(path: str | Path, skills: dict[str, type] | None = None) -> list[MissionError]:
+    """Every problem in a mission file (and its includes), each with file and line."""
+    return compile_mission(path, skills)[1]

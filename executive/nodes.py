@@ -1,0 +1,446 @@
+"""Hearth's own py_trees behaviours: what py_trees 2.6 lacks or does differently.
+
+* Every decorator here halts **deepest first**: py_trees' ``Decorator.stop`` calls its own
+  ``terminate`` before stopping its child; :class:`DeepestFirst` reverses that so a skill
+  stops what it started on the robot before its parents clean up. (py_trees composites
+  already stop children first.)
+* :class:`Timeout` reads an injectable clock (py_trees' uses ``time.monotonic``).
+* :class:`ThresholdParallel`: success when at least N children succeed.
+* :class:`ForEach` (on py_trees' ForEach): literal, parameter or key source, ``until:
+  success`` for search loops, and items that are ``None`` do not end the loop.
+* :class:`Guard` is py_trees' EternalGuard with a parsed condition.
+* :class:`Watch` halts and restarts its child when a watched runtime parameter changes.
+* :class:`StateMachine`: SMACH-style container on a ``transitions`` machine.
+
+Behaviours that need time or a clock get it from ``setup(clock=...)``.
+"""
+from __future__ import annotations
+
+import operator
+from typing import Any, Callable, Iterator
+
+import py_trees
+from py_trees import common
+from py_trees.behaviour import Behaviour
+from transitions import Machine
+
+from executive.missionfile import Expr
+
+Status = common.Status
+MISSING = object()
+
+Reader = Callable[[Any], Any]   # Ref -> value, MISSING when a key is unset
+
+
+class DeepestFirst:
+    """Mixin for decorators: on stop, stop the child before terminating self."""
+
+    def stop(self, new_status: Status) -> None:
+        child = self.decorated
+        if new_status == Status.INVALID and child.status != Status.INVALID:
+            child.stop(Status.INVALID)
+        elif child.status == Status.RUNNING:
+            child.stop(Status.INVALID)
+        self.terminate(new_status)
+        self.status = new_status
+
+
+class PassThrough(DeepestFirst, py_trees.decorators.PassThrough):
+    """An include: the subtree's root under a node named after the include."""
+
+
+class Retry(DeepestFirst, py_trees.decorators.Retry):
+    """At most ``num_failures`` attempts: a failure before the last restarts the child."""
+
+
+class Repeat(DeepestFirst, py_trees.decorators.Repeat):
+    """Run the child to success ``num_success`` times (-1: forever); a failure fails."""
+
+
+class Inverter(DeepestFirst, py_trees.decorators.Inverter):
+    pass
+
+
+class ForceSuccess(DeepestFirst, py_trees.decorators.FailureIsSuccess):
+    """Failure becomes success; running stays running."""
+
+
+class ForceFailure(DeepestFirst, py_trees.decorators.SuccessIsFailure):
+    """Success becomes failure; running stays running."""
+
+
+class Timeout(DeepestFirst, py_trees.decorators.Timeout):
+    """Fail, halting the child, when it runs longer than ``duration`` seconds of clock time."""
+
+    def __init__(self, name: str, child: Behaviour, duration: float):
+        super().__init__(name=name, child=child, duration=duration)
+        self.clock = None
+
+    def setup(self, **kwargs: Any) -> None:
+        self.clock = kwargs.get("clock") or self.clock
+
+    def _now(self) -> float:
+        if self.clock is None:
+            from robot.clock import WallClock
+            self.clock = WallClock()
+        return self.clock.now()
+
+    def initialise(self) -> None:
+        self.finish_time = self._now() + self.duration
+        self.feedback_message = ""
+
+    def update(self) -> Status:
+        now = self._now()
+        if self.decorated.status == Status.RUNNING and now >= self.finish_time:
+            self.feedback_message = f"timed out after {self.duration:g} s"
+            self.decorated.stop(Status.INVALID)
+            return Status.FAILURE
+        if self.decorated.status == Status.RUNNING:
+            self.feedback_message = f"{self.finish_time - now:.2f} s left"
+        return self.decorated.status
+
+
+class ThresholdParallel(py_trees.composites.Parallel):
+    """Tick all children; success once ``threshold`` have succeeded, failure once that can no
+    longer happen. Children that finished are not ticked again until the parallel restarts;
+    still-running children are halted when it finishes."""
+
+    def __init__(self, name: str, children: list[Behaviour], threshold: int):
+        super().__init__(name=name, policy=common.ParallelPolicy.SuccessOnAll(synchronise=True),
+                         children=children)
+        self.threshold = threshold
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != Status.RUNNING:
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    child.stop(Status.INVALID)
+            self.current_child = None
+            self.initialise()
+        for child in self.children:
+            if child.status in (Status.SUCCESS, Status.FAILURE):
+                continue
+            yield from child.tick()
+        succeeded = sum(c.status == Status.SUCCESS for c in self.children)
+        failed = sum(c.status == Status.FAILURE for c in self.children)
+        self.feedback_message = f"{succeeded} of {self.threshold} needed succeeded, {failed} failed"
+        new_status = Status.RUNNING
+        if succeeded >= self.threshold:
+            new_status = Status.SUCCESS
+        elif len(self.children) - failed < self.threshold:
+            new_status = Status.FAILURE
+        self.current_child = self.children[-1]
+        if new_status != Status.RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
+
+class ForEach(DeepestFirst, py_trees.decorators.ForEach):
+    """Run the child once per item of a list, writing the item to ``target_key`` first.
+
+    ``until="failure"`` (py_trees' semantics): success when every item succeeded, failure at
+    the first failure. ``until="success"`` (search loops, e.g. parking positions): success at
+    the first item whose child succeeds, failure when every item failed. An empty list is
+    success for ``failure`` and failure for ``success``.
+    """
+
+    _DONE = object()
+
+    def __init__(self, name: str, child: Behaviour, source: Callable[[], Any], target_key: str,
+                 until: str = "failure"):
+        py_trees.decorators.Decorator.__init__(self, name=name, child=child)
+        self.source = source
+        self.target_key = target_key
+        self.until = until
+        self.blackboard = self.attach_blackboard_client(name=name)
+        self.blackboard.register_key(key=target_key, access=common.Access.WRITE)
+        self.output_hook = None
+        self._iterator = None
+        self._current_item: Any = self._DONE
+        self.index = -1
+
+    def initialise(self) -> None:
+        items = self.source()
+        if items is MISSING or items is None:
+            items = []
+        if not isinstance(items, (list, tuple)):
+            raise TypeError(f"for_each {self.name}: source is not a list but {items!r}")
+        self._iterator = iter(list(items))
+        self.index = -1
+        self._advance()
+
+    def _advance(self) -> None:
+        try:
+            self._current_item = next(self._iterator)
+        except StopIteration:
+            self._current_item = self._DONE
+            return
+        self.index += 1
+        self.blackboard.set(self.target_key, self._current_item)
+        if self.output_hook is not None:
+            self.output_hook(self, "as", self.target_key, self._current_item)
+        self.feedback_message = f"item {self.index}: {self._current_item!r}"
+
+    def update(self) -> Status:
+        stop_on = Status.SUCCESS if self.until == "success" else Status.FAILURE
+        go_on = Status.FAILURE if self.until == "success" else Status.SUCCESS
+        if self._current_item is self._DONE:
+            return go_on
+        child_status = self.decorated.status
+        if child_status == stop_on:
+            return stop_on
+        if child_status == go_on:
+            self._advance()
+            return go_on if self._current_item is self._DONE else Status.RUNNING
+        return child_status
+
+    def terminate(self, new_status: Status) -> None:
+        self._iterator = None
+        self._current_item = self._DONE
+
+
+# ---------------------------------------------------------------------------------------
+# Conditions
+# ---------------------------------------------------------------------------------------
+_OPS: dict[str, Callable[[Any, Any], bool]] = {
+    "==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
+    ">": operator.gt, ">=": operator.ge,
+    "in": lambda a, b: a in b, "not in": lambda a, b: a not in b,
+}
+
+
+def evaluate(expr: Expr, read: Reader) -> tuple[bool, str]:
+    """Evaluate a parsed condition; an unset key or an impossible comparison is False."""
+    left = read(expr.left)
+    if left is MISSING:
+        return False, f"{expr.text}: not set"
+    if expr.op is None:
+        value = bool(left) != expr.negate
+        return value, f"{expr.text}: {value}"
+    right = read(expr.right)
+    if right is MISSING:
+        return False, f"{expr.text}: not set"
+    try:
+        value = bool(_OPS[expr.op](left, right))
+    except TypeError:
+        return False, f"{expr.text}: cannot compare {left!r} and {right!r}"
+    return value, f"{expr.text}: {left!r} {expr.op} {right!r} is {value}"
+
+
+class Condition(Behaviour):
+    """Success when the condition holds, failure otherwise; never running."""
+
+    def __init__(self, name: str, expr: Expr, read: Reader):
+        super().__init__(name=name)
+        self.expr = expr
+        self.read = read
+
+    def update(self) -> Status:
+        ok, self.feedback_message = evaluate(self.expr, self.read)
+        return Status.SUCCESS if ok else Status.FAILURE
+
+
+class Guard(DeepestFirst, py_trees.decorators.EternalGuard):
+    """Run the child while the condition holds; checked every tick, and when it stops
+    holding the child is halted and the guard fails (py_trees' EternalGuard)."""
+
+    def __init__(self, name: str, child: Behaviour, expr: Expr, read: Reader):
+        self.expr = expr
+        self.read = read
+        super().__init__(name=name, child=child, condition=self._check)
+
+    def _check(self) -> bool:
+        ok, message = evaluate(self.expr, self.read)
+        if not ok:
+            self.feedback_message = message
+        return ok
+
+
+class Message(Behaviour):
+    """``succeed``/``fail`` leaves: a fixed status and an optional feedback message."""
+
+    def __init__(self, name: str, status: Status, message: str = ""):
+        super().__init__(name=name)
+        self.result = status
+        self.message = message
+
+    def update(self) -> Status:
+        self.feedback_message = self.message
+        return self.result
+
+
+# ---------------------------------------------------------------------------------------
+# Halting helpers and the watch guard
+# ---------------------------------------------------------------------------------------
+def running_skills(node: Behaviour) -> list[Behaviour]:
+    """Running behaviours under ``node`` (inclusive) that can report halting."""
+    return [n for n in node.iterate() if n.status == Status.RUNNING and hasattr(n, "is_halting")]
+
+
+def still_halting(skills: list[Behaviour]) -> list[Behaviour]:
+    out = []
+    for s in skills:
+        try:
+            if s.is_halting():
+                out.append(s)
+        except Exception:  # noqa: BLE001 - a broken skill must not block a cancel
+            pass
+    return out
+
+
+def halt_timeout(skills: list[Behaviour]) -> float:
+    return max((float(getattr(s, "HALT_TIMEOUT", 0.0)) for s in skills), default=0.0)
+
+
+class Watch(DeepestFirst, py_trees.decorators.Decorator):
+    """Halt and restart the child when a watched runtime parameter changes.
+
+    Each tick compares the parameters' values with those the child started with. On a
+    change it halts the child (deepest first), waits while halted skills report
+    ``is_halting()`` (at most their HALT_TIMEOUT of clock time), then starts the child again,
+    so the child's inputs see the new value. ``restarts`` counts restarts.
+    """
+
+    def __init__(self, name: str, child: Behaviour, keys: dict[str, str],
+                 read_key: Callable[[str], Any]):
+        super().__init__(name=name, child=child)
+        self.keys = keys                # param name -> blackboard key
+        self.read_key = read_key
+        self.clock = None
+        self.seen: dict[str, Any] = {}
+        self.restarts = 0
+        self._halting: list[Behaviour] = []
+        self._halt_deadline = 0.0
+        self.on_restart: Callable[[Behaviour, dict], None] | None = None
+
+    def setup(self, **kwargs: Any) -> None:
+        self.clock = kwargs.get("clock") or self.clock
+
+    def _now(self) -> float:
+        return self.clock.now() if self.clock is not None else 0.0
+
+    def _snapshot(self) -> dict[str, Any]:
+        return {p: self.read_key(k) for p, k in self.keys.items()}
+
+    def initialise(self) -> None:
+        self.seen = self._snapshot()
+        self._halting = []
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != Status.RUNNING:
+            self.initialise()
+        else:
+            now = self._snapshot()
+            changed = {p: (self.seen[p], v) for p, v in now.items() if v != self.seen[p]}
+            if changed:
+                self.seen = now
+                self.restarts += 1
+                what = ", ".join(f"{p} {o!r} -> {n!r}" for p, (o, n) in changed.items())
+                self.feedback_message = f"restarting: {what}"
+                running = running_skills(self.decorated)
+                if self.decorated.status != Status.INVALID:
+                    self.decorated.stop(Status.INVALID)
+                self._halting = still_halting(running)
+                self._halt_deadline = self._now() + halt_timeout(self._halting)
+                if self.on_restart is not None:
+                    self.on_restart(self, changed)
+        if self._halting:
+            self._halting = still_halting(self._halting)
+            if self._halting and self._now() < self._halt_deadline:
+                self.feedback_message = f"waiting for {len(self._halting)} skill(s) to stop"
+                self.status = Status.RUNNING
+                yield self
+                return
+            self._halting = []
+        yield from self.decorated.tick()
+        new_status = self.decorated.status
+        if new_status != Status.RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
+    def update(self) -> Status:
+        return self.decorated.status
+
+
+# ---------------------------------------------------------------------------------------
+# State machines
+# ---------------------------------------------------------------------------------------
+class _Model:
+    """The ``transitions`` model of one state-machine block (holds ``state``)."""
+
+
+class StateMachine(py_trees.composites.Composite):
+    """A SMACH-style state machine as one tree node.
+
+    Each state runs one child node to completion. Its outcome (``success``/``failure``, or a
+    nested state machine's own outcome name) is fed to a ``transitions`` machine as a
+    trigger; the machine moves to the next state or to one of the container's outcomes,
+    which ends the block with success or failure (``outcomes`` maps each). Instantly finishing
+    states chain within one tick, up to one pass over all states, then the block yields.
+    Halting halts the current state's node. ``outcome`` is the container outcome reached.
+    """
+
+    def __init__(self, name: str, states: list[tuple[str, Behaviour, dict[str, str]]],
+                 initial: str, outcomes: dict[str, str]):
+        super().__init__(name=name, children=[child for _, child, _ in states])
+        self.initial = initial
+        self.outcomes = outcomes
+        self.by_state = {state: child for state, child, _ in states}
+        self.model = _Model()
+        self.machine = Machine(model=self.model, states=list(self.by_state) + list(outcomes),
+                               initial=initial, auto_transitions=False)
+        for state, _, table in states:
+            for outcome, target in table.items():
+                self.machine.add_transition(trigger=f"on_{outcome}", source=state, dest=target)
+        self.outcome: str | None = None
+        self.history: list[tuple[str, str, str]] = []
+
+    @property
+    def state(self) -> str:
+        return self.model.state
+
+    def initialise(self) -> None:
+        self.machine.set_state(self.initial)
+        self.outcome = None
+        self.history = []
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != Status.RUNNING:
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    child.stop(Status.INVALID)
+            self.initialise()
+        for _ in range(len(self.children) + 1):
+            state = self.model.state
+            child = self.by_state[state]
+            self.current_child = child
+            if child.status in (Status.SUCCESS, Status.FAILURE):
+                child.stop(Status.INVALID)   # a state entered again starts afresh
+            yield from child.tick()
+            if child.status == Status.RUNNING:
+                self.status = Status.RUNNING
+                yield self
+                return
+            if isinstance(child, StateMachine):
+                outcome = child.outcome or "failure"
+            else:
+                outcome = "success" if child.status == Status.SUCCESS else "failure"
+            self.model.trigger(f"on_{outcome}")
+            self.history.append((state, outcome, self.model.state))
+            self.feedback_message = f"{state} --{outcome}--> {self.model.state}"
+            if self.model.state in self.outcomes:
+                self.outcome = self.model.state
+                final = Status.SUCCESS if self.outcomes[self.outcome] == "success" else Status.FAILURE
+                self.stop(final)
+                yield self
+                return
+        self.status = Status.RUNNING
+        yield self
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        for child in self.children:
+            if child.status == Status.RUNNING:
+                child.stop(Status.INVALID)
+        py_trees.composites.Composite.stop(self, new_status)
