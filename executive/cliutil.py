@@ -1,0 +1,66 @@
+"""Helpers shared by the `hearth` subcommands that load and run missions."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from executive.errors import MissionError
+from executive.missionfile import Mission, parse_param_text
+
+DEFAULT_WORLD = Path(__file__).resolve().parents[1] / "data" / "demo_home" / "world.xml"
+
+
+def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
+    """``["presence=away", ...]`` -> typed values for ``mission``'s parameters."""
+    out: dict[str, Any] = {}
+    for pair in pairs or []:
+        name, sep, text = pair.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise MissionError(f"expected NAME=VALUE, got {pair!r}", param=name or pair)
+        spec = mission.parameters.get(name)
+        if spec is None:
+            known = ", ".join(sorted(mission.parameters)) or "none"
+            raise MissionError(f"unknown parameter of mission {mission.name} (known: {known})",
+                               param=name)
+        out[name] = parse_param_text(name, spec.type, text)
+    return out
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("mission", help="mission file (YAML)")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE", default=[],
+                   help="mission parameter (repeatable)")
+    p.add_argument("--world", default=str(DEFAULT_WORLD),
+                   help="world file (default: data/demo_home/world.xml)")
+    p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
+    p.add_argument("--recording", default=None, metavar="DIR",
+                   help="recording to replay instead of simulating")
+    p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
+    p.add_argument("--runs-dir", default="runs", help="where execution logs go")
+    p.add_argument("--wall-clock", action="store_true",
+                   help="run in real time (default: simulated time, as fast as possible)")
+
+
+def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any]:
+    """Load the world (worldmodel.io.load_world) and make the robot adapter
+    (robot.create_adapter); one clear MissionError line if either is not available."""
+    try:
+        from worldmodel.io import load_world
+    except ImportError as err:
+        raise MissionError(f"cannot load worlds: worldmodel.io is not available ({err})") from None
+    world = load_world(args.world, clock=clock)
+    try:
+        import robot
+        create_adapter = robot.create_adapter
+    except (ImportError, AttributeError):
+        raise MissionError("no robot adapter: robot.create_adapter() does not exist yet") from None
+    adapter = create_adapter(world=world, scenario=args.scenario, recording=args.recording,
+                             clock=clock)
+    return world, adapter
+
+
+def make_clock(args: argparse.Namespace) -> Any:
+    from robot.clock import SimClock, WallClock
+    return WallClock() if getattr(args, "wall_clock", False) else SimClock()

@@ -1,0 +1,44 @@
+"""`hearth log show RUN.jsonl`: print a run's timeline; `hearth log replay RUN.jsonl`."""
+from __future__ import annotations
+
+from executive.replay import format_event, read_log, replay
+
+
+def register(sub) -> None:
+    p = sub.add_parser("log", help="read execution logs (runs/*.jsonl)",
+                       description="Execution logs: show a run's timeline, or replay it "
+                                   "offline against the logged skill results.")
+    lsub = p.add_subparsers(dest="log_command", metavar="ACTION", required=True)
+    s = lsub.add_parser("show", help="print a run's timeline")
+    s.add_argument("log")
+    s.add_argument("--kinds", default=None,
+                   help="comma-separated event kinds to show (e.g. status,run)")
+    s.set_defaults(func=_show)
+    r = lsub.add_parser("replay", help="re-run the mission against the logged results and "
+                                       "check the timeline is the same")
+    r.add_argument("log")
+    r.set_defaults(func=_replay)
+
+
+def _show(args) -> int:
+    header, events, end = read_log(args.log)
+    kinds = set(args.kinds.split(",")) if args.kinds else None
+    print(format_event(header))
+    for e in events:
+        if kinds is None or e["e"] in kinds:
+            print(format_event(e))
+    if end is not None:
+        print(format_event(end))
+    else:
+        print("(no end line: the run was interrupted)")
+    return 0
+
+
+def _replay(args) -> int:
+    report = replay(args.log)
+    if report.same:
+        print(f"replay matches: {len(report.original)} status changes, outcome "
+              f"{report.replayed_outcome}")
+        return 0
+    print(f"replay differs: {report.first_difference()}")
+    return 1

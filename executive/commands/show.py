@@ -1,0 +1,28 @@
+"""`hearth show MISSION [--format ascii|dot]`: draw a mission's tree."""
+from __future__ import annotations
+
+from executive.missionfile import load_mission
+from executive.render import ascii_tree, dot_tree
+
+
+def register(sub) -> None:
+    p = sub.add_parser("show", help="draw a mission's behaviour tree",
+                       description="Load and check a mission, then draw its tree: ASCII "
+                                   "(default) or Graphviz dot.")
+    p.add_argument("mission")
+    p.add_argument("--format", choices=("ascii", "dot"), default="ascii")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    mission = load_mission(args.mission)
+    if args.format == "dot":
+        print(dot_tree(mission.root, mission.name))
+    else:
+        print(f"{mission.name}: {mission.description}".rstrip(": "))
+        for p in mission.parameters.values():
+            flags = " runtime" if p.runtime else ""
+            default = f" = {p.default!r}" if p.default is not None else " (required)"
+            print(f"  ${p.name}: {p.type}{flags}{default}")
+        print(ascii_tree(mission.root))
+    return 0

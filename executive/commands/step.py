@@ -1,0 +1,121 @@
+"""`hearth step MISSION [--param k=v] [--ticks N]`: tick a mission by hand.
+
+Interactive commands: ``t [N]`` tick (N times), ``u NAME`` tick until the node NAME (a
+name or tree path) runs or finishes, ``p`` print the tree with statuses, ``b`` print the
+blackboard, ``c`` continue to the end, ``q`` cancel and quit. With ``--ticks N`` it ticks N
+times, printing events, then prints the tree and blackboard.
+"""
+from __future__ import annotations
+
+import sys
+
+from executive.cliutil import add_run_arguments, make_clock, make_world_and_robot, parse_params
+from executive.executive import Executive
+from executive.missionfile import load_mission
+from executive.render import ascii_tree, blackboard_text
+from executive.replay import format_event
+
+HELP = ("t [N]: tick N times | u NAME: tick until NAME runs | p: tree | b: blackboard | "
+        "c: continue to the end | q: cancel and quit | h: help")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("step", help="step a mission tick by tick",
+                       description=__doc__.split("\n\n", 1)[1])
+    add_run_arguments(p)
+    p.add_argument("--ticks", type=int, default=None,
+                   help="tick N times without asking, then print tree and blackboard")
+    p.set_defaults(func=_run)
+
+
+class Stepper:
+    """Ticks one mission on a non-background Executive; remembers statuses for printing."""
+
+    def __init__(self, ex: Executive, handle, out=sys.stdout):
+        self.ex = ex
+        self.handle = handle
+        self.out = out
+        self.statuses: dict[str, str] = {}
+        self.feedback: dict[str, str] = {}
+        self.blackboard: dict = {}
+        handle.subscribe(self._on_event)
+
+    def _on_event(self, e) -> None:
+        if e.kind == "status":
+            self.statuses[e.path] = e.data["status"]
+        elif e.kind == "feedback":
+            self.feedback[e.path] = e.data["message"]
+        if e.kind != "tick":
+            print(format_event(e.to_json()), file=self.out)
+
+    def tick(self, n: int = 1) -> int:
+        done = 0
+        while done < n and not self.handle.done:
+            self.ex.tick()
+            done += 1
+            tree = self.ex.current_tree
+            if tree is not None:
+                self.blackboard = tree.blackboard()
+        return done
+
+    def until(self, name: str, limit: int = 100_000) -> bool:
+        targets = [n.path for n in self.handle.mission.nodes()
+                   if n.path == name or n.name == name or n.path.endswith("/" + name)]
+        if not targets:
+            print(f"no node named {name!r}", file=self.out)
+            return False
+        for _ in range(limit):
+            if self.handle.done:
+                return False
+            self.tick()
+            if any(self.statuses.get(t, "INVALID") != "INVALID" for t in targets):
+                return True
+        return False
+
+    def tree(self) -> str:
+        return ascii_tree(self.handle.mission.root, self.statuses, self.feedback)
+
+
+def _run(args) -> int:
+    mission = load_mission(args.mission)
+    params = parse_params(mission, args.param)
+    clock = make_clock(args)
+    world, robot = make_world_and_robot(args, clock)
+    ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
+                   runs_dir=args.runs_dir, background=False)
+    handle = ex.submit(mission, **params)
+    st = Stepper(ex, handle)
+    if args.ticks is not None:
+        st.tick(args.ticks)
+        print(st.tree())
+        print(blackboard_text(st.blackboard))
+        print(f"status: {handle.status}")
+        if not handle.done:
+            handle.cancel("step finished")
+            ex.run_until_idle(100_000)
+        return 0
+    print(HELP)
+    while not handle.done:
+        try:
+            line = input(f"[tick {ex._current.tick if ex._current else 0}] > ").strip()
+        except EOFError:
+            line = "q"
+        cmd, _, arg = line.partition(" ")
+        if cmd in ("", "t"):
+            st.tick(int(arg) if arg.strip().isdigit() else 1)
+        elif cmd == "u" and arg:
+            st.until(arg.strip())
+        elif cmd == "p":
+            print(st.tree())
+        elif cmd == "b":
+            print(blackboard_text(st.blackboard))
+        elif cmd == "c":
+            ex.run_until_idle()
+        elif cmd == "q":
+            handle.cancel("quit from hearth step")
+            ex.run_until_idle(100_000)
+        else:
+            print(HELP)
+    print(st.tree())
+    print(f"{mission.name}: {handle.result.outcome} ({handle.result.reason})")
+    return 0 if handle.result.outcome == "succeeded" else 1

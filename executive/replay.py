@@ -1,0 +1,252 @@
+"""Execution logs: read them, print a timeline, and replay a run offline.
+
+An execution log (``runs/<run id>.jsonl``, written by the Executive) is JSON lines: a
+``start`` header (mission file and its source text, parameters, tick rate, clock kind,
+start time), then one object per event (see ``executive.executive.Event``; ``e`` is the
+kind, ``tick`` the tick number, ``t`` clock seconds), then an ``end`` line (outcome,
+reason, outputs).
+
+:func:`replay` re-runs the mission against the logged skill results: every skill is
+replaced by a stand-in that returns, at each tick, the status its original returned and
+writes the outputs it wrote; parameter changes, cancels and preempts are applied at the
+ticks they happened, halting skills keep halting as long as they did. The replayed
+timeline (status changes by tick) must equal the logged one; :class:`ReplayReport` says
+whether it does and where it first differs. Time-based nodes (timeout) see the logged
+times: simulated-clock runs are reproduced exactly; wall-clock runs log each tick's time.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from py_trees import common
+
+from executive.errors import MissionError
+from executive.missionfile import NodeSpec, load_mission
+from skills.base import Bindings, Skill
+
+Status = common.Status
+
+
+def read_log(path: str | Path) -> tuple[dict, list[dict], dict | None]:
+    """(header, events, end) of an execution log; MissionError(file:line) if malformed."""
+    path = str(path)
+    header, events, end = None, [], None
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise MissionError("no such file", file=path, line=0) from None
+    for i, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            obj = json.loads(line)
+        except json.JSONDecodeError as err:
+            raise MissionError(f"not JSON: {err.msg}", file=path, line=i) from None
+        if not isinstance(obj, dict) or "e" not in obj:
+            raise MissionError("not an execution log event (no 'e')", file=path, line=i)
+        if obj["e"] == "start":
+            header = obj
+        elif obj["e"] == "end":
+            end = obj
+        else:
+            events.append(obj)
+    if header is None:
+        raise MissionError("no start line: not an execution log", file=path, line=1)
+    return header, events, end
+
+
+def timeline(events: list[dict]) -> list[tuple]:
+    """The comparable part of a run: status changes (tick, path, status, halted)."""
+    return [(e["tick"], e["path"], e["status"], bool(e.get("halted")))
+            for e in events if e["e"] == "status"]
+
+
+def format_event(e: dict) -> str:
+    """One line of ``hearth log show``."""
+    head = f"{e.get('tick', 0):>6} {e.get('t', 0.0):>10.3f}s  "
+    kind = e["e"]
+    path = e.get("path", "")
+    if kind == "start":
+        return (head + f"start   {e['mission']} ({e['file']}) params={e.get('params')} "
+                f"at {e.get('tick_hz')} Hz, {e.get('clock')} clock")
+    if kind == "end":
+        return head + f"end     {e['outcome']}: {e['reason']}  outputs={e.get('outputs')}"
+    if kind == "run":
+        return head + f"mission {e['state']}" + (f": {e['reason']}" if e.get("reason") else "")
+    if kind == "status":
+        extra = " (halted)" if e.get("halted") else ""
+        return head + f"status  {path} {e['previous']} -> {e['status']}{extra}"
+    if kind == "feedback":
+        return head + f"feedbk  {path}: {e['message']}"
+    if kind == "write":
+        return head + f"write   {{{e['key']}}} = {e['value']!r}  by {path}"
+    if kind == "param":
+        return head + f"param   ${e['name']} = {e['value']!r}"
+    if kind == "restart":
+        return head + f"restart {path}: {e.get('changed')}"
+    if kind == "map":
+        return head + (f"map     {e.get('node')}.{e.get('field')}: {e.get('old')!r} -> "
+                       f"{e.get('new')!r} ({e.get('source')})")
+    if kind == "halted":
+        return head + f"halted  after {e.get('waited')} s" + (
+            f", gave up on {e['timed_out']}" if e.get("timed_out") else "")
+    if kind == "tick":
+        return head + "tick"
+    return head + f"{kind} {json.dumps({k: v for k, v in e.items() if k not in ('e', 'tick', 't', 'run')})}"
+
+
+class _ReplayClock:
+    """A simulated clock that the replayer can also set to a logged tick time."""
+
+    simulated = True
+
+    def __init__(self, start: float, epoch: float):
+        self._t = start
+        self._epoch = epoch
+
+    def now(self) -> float:
+        return self._t
+
+    def wall(self) -> float:
+        return self._epoch + self._t
+
+    def advance(self, seconds: float) -> None:
+        self._t += seconds
+
+    def sleep(self, seconds: float) -> None:
+        self._t += max(0.0, seconds)
+
+    def set(self, t: float) -> None:
+        self._t = t
+
+
+class ReplaySkill(Skill):
+    """Plays one skill's logged results back (subclassed per skill for NAME and ports)."""
+
+    record: dict = {}
+
+    def __init__(self, name=None, bindings: Bindings | None = None):
+        super().__init__(name=name, bindings=bindings)
+        self.statuses: dict[int, str] = {}
+        self.writes: dict[int, list[tuple[str, Any]]] = {}
+        self.halting_until = -1
+        self.current_tick = lambda: 0
+
+    def setup(self, **kwargs: Any) -> None:
+        self.clock = kwargs.get("clock")
+
+    def update(self) -> Status:
+        t = self.current_tick()
+        for port, value in self.writes.get(t, []):
+            self.set_output(port, value)
+        return Status(self.statuses.get(t, "RUNNING"))
+
+    def is_halting(self) -> bool:
+        return self.current_tick() < self.halting_until
+
+
+@dataclass
+class ReplayReport:
+    original: list[tuple]
+    replayed: list[tuple]
+    outcome: str | None
+    replayed_outcome: str
+
+    @property
+    def same(self) -> bool:
+        return self.original == self.replayed and self.outcome == self.replayed_outcome
+
+    def first_difference(self) -> str | None:
+        for i, (a, b) in enumerate(zip(self.original, self.replayed)):
+            if a != b:
+                return f"event {i}: logged {a}, replayed {b}"
+        if len(self.original) != len(self.replayed):
+            return f"logged {len(self.original)} status changes, replayed {len(self.replayed)}"
+        if self.outcome != self.replayed_outcome:
+            return f"logged outcome {self.outcome}, replayed {self.replayed_outcome}"
+        return None
+
+
+def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayReport:
+    """Re-run a logged mission against its logged skill results; compare timelines."""
+    from executive.executive import Executive
+
+    header, events, end = read_log(path)
+    file = header["file"]
+    source = header.get("sources", {}).get(file)
+    if source is not None and Path(file).exists():
+        if hashlib.sha256(Path(file).read_bytes()).digest() != \
+                hashlib.sha256(source.encode()).digest():
+            raise MissionError("the mission file changed since this run; replay needs the "
+                               "version that ran", file=str(path), line=1)
+    mission = load_mission(file, skills)
+    skill_paths = {n.path for n in mission.nodes() if n.kind == "skill"}
+    statuses: dict[str, dict[int, str]] = {p: {} for p in skill_paths}
+    writes: dict[str, dict[int, list]] = {p: {} for p in skill_paths}
+    params_at: dict[int, list[tuple[str, Any]]] = {}
+    cancel_at: dict[int, tuple[str, str]] = {}
+    tick_times: dict[int, float] = {}
+    halted_tick = -1
+    for e in events:
+        kind, tick = e["e"], e["tick"]
+        if kind == "status" and e["path"] in skill_paths and not e.get("halted"):
+            statuses[e["path"]][tick] = e["status"]
+        elif kind == "write" and e.get("path") in skill_paths:
+            writes[e["path"]].setdefault(tick, []).append((e["port"], e["value"]))
+        elif kind == "param":
+            params_at.setdefault(tick, []).append((e["name"], e["value"]))
+        elif kind == "run" and e["state"] == "halting":
+            cancel_at[tick] = (e.get("final", "cancelled"), e.get("reason", ""))
+        elif kind == "halted":
+            halted_tick = tick
+        elif kind == "tick":
+            tick_times[tick] = e["t"]
+
+    ex_ref: list[Executive] = []
+
+    def current_tick() -> int:
+        run = ex_ref[0]._current if ex_ref else None
+        return run.tick if run is not None else 0
+
+    def make(spec: NodeSpec, bindings: Bindings) -> Skill:
+        cls = type(f"Replay{spec.skill.__name__}", (ReplaySkill,),
+                   {"NAME": spec.skill.NAME, "INPUTS": spec.skill.INPUTS,
+                    "OUTPUTS": spec.skill.OUTPUTS, "HALT_TIMEOUT": spec.skill.HALT_TIMEOUT,
+                    "__module__": __name__})
+        node = cls(name=spec.name, bindings=bindings)
+        node.statuses = statuses[spec.path]
+        node.writes = writes[spec.path]
+        node.halting_until = halted_tick
+        node.current_tick = current_tick
+        return node
+
+    clock = _ReplayClock(start=float(header["t"]), epoch=float(header.get("wall", 0.0))
+                         - float(header["t"]))
+    ex = Executive(clock=clock, tick_hz=header["tick_hz"], runs_dir=None, skills=skills,
+                   make_skill=make, background=False)
+    ex_ref.append(ex)
+    replayed: list[dict] = []
+    handle = ex.submit(mission, priority=header.get("priority", 0), **header.get("params", {}))
+    handle.subscribe(lambda ev: replayed.append(ev.to_json()))
+    last_tick = end["tick"] if end else max((e["tick"] for e in events), default=0)
+    for k in range(last_tick + 10):
+        if handle.done:
+            break
+        if k in tick_times:
+            clock.set(tick_times[k])
+        for name, value in params_at.get(k, []):
+            ex.set_parameter(name, value)
+        if k in cancel_at:
+            final, reason = cancel_at[k]
+            ex._request_cancel(handle, final, reason)
+        ex.tick()
+    if not handle.done:
+        handle.cancel("replay ran past the logged end")
+        ex.run_until_idle(1000)
+    return ReplayReport(original=timeline(events), replayed=timeline(replayed),
+                        outcome=end["outcome"] if end else None,
+                        replayed_outcome=handle.result.outcome)
