@@ -64,7 +64,7 @@ class Script:
             raise MissionError(f"script {self.match}: needs at least one outcome")
 
     def matches(self, spec: NodeSpec) -> bool:
-        if self.match.startswith("/"):
+        if "/" in self.match:
             return fnmatch.fnmatchcase(spec.path, self.match)
         return fnmatch.fnmatchcase(spec.skill_name, self.match)
 

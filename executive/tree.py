@@ -119,13 +119,12 @@ def build_tree(mission: Mission, params: dict[str, Any], ns: str,
         elif k == "selector":
             node = py_trees.composites.Selector(name, memory=not a["reactive"], children=kids)
         elif k == "parallel":
-            if a["policy"] == "threshold":
-                node = nodes.ThresholdParallel(name, kids, a["threshold"])
-            else:
-                policy = (common.ParallelPolicy.SuccessOnAll(synchronise=True)
-                          if a["policy"] == "all"
-                          else common.ParallelPolicy.SuccessOnOne())
-                node = py_trees.composites.Parallel(name, policy=policy, children=kids)
+            if a["policy"] == "all":
+                node = py_trees.composites.Parallel(
+                    name, policy=common.ParallelPolicy.SuccessOnAll(synchronise=True),
+                    children=kids)
+            else:   # "one" is threshold 1: succeed at the first success, fail when all fail
+                node = nodes.ThresholdParallel(name, kids, a.get("threshold", 1))
         elif k == "retry":
             node = nodes.Retry(name, kids[0], num_failures=a["times"])
         elif k == "repeat":

@@ -1,0 +1,208 @@
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from executive.cli import main
+from executive.errors import MissionValidationError
+from executive.missionfile import (check_value, load_mission, parse_expression, parse_param_text,
+                                   validate_file)
+from executive.testing import test_skills
+from executive.errors import MissionError
+
+
+def errors(path):
+    return [str(e) for e in validate_file(path, test_skills())]
+
+
+def test_valid_mission_loads_with_paths_named_after_nodes(mission_file):
+    path = mission_file("""
+        name: demo
+        parameters:
+          where: {type: node_id, default: kitchen}
+        tree:
+          sequence:
+            - skill: Navigate
+              inputs: {target: $where}
+              outputs: {reached: at}
+            - skill: Speak
+              inputs: {text: "{at}"}
+    """)
+    m = load_mission(path, test_skills())
+    assert [n.path for n in m.nodes()] == ["/demo", "/demo/Navigate", "/demo/Speak"]
+
+
+def test_yaml_syntax_error_is_one_line_with_file_and_line(mission_file):
+    path = mission_file("name: x\ntree:\n  sequence: [\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:") and "YAML syntax error" in err
+
+
+def test_unknown_node_kind_is_reported_at_its_line(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - skill: Act
+            - dance: {}
+    """)
+    assert errors(path) == [f"{path}:6: unknown node kind 'dance' (known: sequence, selector, "
+                            "parallel, retry, timeout, repeat, inverter, force_success, "
+                            "force_failure, for_each, guard, watch, skill, condition, succeed, "
+                            "fail, include, state_machine)"]
+
+
+def test_unknown_skill_missing_input_unknown_input_are_errors(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - skill: Teleport
+            - skill: Navigate
+            - skill: Speak
+              inputs: {text: hi, volume: 3}
+    """)
+    errs = errors(path)
+    assert f"{path}:5: unknown skill 'Teleport'" in errs
+    assert f"{path}:6: skill Navigate: missing required input 'target' (node_id|pose)" in errs
+    assert any(e.startswith(f"{path}:8: skill Speak has no input 'volume'") for e in errs)
+
+
+def test_reading_a_key_nothing_writes_is_an_error(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          skill: Speak
+          inputs: {text: "{greeting}"}
+    """)
+    assert errors(path) == [f"{path}:5: reads key {{greeting}} that nothing writes"]
+
+
+def test_type_mismatch_between_writer_and_reader(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - skill: Detect
+              inputs: {object: cup}
+              outputs: {found: flag}
+            - skill: Speak
+              inputs: {text: "{flag}"}
+    """)
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:9: key {{flag}} holds boolean") and "string is expected" in err
+
+
+def test_literal_and_parameter_type_mismatch(mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          n: {type: number, default: 1.5}
+        tree:
+          sequence:
+            - skill: Speak
+              inputs: {text: $n}
+            - skill: Navigate
+              inputs: {target: 42}
+    """)
+    errs = errors(path)
+    assert f"{path}:8: input text of Speak: parameter $n is number, string expected" in errs
+    assert f"{path}:10: input target of Navigate: expected node_id|pose, got 42" in errs
+
+
+def test_cyclic_include_is_an_error(mission_file):
+    mission_file("""
+        name: b
+        tree:
+          include: a.yaml
+    """, "b.yaml")
+    path = mission_file("""
+        name: a
+        tree:
+          include: b.yaml
+    """, "a.yaml")
+    errs = errors(path)
+    assert len(errs) == 1 and "cyclic include" in errs[0] and errs[0].startswith(f"{path}:4:") \
+        or any("cyclic include" in e for e in errs)
+
+
+def test_subtree_include_remaps_parameters_and_scopes_keys(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - include: visit
+              params: {place: kitchen}
+            - include: visit
+              params: {place: hall}
+        subtrees:
+          visit:
+            parameters: {place: {type: node_id}}
+            tree:
+              sequence:
+                - skill: Navigate
+                  inputs: {target: $place}
+                  outputs: {reached: here}
+                - skill: Speak
+                  inputs: {text: "{here}"}
+    """)
+    m = load_mission(path, test_skills())
+    navs = [n for n in m.nodes() if n.skill_name == "Navigate"]
+    assert [n.inputs["target"].value for n in navs] == ["kitchen", "hall"]
+    assert navs[0].outputs["reached"].key != navs[1].outputs["reached"].key
+
+
+def test_state_machine_unmapped_outcome_and_unknown_target(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          state_machine:
+            initial: go
+            states:
+              go:
+                do: {skill: Act}
+                transitions: {success: talk}
+            outcomes: {done: success}
+    """)
+    errs = errors(path)
+    assert any("outcome 'failure' has no transition" in e for e in errs)
+    assert any("unknown state or outcome 'talk'" in e for e in errs)
+
+
+def test_cli_validate_exits_2_with_one_line(mission_file, capsys):
+    path = mission_file("name: x\ntree: {skill: NoSuchSkill}\n")
+    assert main(["validate", path]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"{path}:2: unknown skill 'NoSuchSkill'"]
+
+
+def test_cli_wrong_parameter_type_exits_2(mission_file, capsys, tmp_path):
+    case = tmp_path / "case.yaml"
+    case.write_text("params: {}\n")
+    assert main(["step", "missions/go_to_rest.yaml", "--param", "nonsense=1", "--ticks", "1"]) == 2
+    assert "parameter nonsense" in capsys.readouterr().err
+
+
+def test_parse_param_text_types():
+    assert parse_param_text("n", "number", "2") == 2.0
+    assert parse_param_text("p", "pose", "[1, 2, 0.5]") == [1, 2, 0.5]
+    assert parse_param_text("s", "string", "007") == "007"
+    with pytest.raises(MissionError, match="parameter b: expected boolean"):
+        parse_param_text("b", "boolean", "maybe")
+
+
+def test_conditions_are_parsed_not_evaluated_as_python():
+    e = parse_expression("{battery} >= 0.2")
+    assert e.op == ">=" and e.right.value == 0.2
+    with pytest.raises(ValueError):
+        parse_expression("__import__('os').system('true')")
+
+
+def test_go_to_rest_validates_against_the_real_registry():
+    assert validate_file("missions/go_to_rest.yaml") == []
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.one_of(st.integers(), st.floats(allow_nan=False), st.text(max_size=5), st.booleans(),
+                 st.lists(st.integers(), max_size=6), st.none()))
+def test_check_value_number_never_accepts_booleans_or_strings(value):
+    if check_value("number", value):
+        assert isinstance(value, (int, float)) and not isinstance(value, bool)

@@ -1,0 +1,428 @@
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from executive.replay import read_log, replay
+from executive.testing import Script as S, load_case, run_case, test_skills
+
+
+def run(make_executive, path, scripts=(), max_ticks=10_000, **params):
+    ex = make_executive(scripts)
+    h = ex.submit(path, **params)
+    ex.run_until_idle(max_ticks)
+    return h, ex
+
+
+def test_memory_sequence_resumes_at_running_child_reactive_rechecks_conditions(
+        make_executive, mission_file, journal):
+    path = mission_file("""
+        name: x
+        blackboard: {ok: true}
+        tree:
+          sequence:
+            - skill: Act
+              name: first
+            - skill: Act
+              name: slow
+      """)
+    h, _ = run(make_executive, path, [S("/x/slow", duration=0.5)])
+    assert h.result.outcome == "succeeded"
+    assert [e for e in journal if e[0] == "start"] == [("start", "/x/first"), ("start", "/x/slow")]
+
+
+def test_reactive_sequence_halts_running_child_when_condition_fails(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - skill: Measure
+              outputs: {value: level}
+            - condition: "{level} > 0.5"
+            - skill: Act
+              name: work
+          reactive: true
+      """)
+    ex = make_executive([S("Measure", outcomes=["success"] * 3 + ["success"],
+                           outputs={"value": 1.0}), S("/x/work", duration=10)])
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    work = ex.current_tree.nodes["/x/work"]
+    assert work.status.value == "RUNNING"
+    ex.make_skill.scripts[0].outputs["value"] = 0.0
+    ex.run_until_idle(100)
+    assert h.result.outcome == "failed" and work.halts == 1
+
+
+def test_selector_falls_back_and_retry_counts_attempts(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          selector:
+            - retry: {skill: Act, name: flaky}
+              times: 3
+            - skill: Act
+              name: fallback
+      """)
+    h, ex = run(make_executive, path, [S("/x/retry/flaky", outcomes=["failure", "failure", "success"])])
+    assert h.result.outcome == "succeeded"
+    h2, _ = run(make_executive, path, [S("/x/retry/flaky", outcomes=["failure"])])
+    assert h2.result.outcome == "succeeded"   # the fallback
+
+
+def test_parallel_policies(make_executive, mission_file):
+    for policy, outcomes, expected in [("all", ["success", "failure", "success"], "failed"),
+                                       ("one", ["failure", "success", "failure"], "succeeded"),
+                                       ("threshold", ["success", "failure", "success"], "succeeded"),
+                                       ("threshold", ["success", "failure", "failure"], "failed")]:
+        extra = "threshold: 2" if policy == "threshold" else ""
+        path = mission_file(f"""
+            name: x
+            tree:
+              parallel:
+                - {{skill: Act, name: a}}
+                - {{skill: Act, name: b}}
+                - {{skill: Act, name: c}}
+              policy: {policy}
+              {extra}
+          """)
+        scripts = [S(f"/x/{n}", outcomes=[o], duration=0.1 * i) for i, (n, o) in
+                   enumerate(zip("abc", outcomes))]
+        h, _ = run(make_executive, path, scripts)
+        assert h.result.outcome == expected, (policy, outcomes)
+
+
+def test_timeout_uses_the_simulated_clock(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          timeout: {skill: Act, name: slow}
+          seconds: 1.0
+      """)
+    h, _ = run(make_executive, path, [S("*/slow", duration=5)])
+    assert h.result.outcome == "failed" and "timed out" in h.result.reason
+    assert abs(h.result.duration - 1.0) < 0.11
+
+
+def test_decorators_repeat_inverter_force(make_executive, mission_file, journal):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - repeat: {skill: Act, name: thrice}
+              times: 3
+            - inverter: {fail: nope}
+            - force_success: {skill: Act, name: bad}
+            - force_failure: {skill: Act, name: good}
+      """)
+    h, _ = run(make_executive, path, [S("*/bad", outcomes=["failure"])])
+    assert h.result.outcome == "failed" and "/x/force_failure" in h.result.reason
+    assert sum(1 for e in journal if e == ("start", "/x/repeat/thrice")) == 3
+
+
+def test_for_each_until_success_searches_positions(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          places: {type: list, items: node_id, default: [a, b, c]}
+        tree:
+          for_each:
+            skill: Navigate
+            inputs: {target: "{place}"}
+          in: $places
+          as: place
+          until: success
+      """)
+    h, ex = run(make_executive, path, [S("Navigate", outcomes=["failure", "success"])])
+    nav = ex.make_skill.made["/x/Navigate"]
+    assert h.result.outcome == "succeeded"
+    assert [s["target"] for s in nav.seen_inputs] == ["a", "b"]
+    assert h.result.outputs["place"] == "b"
+
+
+def test_guard_halts_child_when_condition_stops_holding(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          mode: {type: string, default: go, runtime: true}
+        tree:
+          guard: {skill: Act, name: work}
+          while: "$mode == go"
+      """)
+    ex = make_executive([S("*/work", duration=10)])
+    h = ex.submit(path)
+    for _ in range(3):
+        ex.tick()
+    ex.set_parameter("mode", "stop")
+    ex.run_until_idle(100)
+    assert h.result.outcome == "failed" and ex.make_skill.made["/x/work"].halts == 1
+
+
+def test_state_machine_follows_outcomes_smach_style(make_executive, mission_file, journal):
+    path = mission_file("""
+        name: x
+        tree:
+          state_machine:
+            initial: look
+            states:
+              look:
+                do: {skill: Act, name: look}
+                transitions: {success: grab, failure: look_again}
+              look_again:
+                do: {skill: Act, name: look_again}
+                transitions: {success: grab, failure: gave_up}
+              grab:
+                do: {skill: Act, name: grab}
+                transitions: {success: done, failure: gave_up}
+            outcomes: {done: success, gave_up: failure}
+      """)
+    h, ex = run(make_executive, path, [S("*/look", outcomes=["failure"])])
+    assert h.result.outcome == "succeeded"
+    assert [p for k, p in journal if k == "start"] == ["/x/look", "/x/look_again", "/x/grab"]
+    assert ex.make_skill.made  # built
+
+
+def test_halting_terminates_deepest_first(make_executive, mission_file, journal):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - retry:
+                sequence:
+                  - skill: Act
+                    name: inner
+              times: 2
+      """)
+    ex = make_executive([S("*/inner", duration=10)])
+    h = ex.submit(path)
+    ex.tick()
+    order = []
+    tree = ex.current_tree
+    for p, node in tree.nodes.items():
+        orig = node.terminate
+        node.terminate = (lambda o, p: lambda s: (order.append(p), o(s)))(orig, p)
+    h.cancel()
+    ex.run_until_idle(10)
+    assert order == ["/x/retry/sequence/inner", "/x/retry/sequence", "/x/retry", "/x"]
+    assert h.result.outcome == "cancelled"
+
+
+class FakeRobot:
+    def __init__(self):
+        self.stops = 0
+        self.said = []
+
+    def say(self, text):
+        self.said.append(text)
+
+    def stop(self):
+        self.stops += 1
+
+
+def test_cancel_waits_for_halting_skill_then_stops_robot(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    robot = FakeRobot()
+    ex = make_executive([S("*/drive", duration=10, halt_duration=0.5)], robot=robot)
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    assert h.cancel() is True
+    ex.tick()
+    assert h.status == "halting" and not h.done
+    ex.run_until_idle(100)
+    assert h.status == "cancelled" and robot.stops == 1
+    assert 0.4 < h.result.duration - 0.2 < 0.7
+    assert h.cancel() is False           # after the end: handled, not an error
+
+
+def test_cancel_while_queued_during_startup_and_twice(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=10)])
+    first = ex.submit(path)
+    queued = ex.submit(path)
+    assert queued.cancel() and queued.status == "cancelled"
+    assert first.cancel() is True and first.cancel() is False   # second: already ended
+    assert first.status == "cancelled"
+
+
+def test_cancel_during_startup_is_not_lost(mission_file, tmp_path):
+    from executive.executive import Executive
+    from executive.testing import Act
+    from robot.clock import SimClock
+    handles = []
+
+    class CancelsDuringSetup(Act):
+        def setup(self, **kwargs):
+            super().setup(**kwargs)
+            assert handles[0].cancel() is True      # the mission is starting up right now
+
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = Executive(clock=SimClock(), skills=test_skills(), runs_dir=None, background=False,
+                   make_skill=lambda spec, b: CancelsDuringSetup(name=spec.name, bindings=b))
+    handles.append(ex.submit(path))
+    ex.run_until_idle(100)
+    assert handles[0].status == "cancelled" and handles[0].result.ticks == 0
+
+
+def test_higher_priority_preempts_equal_priority_queues(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=1.0)])
+    low = ex.submit(path, priority=0)
+    ex.tick(); ex.tick()
+    same = ex.submit(path, priority=0)
+    high = ex.submit(path, priority=5)
+    ex.run_until_idle(1000)
+    assert low.status == "preempted" and "preempted by x" in low.result.reason
+    assert high.status == "succeeded" and same.status == "succeeded"
+
+
+def test_background_thread_runs_and_wait_returns_result(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=2.0)], background=True)
+    h = ex.submit(path)
+    result = h.wait(timeout=30)
+    assert result is not None and result.outcome == "succeeded"
+
+
+def test_map_updates_are_forwarded_as_events(make_executive, mission_file):
+    class World:
+        def subscribe(self, cb):
+            self.cb = cb
+            return lambda: None
+
+    class Change:
+        time, node, field, old, new, source = 1.0, "cup", "parent", "table", "shelf", "test"
+
+    world = World()
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=1.0)], world=world)
+    h = ex.submit(path)
+    seen = []
+    h.subscribe(seen.append)
+    ex.tick()
+    world.cb(Change())
+    ex.run_until_idle(100)
+    maps = [e for e in seen if e.kind == "map"]
+    assert maps and maps[0].data["node"] == "cup" and maps[0].data["new"] == "shelf"
+
+
+def test_go_to_rest_follows_presence_change_mid_run(make_executive):
+    robot = FakeRobot()
+    ex = make_executive([S("NavigateTo", duration=3.0, halt_duration=0.3)], robot=robot,
+                        skills=None)
+    ex.skills = None
+    h = ex.submit("missions/go_to_rest.yaml", presence="home")
+    for _ in range(10):
+        ex.tick()
+    ex.set_parameter("presence", "away")
+    ex.run_until_idle(1000)
+    sub = ex.make_skill
+    assert h.result.outcome == "succeeded"
+    near = sub.made["/follow_presence/choose_rest_place/user_home/drive_near_user"]
+    away = sub.made["/follow_presence/choose_rest_place/drive_out_of_the_way"]
+    assert near.halts == 1 and away.seen_inputs == [{"target": "kitchen_table", "parking": None}]
+    assert robot.said == [] and robot.stops == 0
+    assert ex.current is None
+
+
+def test_execution_log_replays_to_the_same_timeline(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          mode: {type: string, default: a, runtime: true}
+        tree:
+          sequence:
+            - watch:
+                retry: {skill: Measure, name: m, outputs: {value: v}}
+                times: 3
+              params: [mode]
+            - condition: "{v} > 1"
+            - timeout: {skill: Act, name: slow}
+              seconds: 0.5
+      """)
+    ex = make_executive([S("*/m", outcomes=["failure", "success"], duration=0.2,
+                           outputs={"value": 2.0}), S("*/slow", duration=2)])
+    h = ex.submit(path)
+    for _ in range(3):
+        ex.tick()
+    ex.set_parameter("mode", "b")
+    ex.run_until_idle(1000)
+    header, events, end = read_log(h.log_path)
+    assert end["outcome"] == h.result.outcome == "failed"
+    report = replay(h.log_path, test_skills())
+    assert report.same, report.first_difference()
+    assert any(e["e"] == "restart" for e in events)
+
+
+def test_cancelled_run_replays_too(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=10, halt_duration=0.3)])
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    h.cancel()
+    ex.run_until_idle(100)
+    report = replay(h.log_path, test_skills())
+    assert report.same, report.first_difference()
+
+
+def test_test_mission_reports_never_ticked_nodes(mission_file, tmp_path, capsys):
+    from executive.cli import main
+    case = tmp_path / "case.yaml"
+    case.write_text("params: {presence: away}\nsubstitute:\n  - {match: NavigateTo, duration: 1}\n"
+                    "expect: succeeded\n")
+    assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 0
+    out = capsys.readouterr().out
+    assert "never ticked: /follow_presence/choose_rest_place/user_home/drive_near_user" in out
+    report = run_case("missions/go_to_rest.yaml", load_case(case))
+    assert report.outcome == "succeeded" and len(report.never_ticked) == 2
+
+
+# -- property: random trees load and either finish or are cancelled, every node terminated --
+LEAF = st.builds(lambda o, d: {"skill": "Act", "_o": o, "_d": d},
+                 st.sampled_from(["success", "failure"]), st.sampled_from([0.0, 0.1, 0.3]))
+
+
+def _tree(children):
+    return st.one_of(
+        st.builds(lambda c, r: {"sequence": c, "reactive": r}, st.lists(children, min_size=1, max_size=3), st.booleans()),
+        st.builds(lambda c, r: {"selector": c, "reactive": r}, st.lists(children, min_size=1, max_size=3), st.booleans()),
+        st.builds(lambda c: {"parallel": c, "policy": "one"}, st.lists(children, min_size=1, max_size=3)),
+        st.builds(lambda c: {"retry": c, "times": 2}, children),
+        st.builds(lambda c: {"inverter": c}, children),
+        st.builds(lambda c: {"timeout": c, "seconds": 0.2}, children),
+    )
+
+
+TREES = st.recursive(LEAF, _tree, max_leaves=8)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
+@given(TREES, st.integers(min_value=0, max_value=6), st.booleans())
+def test_random_trees_finish_or_cancel_with_every_node_terminated(make_executive, tmp_path_factory,
+                                                                   tree, cancel_tick, cancel):
+    import yaml
+    scripts, counter = [], [0]
+
+    def name_leaves(node):
+        if "skill" in node:
+            counter[0] += 1
+            name = f"leaf{counter[0]}"
+            scripts.append(S(f"*/{name}", outcomes=[node.pop("_o")], duration=node.pop("_d")))
+            node["name"] = name
+            return
+        for k in ("sequence", "selector", "parallel"):
+            for c in node.get(k, []):
+                name_leaves(c)
+        for k in ("retry", "inverter", "timeout"):
+            if k in node:
+                name_leaves(node[k])
+
+    name_leaves(tree)
+    path = tmp_path_factory.mktemp("rt") / "m.yaml"
+    path.write_text(yaml.safe_dump({"name": "r", "tree": tree}))
+    ex = make_executive(scripts, runs_dir=None)
+    h = ex.submit(str(path))
+    for _ in range(cancel_tick):
+        ex.tick()
+    nodes = list(ex.current_tree.root.iterate()) if ex.current_tree else []
+    if cancel:
+        h.cancel()
+    ex.run_until_idle(10_000)
+    assert h.done and h.status in ("succeeded", "failed", "cancelled")
+    assert all(n.status.value != "RUNNING" for n in nodes)
