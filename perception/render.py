@@ -76,8 +76,13 @@ class Scene:
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         """Render the view of camera ``K`` at ``T_world_camera``."""
         H, W = K.height, K.width
+        # open3d casts the ray of pixel (u, v) through (u + 0.5, v + 0.5); our camera model
+        # (camera.py) puts pixel centres at integer coordinates, so shift the principal point.
+        Km = K.matrix()
+        Km[0, 2] += 0.5
+        Km[1, 2] += 0.5
         rays = o3d.t.geometry.RaycastingScene.create_rays_pinhole(
-            o3d.core.Tensor(K.matrix(), dtype=o3d.core.float64),
+            o3d.core.Tensor(Km, dtype=o3d.core.float64),
             o3d.core.Tensor(np.linalg.inv(T_world_camera), dtype=o3d.core.float64), W, H)
         ans = self._scene.cast_rays(rays)
         t_hit = ans["t_hit"].numpy()
