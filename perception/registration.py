@@ -1,0 +1,478 @@
+"""ICP variants for registering an observed view to a rendered reference (RAMCIP 4.2.3.4).
+
+The reference cloud is what the camera should see: the model rendered at the believed pose from
+the current camera, with the renderer's exact normals. The observed cloud (the *source*) is
+moved onto it (the *target*), so every result is ``T_target_source``, a correction in the
+frame both clouds are given in (the world frame, in practice).
+
+Three variants, one result type:
+
+- ``register_6dof``: open3d's legacy point-to-plane ICP (measured fastest on our scenes, see
+  docs/registration.md), coarse-to-fine gates, a Tukey kernel only in the last stage.
+- ``register_planar``: x, y and yaw only (furniture and the robot move on the floor).
+- ``register_joint``: one joint coordinate, a rotation about a hinge or a translation along a
+  slide, clamped to the joint's limits.
+
+The robust kernel is applied only once the clouds are roughly aligned: with a kernel scaled to
+the sensor noise from the start, the points that should pull the model across a 10 cm error all
+look like outliers, and a hidden inner CAD surface parallel to the visible one wins instead.
+
+Every result carries ``fitness`` (fraction of source points with a correspondence within the
+final gate), ``residual`` (RMS point-to-plane distance of those, metres) and ``converged``; a
+registration with too little overlap raises ``RegistrationFailed`` (a PerceptionError).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+import open3d as o3d
+from scipy.spatial import cKDTree
+
+from perception.errors import PerceptionError
+
+reg = o3d.pipelines.registration
+
+
+@dataclass(frozen=True)
+class ICPConfig:
+    """Parameters of one registration. Lengths in metres.
+
+    ``gates``: correspondence distance per stage, coarse to fine; the kernel (Tukey, scale
+    ``robust_scale``) is used in the last stage only. ``voxel``: source downsampling (0: none).
+    ``min_fitness`` / ``min_points``: below either, the registration fails (too little overlap).
+    """
+    voxel: float = 0.02
+    gates: tuple[float, ...] = (0.10, 0.04, 0.015)
+    iterations: tuple[int, ...] = (10, 8, 8)
+    robust_scale: float = 0.01
+    min_fitness: float = 0.3
+    min_points: int = 60
+    #: Weight of a point-to-point term added to the point-to-plane one in the planar and joint
+    #: solvers: it keeps a direction that flat faces leave free (along a cupboard front)
+    #: anchored at the silhouette instead of drifting.
+    point_weight: float = 0.0
+    #: An iteration moving less than this (metres; radians times 1 m) counts as converged.
+    tolerance: float = 1e-5
+
+
+@dataclass
+class ICPResult:
+    """``T``: 4x4 ``T_target_source``. ``inliers``: indices of source points with a
+    correspondence in the last stage. ``information``: J^T J / n of the final stage, in the
+    variant's parameters (6x6, 3x3 for x, y, yaw, or 1x1); small eigenvalues mean a direction
+    the data barely constrains."""
+    T: np.ndarray
+    fitness: float
+    residual: float
+    converged: bool
+    iterations: int
+    inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    information: Optional[np.ndarray] = None
+    value: Optional[float] = None   # the joint coordinate, for register_joint
+
+    def summary(self) -> dict:
+        return dict(fitness=round(self.fitness, 4), residual_mm=round(self.residual * 1000, 3),
+                    converged=self.converged, iterations=self.iterations)
+
+
+class RegistrationFailed(PerceptionError):
+    """Too little overlap (or too few points) to trust a registration; ``result`` holds what
+    was found anyway (None when nothing ran)."""
+
+    def __init__(self, message: str, result: Optional[ICPResult] = None, node: str | None = None):
+        super().__init__(message, node=node)
+        self.result = result
+
+
+# -- clouds --------------------------------------------------------------------------------
+
+def voxel_downsample(points: np.ndarray, voxel: float, normals: Optional[np.ndarray] = None):
+    """Points (and normals) reduced to one per ``voxel`` cube (open3d; averages a voxel)."""
+    if voxel <= 0 or len(points) == 0:
+        return points, normals
+    pc = to_o3d(points, normals)
+    pc = pc.voxel_down_sample(voxel)
+    pts = np.asarray(pc.points)
+    if normals is None:
+        return pts, None
+    n = np.asarray(pc.normals)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    return pts, n
+
+
+def to_o3d(points: np.ndarray, normals: Optional[np.ndarray] = None) -> o3d.geometry.PointCloud:
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
+    if normals is not None:
+        pc.normals = o3d.utility.Vector3dVector(np.asarray(normals, dtype=np.float64))
+    return pc
+
+
+def transform(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def _check_overlap(result: ICPResult, n_source: int, cfg: ICPConfig, what: str) -> ICPResult:
+    n_in = len(result.inliers)
+    if n_in < cfg.min_points or result.fitness < cfg.min_fitness:
+        raise RegistrationFailed(
+            f"{what}: too little overlap (fitness {result.fitness:.2f}, {n_in} of {n_source} "
+            f"points matched; need {cfg.min_fitness:.2f} and {cfg.min_points})", result)
+    return result
+
+
+def _require(points: np.ndarray, n: int, what: str) -> None:
+    if len(points) < n:
+        raise RegistrationFailed(f"{what}: only {len(points)} points (need {n})")
+
+
+def _tukey_weights(r: np.ndarray, k: float) -> np.ndarray:
+    u = np.clip(np.abs(r) / k, 0.0, 1.0)
+    return (1.0 - u * u) ** 2
+
+
+# -- 6-DoF: open3d ---------------------------------------------------------------------------
+
+def register_6dof(source: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
+                  T_init: Optional[np.ndarray] = None, cfg: ICPConfig = ICPConfig()) -> ICPResult:
+    """Full rigid registration of ``source`` (N, 3) onto ``target`` (M, 3) with its unit
+    normals, point-to-plane; returns ``T_target_source``."""
+    T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
+    src, _ = voxel_downsample(np.asarray(source, dtype=float), cfg.voxel)
+    _require(src, cfg.min_points, "6-DoF ICP")
+    _require(target, cfg.min_points, "6-DoF ICP reference")
+    src_pc, tgt_pc = to_o3d(src), to_o3d(target, target_normals)
+    total = 0
+    last = len(cfg.gates) - 1
+    for stage, (gate, iters) in enumerate(zip(cfg.gates, cfg.iterations)):
+        est = (reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=cfg.robust_scale))
+               if stage == last and cfg.robust_scale > 0
+               else reg.TransformationEstimationPointToPlane())
+        res = reg.registration_icp(src_pc, tgt_pc, gate, T, est,
+                                   reg.ICPConvergenceCriteria(1e-7, 1e-7, iters))
+        T = np.asarray(res.transformation)
+        total += iters
+    # One more iteration tells whether the last stage had settled.
+    res2 = reg.registration_icp(src_pc, tgt_pc, cfg.gates[-1], T, est,
+                                reg.ICPConvergenceCriteria(1e-9, 1e-9, 1))
+    T2 = np.asarray(res2.transformation)
+    step = np.linalg.norm(T2[:3, 3] - T[:3, 3]) + np.linalg.norm(T2[:3, :3] - T[:3, :3])
+    corr = np.asarray(res.correspondence_set)
+    inliers = corr[:, 0].astype(np.int64) if len(corr) else np.zeros(0, dtype=np.int64)
+    info = None
+    if len(corr):
+        p = transform(T, src[corr[:, 0]])
+        n = np.asarray(target_normals)[corr[:, 1]]
+        J = np.hstack([np.cross(p, n), n])
+        info = J.T @ J / len(J)
+    out = ICPResult(T=T, fitness=float(res.fitness), residual=float(res.inlier_rmse),
+                    converged=bool(step < cfg.tolerance * 10), iterations=total, inliers=inliers,
+                    information=info)
+    return _check_overlap(out, len(src), cfg, "6-DoF ICP")
+
+
+# -- planar and 1-DoF: small Gauss-Newton solvers over scipy KD-tree correspondences ----------
+#
+# Written by hand because open3d's ICP estimates all six degrees of freedom and cannot be
+# restricted to a subspace (x, y, yaw; or one joint coordinate). Projecting its 6-DoF step
+# afterwards is not the constrained optimum. The solvers below are the textbook linearised
+# point-to-plane step (Low 2004) with only the wanted columns in the Jacobian, iteratively
+# reweighted (Tukey) in the last stage; a few lines of numpy each.
+
+def _query(tree: cKDTree, pts: np.ndarray, gate: float):
+    d, j = tree.query(pts, k=1, distance_upper_bound=gate, workers=1)
+    ok = np.isfinite(d)
+    return np.nonzero(ok)[0], j[ok]
+
+
+def _planar_delta(x, c):
+    co, si = np.cos(x[2]), np.sin(x[2])
+    D = np.eye(4)
+    D[:2, :2] = [[co, -si], [si, co]]
+    D[:2, 3] = c[:2] - D[:2, :2] @ c[:2] + x[:2]
+    return D
+
+
+def register_planar(source: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
+                    T_init: Optional[np.ndarray] = None, cfg: ICPConfig = ICPConfig(),
+                    tree: Optional[cKDTree] = None, scorer=None,
+                    search_range: float = 0.2, search_step: float = 0.01) -> ICPResult:
+    """Registration restricted to a translation in x, y and a rotation about the world z axis
+    (through the target's centroid, which keeps the three parameters well conditioned).
+    Returns ``T_target_source``; ``information`` is 3x3 over (x, y, yaw [rad * radius]).
+
+    ``scorer(Ts) -> scores`` (higher is better) rates candidate transforms against the image
+    (see ``DepthAgreement``). Point-to-plane leaves the direction along a flat front (a
+    cupboard with closed doors) nearly free: after the first stage, the weakest direction of
+    the information matrix is searched over +-``search_range`` metres with the scorer, which
+    sees silhouettes and depth edges that gated correspondences cannot.
+    """
+    src, _ = voxel_downsample(np.asarray(source, dtype=float), cfg.voxel)
+    _require(src, cfg.min_points, "planar ICP")
+    target = np.asarray(target, dtype=float)
+    tn = np.asarray(target_normals, dtype=float)
+    _require(target, cfg.min_points, "planar ICP reference")
+    tree = tree or cKDTree(target)
+    T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
+    c = target.mean(axis=0)
+    radius = float(np.sqrt(np.mean(np.sum((target[:, :2] - c[:2]) ** 2, axis=1))))
+    total, converged, last = 0, False, len(cfg.gates) - 1
+    info = np.zeros((3, 3))
+    idx_s = np.zeros(0, dtype=np.int64)
+    for stage, (gate, iters) in enumerate(zip(cfg.gates, cfg.iterations)):
+        robust = stage == last and cfg.robust_scale > 0
+        for _ in range(iters):
+            total += 1
+            p = transform(T, src)
+            idx_s, idx_t = _query(tree, p, gate)
+            if len(idx_s) < 6:
+                break
+            ps, q, n = p[idx_s], target[idx_t], tn[idx_t]
+            r = np.einsum("ij,ij->i", ps - q, n)
+            d = ps - c
+            # d(p)/d(yaw) = e_z x (p - c)
+            J = np.stack([n[:, 0], n[:, 1], n[:, 1] * d[:, 0] - n[:, 0] * d[:, 1]], axis=1)
+            w = _tukey_weights(r, cfg.robust_scale) if robust else np.ones_like(r)
+            H = (J * w[:, None]).T @ J
+            g = (J * w[:, None]).T @ r
+            info = H / max(w.sum(), 1e-9)
+            if cfg.point_weight > 0:
+                e = ps - q
+                lw = cfg.point_weight * w
+                Jx = np.stack([np.ones_like(r), np.zeros_like(r), -d[:, 1]], axis=1)
+                Jy = np.stack([np.zeros_like(r), np.ones_like(r), d[:, 0]], axis=1)
+                H = H + (Jx * lw[:, None]).T @ Jx + (Jy * lw[:, None]).T @ Jy
+                g = g + (Jx * lw[:, None]).T @ e[:, 0] + (Jy * lw[:, None]).T @ e[:, 1]
+            # A little damping so a direction nothing constrains (one flat wall) stays put.
+            x = -np.linalg.solve(H + 1e-6 * np.trace(H) * np.eye(3), g)
+            # Trust region: correspondences gated at ``gate`` say nothing about moves much
+            # larger than it; a full Gauss-Newton step from a first, mostly wrong matching
+            # along a weakly constrained direction jumps into another minimum.
+            x *= min(1.0, 0.5 * gate / max(np.hypot(x[0], x[1]) + abs(x[2]) * radius, 1e-12))
+            T = _planar_delta(x, c) @ T
+            if abs(x[0]) + abs(x[1]) + abs(x[2]) < cfg.tolerance:
+                converged = stage == last
+                break
+        if stage == 0 and scorer is not None and np.any(info):
+            # Param space with yaw scaled to metres at the cloud's radius.
+            S = np.diag([1.0, 1.0, radius])
+            evals, evecs = np.linalg.eigh(np.linalg.inv(S) @ info @ np.linalg.inv(S))
+            v = evecs[:, 0]
+            ks = np.arange(-search_range, search_range + 1e-9, search_step)
+            cands = [_planar_delta(np.array([k * v[0], k * v[1], k * v[2] / radius]), c) @ T
+                     for k in ks]
+            scores = np.asarray(scorer(cands))
+            T = cands[int(np.argmax(scores))]
+    return _finish(T, src, target, tn, tree, cfg, total, converged, info, "planar ICP")
+
+
+def _finish(T, src, target, tn, tree, cfg, total, converged, info, what, value=None):
+    p = transform(T, src)
+    idx_s, idx_t = _query(tree, p, cfg.gates[-1])
+    r = np.einsum("ij,ij->i", p[idx_s] - target[idx_t], tn[idx_t]) if len(idx_s) else np.zeros(0)
+    out = ICPResult(T=T, fitness=len(idx_s) / max(len(src), 1),
+                    residual=float(np.sqrt(np.mean(r ** 2))) if len(r) else float("inf"),
+                    converged=converged, iterations=total, inliers=idx_s, information=info,
+                    value=value)
+    return _check_overlap(out, len(src), cfg, what)
+
+
+@dataclass(frozen=True)
+class JointAxis:
+    """A joint in the world frame: ``T_world_joint`` places the joint frame (the part frame at
+    state 0); the part moves about (revolute) or along (prismatic) the unit ``axis`` given in
+    the joint frame, within [lower, upper] (radians or metres)."""
+    T_world_joint: np.ndarray
+    axis: tuple[float, float, float]
+    type: str
+    lower: float
+    upper: float
+
+    def T_world_part(self, value: float) -> np.ndarray:
+        a = np.asarray(self.axis, dtype=float)
+        a = a / np.linalg.norm(a)
+        M = np.eye(4)
+        if self.type == "revolute":
+            from scipy.spatial.transform import Rotation
+            M[:3, :3] = Rotation.from_rotvec(a * value).as_matrix()
+        else:
+            M[:3, 3] = a * value
+        return self.T_world_joint @ M
+
+
+def register_joint(model_points: np.ndarray, model_normals: np.ndarray, observed: np.ndarray,
+                   joint: JointAxis, value_init: float, cfg: ICPConfig = ICPConfig(),
+                   tree: Optional[cKDTree] = None) -> ICPResult:
+    """One-coordinate registration: find the joint value at which the part's model points
+    (``model_points`` / ``model_normals`` in the part frame, what the camera sees of the part)
+    lie on the ``observed`` world points. The model moves, the observation stays (a KD-tree
+    on it is built once); point-to-plane on the model's normals.
+
+    Returns ``value`` (clamped to the limits) and ``T`` = ``T_world_part`` at that value.
+    ``inliers`` index model points.
+    """
+    mp = np.asarray(model_points, dtype=float)
+    mn = np.asarray(model_normals, dtype=float)
+    obs = np.asarray(observed, dtype=float)
+    _require(mp, cfg.min_points, "joint ICP model")
+    _require(obs, cfg.min_points, "joint ICP observation")
+    tree = tree or cKDTree(obs)
+    a_j = np.asarray(joint.axis, dtype=float)
+    a_j = a_j / np.linalg.norm(a_j)
+    a_w = joint.T_world_joint[:3, :3] @ a_j
+    o_w = joint.T_world_joint[:3, 3]
+    s = float(np.clip(value_init, joint.lower, joint.upper))
+    total, converged, last, info = 0, False, len(cfg.gates) - 1, np.zeros((1, 1))
+    for stage, (gate, iters) in enumerate(zip(cfg.gates, cfg.iterations)):
+        robust = stage == last and cfg.robust_scale > 0
+        for _ in range(iters):
+            total += 1
+            T = joint.T_world_part(s)
+            p = transform(T, mp)
+            n = mn @ T[:3, :3].T
+            idx_m, idx_o = _query(tree, p, gate)
+            if len(idx_m) < 3:
+                break
+            pm, nm = p[idx_m], n[idx_m]
+            r = np.einsum("ij,ij->i", pm - obs[idx_o], nm)
+            if joint.type == "revolute":
+                dp = np.cross(a_w, pm - o_w)
+            else:
+                dp = np.broadcast_to(a_w, pm.shape)
+            J = np.einsum("ij,ij->i", dp, nm)
+            w = _tukey_weights(r, cfg.robust_scale) if robust else np.ones_like(r)
+            H = float(np.sum(w * J * J))
+            info = np.array([[H / max(w.sum(), 1e-9)]])
+            if H < 1e-12:
+                break
+            step = -float(np.sum(w * J * r)) / H
+            new = float(np.clip(s + step, joint.lower, joint.upper))
+            moved = abs(new - s)
+            s = new
+            if moved < cfg.tolerance:
+                converged = stage == last
+                break
+    T = joint.T_world_part(s)
+    # Residuals and inliers with the observation as the reference: normals of the model.
+    p = transform(T, mp)
+    n = mn @ T[:3, :3].T
+    idx_m, idx_o = _query(tree, p, cfg.gates[-1])
+    r = np.einsum("ij,ij->i", p[idx_m] - obs[idx_o], n[idx_m]) if len(idx_m) else np.zeros(0)
+    out = ICPResult(T=T, fitness=len(idx_m) / max(len(mp), 1),
+                    residual=float(np.sqrt(np.mean(r ** 2))) if len(r) else float("inf"),
+                    converged=converged, iterations=total, inliers=idx_m, information=info,
+                    value=s)
+    return _check_overlap(out, len(mp), cfg, "joint ICP")
+
+
+def planar_params(T: np.ndarray) -> tuple[float, float, float]:
+    """x, y (metres) and yaw (radians) of a planar transform."""
+    return float(T[0, 3]), float(T[1, 3]), float(np.arctan2(T[1, 0], T[0, 0]))
+
+
+class DepthAgreement:
+    """Scores candidate corrections ``C`` (``T_target_source``: observed world -> model world)
+    by how well the model, moved by ``C^-1`` into where the observation says it is, agrees with
+    the observed depth image: +1 for a model point whose observed depth is within ``tau``,
+    -1 for one the camera sees through (observed depth behind it by more than ``tau``), 0 for
+    one hidden behind something nearer. Vectorised over candidates; the reference should be
+    small (a few thousand points)."""
+
+    def __init__(self, ref_points: np.ndarray, depth: np.ndarray, K, T_world_camera: np.ndarray,
+                 tau: float = 0.02, max_points: int = 3000, seed: int = 0):
+        if len(ref_points) > max_points:
+            idx = np.random.default_rng(seed).choice(len(ref_points), max_points, replace=False)
+            ref_points = ref_points[idx]
+        self.ref = np.asarray(ref_points, dtype=float)
+        self.depth, self.K, self.tau = depth, K, tau
+        self.T_camera_world = np.linalg.inv(T_world_camera)
+
+    def __call__(self, Cs) -> np.ndarray:
+        Cs = np.asarray(Cs)
+        Cinv = np.linalg.inv(Cs)
+        A = self.T_camera_world[None] @ Cinv                      # (M, 4, 4)
+        p = np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
+        K, H, W = self.K, self.depth.shape[0], self.depth.shape[1]
+        z = p[..., 2]
+        zs = np.where(z > 0.05, z, 1.0)
+        u = np.rint(K.fx * p[..., 0] / zs + K.cx).astype(np.int64)
+        v = np.rint(K.fy * p[..., 1] / zs + K.cy).astype(np.int64)
+        inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        d = self.depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
+        valid = inside & (d > 0)
+        agree = valid & (np.abs(d - z) < self.tau)
+        through = valid & (d > z + self.tau)
+        return agree.sum(axis=1) - through.sum(axis=1)
+
+
+# -- views: the rendered reference and the observed cloud -----------------------------------
+
+@dataclass
+class View:
+    """Points seen in one view, world frame. ``nodes[labels[i]]`` is the map node point ``i``
+    belongs to (-1: unknown, for observations); ``pixels`` (N, 2) are (row, col) in the image
+    the points came from; ``normals`` are unit, facing the camera (None when unknown)."""
+    points: np.ndarray
+    normals: Optional[np.ndarray]
+    labels: np.ndarray
+    nodes: list[str]
+    pixels: np.ndarray
+
+    def select(self, node_ids) -> "View":
+        idx = [i for i, n in enumerate(self.nodes) if n in set(node_ids)]
+        m = np.isin(self.labels, idx)
+        return View(self.points[m], None if self.normals is None else self.normals[m],
+                    self.labels[m], self.nodes, self.pixels[m])
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+def render_reference(meshes, K, T_world_camera: np.ndarray, scale: float = 0.25,
+                     max_range: float = 6.0) -> View:
+    """What the camera should see of ``meshes`` (labelled, world frame; see
+    worldmodel.geometry): ray cast at ``scale`` times the camera's resolution (a quarter:
+    ~1 cm spacing at 1.5 m, plenty as an ICP target and ~16x fewer rays)."""
+    from perception.camera import depth_to_points
+    from perception.render import Scene
+    Ks = K.scaled(scale)
+    r = Scene(meshes).render(Ks, T_world_camera, max_range=max_range)
+    hit = r.depth > 0
+    pc = depth_to_points(r.depth, Ks, mask=hit)
+    rows, cols = np.nonzero(hit)
+    R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
+    return View(points=pc @ R.T + t, normals=r.normals_camera[hit].astype(float) @ R.T,
+                labels=r.labels[hit].astype(np.int64), nodes=list(r.nodes),
+                pixels=np.stack([rows, cols], axis=1))
+
+
+def observed_view(depth: np.ndarray, K, T_world_camera: np.ndarray, stride: int = 2,
+                  mask: Optional[np.ndarray] = None) -> View:
+    """World points of a depth image (metres, 0 = no reading), every ``stride``-th pixel."""
+    from perception.camera import depth_to_points
+    pc = depth_to_points(depth, K, mask=mask, stride=stride)
+    d = depth[::stride, ::stride]
+    ok = np.isfinite(d) & (d > 0)
+    if mask is not None:
+        ok &= mask[::stride, ::stride]
+    rows, cols = np.nonzero(ok)
+    R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
+    return View(points=pc @ R.T + t, normals=None, labels=np.full(len(pc), -1, dtype=np.int64),
+                nodes=[], pixels=np.stack([rows * stride, cols * stride], axis=1))
+
+
+def crop_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, margin: float,
+             floor_z: Optional[float] = 0.0, floor_clearance: float = 0.015) -> np.ndarray:
+    """Mask of points inside the box [lo - margin, hi + margin], and above the floor."""
+    lo = np.asarray(lo) - margin
+    hi = np.asarray(hi) + margin
+    m = np.all((points >= lo) & (points <= hi), axis=1)
+    if floor_z is not None:
+        m &= points[:, 2] > floor_z + floor_clearance
+    return m
+
+
+__all__ = ["ICPConfig", "ICPResult", "JointAxis", "RegistrationFailed", "planar_params",
+           "register_6dof", "register_joint", "register_planar", "transform", "voxel_downsample",
+           "to_o3d", "replace", "View", "render_reference", "observed_view", "crop_box"]
