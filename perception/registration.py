@@ -48,6 +48,8 @@ class ICPConfig:
     iterations: tuple[int, ...] = (10, 8, 8)
     robust_scale: float = 0.01
     min_fitness: float = 0.3
+    #: Fraction of the reference (target) points with a source point within the final gate.
+    min_coverage: float = 0.0
     min_points: int = 60
     #: Weight of a point-to-point term added to the point-to-plane one in the planar and joint
     #: solvers: it keeps a direction that flat faces leave free (along a cupboard front)
@@ -71,6 +73,7 @@ class ICPResult:
     inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     information: Optional[np.ndarray] = None
     value: Optional[float] = None   # the joint coordinate, for register_joint
+    coverage: float = 1.0           # fraction of the reference explained by the source
 
     def summary(self) -> dict:
         return dict(fitness=round(self.fitness, 4), residual_mm=round(self.residual * 1000, 3),
@@ -119,7 +122,18 @@ def _check_overlap(result: ICPResult, n_source: int, cfg: ICPConfig, what: str) 
         raise RegistrationFailed(
             f"{what}: too little overlap (fitness {result.fitness:.2f}, {n_in} of {n_source} "
             f"points matched; need {cfg.min_fitness:.2f} and {cfg.min_points})", result)
+    if result.coverage < cfg.min_coverage:
+        raise RegistrationFailed(
+            f"{what}: too little overlap (only {result.coverage:.0%} of the expected view "
+            f"matched; need {cfg.min_coverage:.0%})", result)
     return result
+
+
+def _coverage(target: np.ndarray, moved_source: np.ndarray, gate: float) -> float:
+    if len(target) == 0 or len(moved_source) == 0:
+        return 0.0
+    d, _ = cKDTree(moved_source).query(target, k=1, distance_upper_bound=gate, workers=1)
+    return float(np.mean(np.isfinite(d)))
 
 
 def _require(points: np.ndarray, n: int, what: str) -> None:
@@ -168,7 +182,9 @@ def register_6dof(source: np.ndarray, target: np.ndarray, target_normals: np.nda
         info = J.T @ J / len(J)
     out = ICPResult(T=T, fitness=float(res.fitness), residual=float(res.inlier_rmse),
                     converged=bool(step < cfg.tolerance * 10), iterations=total, inliers=inliers,
-                    information=info)
+                    information=info,
+                    coverage=(_coverage(np.asarray(target), transform(T, src), 2 * cfg.gates[-1])
+                              if cfg.min_coverage else 1.0))
     return _check_overlap(out, len(src), cfg, "6-DoF ICP")
 
 
@@ -274,7 +290,8 @@ def _finish(T, src, target, tn, tree, cfg, total, converged, info, what, value=N
     out = ICPResult(T=T, fitness=len(idx_s) / max(len(src), 1),
                     residual=float(np.sqrt(np.mean(r ** 2))) if len(r) else float("inf"),
                     converged=converged, iterations=total, inliers=idx_s, information=info,
-                    value=value)
+                    value=value,
+                    coverage=_coverage(target, p, 2 * cfg.gates[-1]) if cfg.min_coverage else 1.0)
     return _check_overlap(out, len(src), cfg, what)
 
 
