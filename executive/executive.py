@@ -48,6 +48,9 @@ STATES = ["queued", "running", "halting", "succeeded", "failed", "cancelled", "p
 TERMINAL = ("succeeded", "failed", "cancelled", "preempted")
 LOG_FORMAT = 1
 _ns_counter = itertools.count(1)
+_VALUE = {s: s.value for s in Status}
+_PAIRS = {(a, b): f', "status": "{a.value}", "previous": "{b.value}"}}\n'
+          for a in Status for b in Status}
 
 
 @dataclass
@@ -173,7 +176,11 @@ class _Run:
         self.halt_deadline = 0.0
         self.halt_started = 0.0
         self.logfile = None
-        self.leaves: set[int] = set()
+        self.now = 0.0              # clock time of the current tick
+        self.now_json = "0.0"
+        self.quiet = True           # no subscribers: log lines are written directly
+        self.path_json: dict[int, str] = {}
+        self.run_json = json.dumps(handle.id)
 
 
 class Executive:
@@ -205,6 +212,7 @@ class Executive:
         self.world = world
         self.robot = robot
         self.clock = clock
+        self._simulated = bool(getattr(clock, "simulated", False))
         self.tick_hz = float(tick_hz)
         self.period = 1.0 / self.tick_hz
         self.runs_dir = Path(runs_dir) if runs_dir is not None else None
@@ -315,7 +323,7 @@ class Executive:
         requests, then tick (or keep halting). Returns False when there was nothing to do.
         Only for ``background=False``; the tick thread calls it otherwise."""
         did = self._step()
-        if did and getattr(self.clock, "simulated", False):
+        if did and self._simulated:
             self.clock.advance(self.period)
         return did
 
@@ -407,28 +415,34 @@ class Executive:
     def _step(self) -> bool:
         with self._lock:
             run = self._current
-            if run is None:
-                handle = self._pop_next()
-                if handle is None:
-                    self._param_changes.clear()
-                    self._map_events.clear()
-                    return False
-                self._starting = handle
-        if run is None:
-            run = self._start(handle)   # outside the lock: skill setup may take a while
-            with self._lock:
-                self._starting = None
-                if run is None:
-                    return True
-                self._current = run
+            if run is not None:
+                return self._step_run(run)
+            handle = self._pop_next()
+            if handle is None:
+                self._param_changes.clear()
+                self._map_events.clear()
+                return False
+            self._starting = handle
+        run = self._start(handle)   # outside the lock: skill setup may take a while
         with self._lock:
-            self._apply_requests(run)
-            if run.handle.status == "halting":
-                self._poll_halting(run)
-            else:
-                self._tick(run)
-            run.tick += 1
-            return True
+            self._starting = None
+            if run is None:
+                return True
+            self._current = run
+            return self._step_run(run)
+
+    def _step_run(self, run: _Run) -> bool:
+        """Apply requests, then tick once or poll halting skills once (lock held)."""
+        run.now = self.clock.now()
+        run.now_json = repr(round(run.now, 9))
+        run.quiet = not (run.handle._subscribers or self._subscribers)
+        self._apply_requests(run)
+        if run.handle.status == "halting":
+            self._poll_halting(run)
+        else:
+            self._tick(run)
+        run.tick += 1
+        return True
 
     def _pop_next(self) -> MissionHandle | None:
         while self._queue:
@@ -439,7 +453,8 @@ class Executive:
 
     def _start(self, handle: MissionHandle) -> _Run | None:
         run = _Run(self, handle)
-        run.t0 = self.clock.now()
+        run.t0 = run.now = self.clock.now()
+        run.now_json = json.dumps(round(run.now, 9))
         try:
             with self._lock:
                 handle._life.start()
@@ -450,8 +465,9 @@ class Executive:
                         node.output_hook = self._make_output_hook(run)
                     if isinstance(node, nodes.Watch):
                         node.on_restart = self._make_restart_hook(run)
-                    if not node.children:
-                        run.leaves.add(id(node))
+                    node.hearth_leaf = not node.children
+                    node.hearth_path_json = json.dumps(run.tree.path_of[id(node)])
+                    run.path_json[id(node)] = node.hearth_path_json
                 self._open_log(run)
                 self._emit(run, "run", None, state="running", reason="started")
             run.tree.setup(world=self.world, robot=self.robot, clock=self.clock,
@@ -522,12 +538,11 @@ class Executive:
 
     def _tick(self, run: _Run) -> None:
         root = run.tree.root
-        if not getattr(self.clock, "simulated", False):
+        if not self._simulated:
             self._emit(run, "tick", None)
-        visited: dict = {}
         try:
-            for node in root.tick():
-                visited[node] = node.status
+            # Each node's status as it is yielded (a parent may still stop it later on).
+            visited = {node: node.status for node in root.tick()}
         except Exception as err:  # noqa: BLE001 - a crashing skill fails the mission
             log.exception("tick failed")
             running = [n for n in root.iterate() if n.status == Status.RUNNING]
@@ -567,29 +582,79 @@ class Executive:
         path = run.tree.path_of.get(id(node), node.name)
         return f"{path} failed" + (f": {node.feedback_message}" if node.feedback_message else "")
 
+    def _status_event(self, run: _Run, node: Any, st: Status, prev: Status,
+                      halted: bool = False) -> None:
+        if run.quiet:
+            # The hot path (no subscribers): format the log line directly.
+            if run.logfile is not None:
+                run.logfile.write(
+                    f'{{"e": "status", "run": {run.run_json}, "tick": {run.tick}, '
+                    f'"t": {run.now_json}, "path": {run.path_json[id(node)]}, '
+                    f'"status": "{_VALUE[st]}", "previous": "{_VALUE[prev]}"'
+                    + (', "halted": true}\n' if halted else "}\n"))
+            return
+        data = {"status": st.value, "previous": prev.value}
+        if halted:
+            data["halted"] = True
+        self._emit(run, "status", run.tree.path_of[id(node)], **data)
+
     def _diff(self, run: _Run, visited: dict) -> None:
-        """Status and feedback events for what changed in this tick."""
-        last, path_of, leaves = run.last, run.tree.path_of, run.leaves
-        RUNNING = Status.RUNNING
+        """Status and feedback events for what changed in this tick.
+
+        ``visited`` maps each node ticked to its status as it was yielded. A visited leaf
+        that starts again (previous status not RUNNING) is reported even when its status
+        repeats, so replay sees every activation. Nodes stopped from above (halted) without
+        being ticked, or changed after being yielded, are reported with ``halted``."""
+        last, feedback = run.last, run.feedback
+        RUNNING, INVALID = Status.RUNNING, Status.INVALID
+        # Hot path: no subscribers, so status lines are formatted straight into the log.
+        buffered = run.quiet and run.logfile is not None
+        out: list[str] = []
+        if buffered:
+            head = (f'{{"e": "status", "run": {run.run_json}, "tick": {run.tick}, '
+                    f'"t": {run.now_json}, "path": ')
+            pairs = _PAIRS
+        emit = self._status_event
+        running: set = set()
+        running_add = running.add
+        changed_after = []
         for node, st in visited.items():
-            prev = last.get(node, Status.INVALID)
-            if st != prev or (prev != RUNNING and id(node) in leaves):
-                self._emit(run, "status", path_of[id(node)], status=st.value, previous=prev.value)
-            fb = node.feedback_message
-            if fb != run.feedback.get(node, "") and fb:
-                run.feedback[node] = fb
-                self._emit(run, "feedback", path_of[id(node)], message=fb)
-            last[node] = st
-        # Nodes stopped from above (halted) or finished after being yielded.
-        check = set(run.running)
-        check.update(n for n in visited if n.status != visited[n])
-        for node in check:
-            st = node.status
-            if st != last.get(node, Status.INVALID):
-                self._emit(run, "status", path_of[id(node)], status=st.value,
-                           previous=last.get(node, Status.INVALID).value, halted=True)
+            prev = last.get(node, INVALID)
+            if st is not prev or (prev is not RUNNING and node.hearth_leaf):
+                if buffered:
+                    out.append(head + node.hearth_path_json + pairs[st, prev])
+                else:
+                    emit(run, node, st, prev)
                 last[node] = st
-        run.running = {n for n in set(run.running) | set(visited) if n.status == RUNNING}
+            fb = node.feedback_message
+            if fb and fb != feedback.get(node):
+                feedback[node] = fb
+                if out:
+                    run.logfile.write("".join(out))
+                    out.clear()
+                self._emit(run, "feedback", run.tree.path_of[id(node)], message=fb)
+            if node.status is not st:
+                changed_after.append(node)
+            elif st is RUNNING:
+                running_add(node)
+        if out:
+            run.logfile.write("".join(out))
+        for node in run.running:
+            if node not in visited:
+                final = node.status
+                prev = last.get(node, INVALID)
+                if final is not prev:
+                    emit(run, node, final, prev, True)
+                    last[node] = final
+                if final is RUNNING:
+                    running.add(node)
+        for node in changed_after:
+            final = node.status
+            emit(run, node, final, last[node], True)
+            last[node] = final
+            if final is RUNNING:
+                running.add(node)
+        run.running = running
 
     def _make_output_hook(self, run: _Run) -> Callable:
         def hook(node: Any, port: str, key: str, value: Any) -> None:
@@ -607,7 +672,7 @@ class Executive:
     def _emit(self, run: _Run, kind: str, path: str | None, **data: Any) -> None:
         if not (run.logfile or run.handle._subscribers or self._subscribers):
             return
-        ev = Event(kind, run.handle.id, run.tick, self.clock.now(), path, data)
+        ev = Event(kind, run.handle.id, run.tick, run.now, path, data)
         if run.logfile is not None:
             run.logfile.write(json.dumps(ev.to_json(), default=repr) + "\n")
         for cb in list(run.handle._subscribers) + list(self._subscribers):
