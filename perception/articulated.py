@@ -307,3 +307,49 @@ def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: 
                                 f"{res.fitness:.2f})")
     return PartState(part.id, jt, float(res.value), res.T, fitness=res.fitness,
                      residual=res.residual, points=n_in, coarse_value=best)
+
+
+# -- handles -------------------------------------------------------------------------------
+
+def _face_corners(world, part: Part) -> np.ndarray:
+    """(8, 3) corners, part frame, of the part's face (the visual named "face", else its
+    largest box)."""
+    vis = [v for v in model_visuals(part.model, world.apartment.library) if v.shape == "box"]
+    if not vis:
+        raise PerceptionError("the part has no box face to find a handle on", node=part.id)
+    faces = [v for v in vis if v.name == "face"] or [max(vis, key=lambda v: np.prod(v.size))]
+    v = faces[0]
+    s = np.asarray(v.size) / 2
+    c = np.array([[x, y, z] for x in (-s[0], s[0]) for y in (-s[1], s[1]) for z in (-s[2], s[2])])
+    return transform(v.pose.matrix(), c)
+
+
+def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
+                     part_ids: Optional[list[str]] = None, cfg=None,
+                     observed: Optional[np.ndarray] = None) -> dict:
+    """Fine handle poses (perception.handles) for the registered parts with a known state.
+    Returns {handle_id: HandleEstimate or PerceptionError}."""
+    from perception.handles import HandleConfig, estimate_handle, face_extent_in_handle_frame
+    cfg = cfg or HandleConfig()
+    pts = reg.observed.points if observed is None else observed
+    out = {}
+    for pid, st in reg.parts.items():
+        if part_ids is not None and pid not in part_ids:
+            continue
+        part = world.get(pid)
+        for h in getattr(part, "handles", []):
+            if not st.known:
+                out[h.id] = PerceptionError(f"state of {pid} unknown: {st.reason}", node=h.id)
+                continue
+            T_prior = st.T_world_part @ h.pose.matrix()
+            corners = transform(st.T_world_part, _face_corners(world, part))
+            ext = face_extent_in_handle_frame(corners, T_prior)
+            lo = corners.min(0) - 0.15
+            hi = corners.max(0) + 0.15
+            near = pts[np.all((pts > lo) & (pts < hi), axis=1)]
+            try:
+                out[h.id] = estimate_handle(near, st.T_world_part, ext, T_prior, h.radius,
+                                            h.length, h.standoff, T_world_camera[:3, 3], h.id, cfg)
+            except PerceptionError as err:
+                out[h.id] = err
+    return out

@@ -1,0 +1,165 @@
+"""Refining the robot's base pose on landmark objects (RAMCIP 4.2.3.4, 6.3.3.1).
+
+The landmarks are the map's fixed large objects in the camera's field of view. Their expected
+view is rendered at the believed camera pose (what the camera would see with perfect
+localisation), the observed view is registered to it with ICP restricted to x, y and yaw, and
+the resulting correction moves the believed base pose.
+
+Starting errors can be large (15 cm and 8 degrees: 8 degrees moves a landmark 2 m away by
+28 cm), beyond any ICP's basin, so a coarse grid over x, y and yaw around the base is scored
+first against the depth image (``DepthAgreement``: model points agreeing with the observed
+depth minus those the camera sees through), then ICP refines from the best cell.
+
+Pure: the map, the depth image and poses in, a correction out; nothing is applied here (the
+RefineLocalisation skill applies it through the robot adapter).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from perception.errors import PerceptionError
+from perception.registration import (
+    DepthAgreement, ICPConfig, ICPResult, RegistrationFailed, crop_box, observed_view,
+    planar_params, register_planar, render_reference,
+)
+from worldmodel.geometry import object_meshes, room_visuals, visual_mesh, LabelledMesh
+
+
+@dataclass(frozen=True)
+class LocalisationConfig:
+    """``max_xy`` / ``max_yaw_deg``: the largest believed-pose error searched; ``grid_xy`` /
+    ``grid_yaw_deg``: the coarse grid; ``min_weakest``: the smallest eigenvalue of the
+    normalised information matrix (x, y in metres, yaw in metres at the cloud's radius) for the
+    fix to count as well constrained; ``use_walls``: add the rooms' walls as landmarks."""
+    icp: ICPConfig = ICPConfig(gates=(0.05, 0.02, 0.01), iterations=(10, 8, 8),
+                               min_fitness=0.15, min_coverage=0.3)
+    max_xy: float = 0.18
+    max_yaw_deg: float = 9.0
+    grid_xy: float = 0.06
+    grid_yaw_deg: float = 2.0
+    coarse_points: int = 600
+    reference_scale: float = 0.25
+    stride: int = 2
+    max_range: float = 4.5
+    margin: float = 0.25
+    min_weakest: float = 0.004
+    use_walls: bool = False
+
+
+@dataclass
+class LocalisationFix:
+    """``correction``: 4x4 ``T_corrected_believed`` in the world frame (apply as
+    ``correction @ T_world_base``); ``T_world_base``: the corrected base pose; ``dx``, ``dy``
+    (m) and ``dyaw`` (rad): how far the base moves; ``ok``: the fix is trustworthy (enough
+    overlap, converged, every direction constrained); ``quality``: the figures behind it."""
+    landmarks: list[str]
+    correction: np.ndarray
+    T_world_base: np.ndarray
+    dx: float
+    dy: float
+    dyaw: float
+    ok: bool
+    quality: dict = field(default_factory=dict)
+    icp: Optional[ICPResult] = None
+    timings_ms: dict = field(default_factory=dict)
+
+
+def visible_landmarks(world, K, T_world_camera: np.ndarray, max_range: float = 4.5) -> list[str]:
+    """Ids of the map's fixed large objects whose bounds fall in the camera's view."""
+    fixed = {o.id for o in world.landmarks()}
+    # Only the room the camera is in: the renderer of the expected view has no walls.
+    cam = T_world_camera[:3, 3]
+    for room in world.rooms:
+        if room.bounds is not None:
+            x0, y0, x1, y1 = room.bounds
+            if x0 <= cam[0] <= x1 and y0 <= cam[1] <= y1:
+                fixed = {i for i in fixed if world.room_of(i).id == room.id}
+                break
+    seen = world.in_frustum(T_world_camera, K, max_range=max_range,
+                            kinds=("LargeObject", "LargeArticulatedObject"))
+    return [i for i in seen if i in fixed]
+
+
+def _planar_about(x: float, y: float, yaw: float, centre: np.ndarray) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[:2, 3] = centre[:2] - T[:2, :2] @ centre[:2] + (x, y)
+    return T
+
+
+def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
+                        T_world_base: np.ndarray, cfg: LocalisationConfig = LocalisationConfig(),
+                        landmarks: Optional[list[str]] = None) -> LocalisationFix:
+    """The base-pose correction from one depth image taken at the believed ``T_world_camera``
+    (the camera as the robot believes it is; ``T_world_base`` likewise, 4x4).
+
+    Raises PerceptionError when no landmark is in view, RegistrationFailed when the view
+    does not overlap the landmarks enough.
+    """
+    t0 = time.perf_counter()
+    ids = landmarks if landmarks is not None else visible_landmarks(world, K, T_world_camera,
+                                                                    cfg.max_range)
+    if not ids:
+        raise PerceptionError("no landmark in view")
+    meshes = []
+    for oid in ids:
+        meshes += object_meshes(world, world.get(oid), children=False)
+    if cfg.use_walls:
+        for room in world.rooms:
+            for v in room_visuals(room):
+                if v.name == "wall":
+                    meshes.append(LabelledMesh(room.id, room.id,
+                                               visual_mesh(v).transform(room.pose.matrix()),
+                                               tuple(v.color), v.material, v.name))
+    ref = render_reference(meshes, K, T_world_camera, scale=cfg.reference_scale,
+                           max_range=cfg.max_range)
+    if len(ref) < cfg.icp.min_points:
+        raise RegistrationFailed(f"the landmarks {ids} would cover only {len(ref)} points")
+    t1 = time.perf_counter()
+    obs = observed_view(depth, K, T_world_camera, cfg.stride)
+    lo, hi = ref.points.min(0), ref.points.max(0)
+    src = obs.points[crop_box(obs.points, lo, hi, cfg.margin)]
+    t2 = time.perf_counter()
+    # Coarse grid about the base: the believed-pose error is a rotation about the robot.
+    base = np.asarray(T_world_base, dtype=float)[:3, 3]
+    coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
+    xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
+    yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
+    cands = np.stack([_planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
+    scores = coarse(cands)
+    T0 = cands[int(np.argmax(scores))]
+    t3 = time.perf_counter()
+    fine = DepthAgreement(ref.points, depth, K, T_world_camera)
+    res = register_planar(src, ref.points, ref.normals, T_init=T0, cfg=cfg.icp, scorer=fine,
+                          search_range=0.06, search_step=0.005)
+    t4 = time.perf_counter()
+    C = res.T
+    T_new = C @ np.asarray(T_world_base, dtype=float)
+    dyaw = math.atan2(C[1, 0], C[0, 0])
+    dx, dy = (T_new[:3, 3] - base)[:2]
+    weakest = float(np.linalg.eigvalsh(_scaled(res.information, ref.points))[0]) \
+        if res.information is not None else 0.0
+    ok = bool(res.converged or res.residual < 0.004) and weakest >= cfg.min_weakest
+    quality = dict(fitness=round(res.fitness, 4), coverage=round(res.coverage, 4),
+                   residual_mm=round(res.residual * 1000, 3), converged=res.converged,
+                   weakest=round(weakest, 4), landmarks=len(ids), points=len(src))
+    return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
+                           {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
+                            "coarse": 1000 * (t3 - t2), "icp": 1000 * (t4 - t3)})
+
+
+def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    c = pts.mean(axis=0)
+    radius = float(np.sqrt(np.mean(np.sum((pts[:, :2] - c[:2]) ** 2, axis=1))))
+    S = np.diag([1.0, 1.0, 1.0 / max(radius, 1e-6)])
+    return S @ info @ S
+
+
+__all__ = ["LocalisationConfig", "LocalisationFix", "refine_localisation", "visible_landmarks",
+           "planar_params"]
