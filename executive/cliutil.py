@@ -25,6 +25,7 @@ def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
             raise MissionError(f"unknown parameter of mission {mission.name} (known: {known})",
                                param=name)
         out[name] = parse_param_text(name, spec.type, text)
+    mission.resolve_parameters(out)   # enum, required and item checks before anything starts
     return out
 
 

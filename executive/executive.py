@@ -243,6 +243,9 @@ class Executive:
     def load(self, mission: str | os.PathLike | Mission) -> Mission:
         if isinstance(mission, Mission):
             return mission
+        if self.skills is None:
+            from skills.base import registry
+            self.skills = registry()
         return load_mission(mission, self.skills)
 
     def submit(self, mission: str | os.PathLike | Mission, priority: int = 0,

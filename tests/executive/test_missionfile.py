@@ -206,3 +206,31 @@ def test_go_to_rest_validates_against_the_real_registry():
 def test_check_value_number_never_accepts_booleans_or_strings(value):
     if check_value("number", value):
         assert isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("name: x\ntree: [\n", ":3: YAML syntax error"),
+    ("name: x\ntree:\n  juggle: {}\n", ":3: unknown node kind 'juggle'"),
+    ("name: x\ntree:\n  skill: Juggle\n", ":3: unknown skill 'Juggle'"),
+])
+def test_cli_show_bad_missions_exit_2_with_one_line(mission_file, capsys, text, expected):
+    path = mission_file(text)
+    assert main(["show", path]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(path) and expected in err[0]
+
+
+def test_cli_wrong_parameter_type_is_one_line_naming_the_parameter(mission_file, capsys):
+    path = mission_file("name: x\nparameters:\n  n: {type: number}\ntree: {succeed: ok}\n")
+    assert main(["run", path, "--param", "n=lots"]) == 2
+    assert capsys.readouterr().err.strip() == "parameter n: expected number, got 'lots'"
+    assert main(["run", "missions/go_to_rest.yaml", "--param", "presence=maybe"]) == 2
+    assert "parameter presence: expected one of ['home', 'away']" in capsys.readouterr().err
+
+
+def test_hearth_show_draws_ascii_and_dot(capsys):
+    assert main(["show", "missions/go_to_rest.yaml"]) == 0
+    out = capsys.readouterr().out
+    assert "NavigateTo drive_near_user(target=$rest_near_user)" in out
+    assert main(["show", "missions/go_to_rest.yaml", "--format", "dot"]) == 0
+    assert capsys.readouterr().out.startswith('digraph "go_to_rest"')
