@@ -26,7 +26,6 @@ from typing import Optional
 
 import numpy as np
 import open3d as o3d
-from scipy.spatial import cKDTree
 
 from perception.errors import PerceptionError
 from perception.registration import (
@@ -54,6 +53,7 @@ class ArticulatedConfig:
     samples: int = 1200
     min_points: int = 40
     min_fitness: float = 0.5
+    min_incidence: float = 0.25
     margin: float = 0.10
     mode: str = "planar"
     reference_scale: float = 0.25
@@ -235,7 +235,6 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
     obs = out.observed
     level = [(p, out.T_world_object) for p in getattr(obj, "parts", [])]
     states: dict[str, float] = {}
-    tree_cache: dict = {}
     while level:
         t0 = time.perf_counter()
         coarse: dict[str, tuple] = {}
@@ -263,7 +262,8 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
         out.timings_ms["part_reference"] = out.timings_ms.get("part_reference", 0.0) + 1000 * (t2 - t1)
         nxt = []
         for pid, (part, joint, best, samples, grid, scores) in coarse.items():
-            st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg, tree_cache)
+            st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg,
+                              T_world_camera[:3, 3])
             out.parts[pid] = st
             if st.value is not None:
                 states[pid] = st.value
@@ -274,12 +274,17 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
 
 
 def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: View, obs: View,
-                 cfg: ArticulatedConfig, tree_cache: dict) -> PartState:
+                 cfg: ArticulatedConfig, cam_position: np.ndarray) -> PartState:
     view = ref.select(_part_nodes(part))
     jt = part.joint.type
-    if len(view) < cfg.min_points:
-        return PartState(part.id, jt, None, None, points=len(view), coarse_value=best,
-                         reason=f"only {len(view)} points of it would be visible at the best "
+    # Points seen at less than ~75 degrees from their normal: a door seen edge-on shows only
+    # its thin edge (and, on a real sensor, grazing-angle dropouts), too little to trust.
+    rays = view.points - cam_position
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True) + 1e-12
+    well_seen = int(np.sum(-np.einsum("ij,ij->i", rays, view.normals) > cfg.min_incidence))
+    if well_seen < cfg.min_points:
+        return PartState(part.id, jt, None, None, points=well_seen, coarse_value=best,
+                         reason=f"only {well_seen} points of it would be seen well at the best "
                                 f"coarse state (edge-on or hidden)")
     T_part = joint.T_world_part(best)
     T_inv = np.linalg.inv(T_part)
@@ -289,7 +294,6 @@ def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: 
     pts = samples[0]
     corners = np.concatenate([transform(joint.T_world_part(v), pts[:: max(1, len(pts) // 200)])
                               for v in (grid[0], grid[len(grid) // 2], grid[-1])])
-    key = (round(float(corners.min()), 3), round(float(corners.max()), 3), part.id)
     m = crop_box(obs.points, corners.min(0), corners.max(0), 0.05, floor_z=None)
     observed = obs.points[m]
     if len(observed) < cfg.min_points:
@@ -353,3 +357,21 @@ def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
             except PerceptionError as err:
                 out[h.id] = err
     return out
+
+
+def estimate_handle_pose(world, handle_id: str, depth: np.ndarray, K,
+                         T_world_camera: np.ndarray,
+                         cfg: ArticulatedConfig = ArticulatedConfig(), handle_cfg=None):
+    """Register the handle's object (its base and the handle's part) and return the handle's
+    fine pose (``HandleEstimate``) and the registration. Raises PerceptionError when the part's
+    state is unknown or the handle is not seen."""
+    part = world.parent(handle_id)
+    obj = world.large_object_of(handle_id)
+    parts = [n.id for n in world.chain(handle_id) if isinstance(n, Part)]
+    reg = register_articulated(world, obj.id, depth, K, T_world_camera, cfg, parts=parts or None)
+    if not isinstance(part, Part):
+        raise PerceptionError("only handles on doors and drawers are estimated", node=handle_id)
+    est = register_handles(world, reg, T_world_camera, [part.id], handle_cfg).get(handle_id)
+    if isinstance(est, Exception) or est is None:
+        raise est or PerceptionError("handle not found", node=handle_id)
+    return est, reg
