@@ -149,7 +149,7 @@ def bench_large_object(world, n: int, rng) -> dict:
         depth = simulate_depth(truth, K, Tc, rng)
         t0 = time.perf_counter()
         try:
-            reg = register_base(world, oid, depth, K, Tc)
+            reg = register_base(world, oid, depth, K, Tc, include_parts=True)
         except Exception:  # noqa: BLE001
             bad += 1
             continue

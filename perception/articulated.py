@@ -103,6 +103,7 @@ class ObjectRegistration:
     parts: dict[str, PartState] = field(default_factory=dict)
     observed: Optional[View] = None
     timings_ms: dict[str, float] = field(default_factory=dict)
+    base_note: str = ""
 
     def states(self) -> dict[str, float]:
         """Known joint states (radians / metres) by part id."""
@@ -186,8 +187,10 @@ def coarse_joint_search(samples: tuple[np.ndarray, np.ndarray], joint: JointAxis
 
 def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: np.ndarray,
                   cfg: ArticulatedConfig = ArticulatedConfig(),
-                  observed: Optional[View] = None) -> ObjectRegistration:
-    """Register a large object's base (rigid; planar or 6-DoF) from one depth image.
+                  observed: Optional[View] = None, include_parts: bool = False) -> ObjectRegistration:
+    """Register a large object (rigid; planar or 6-DoF) from one depth image: its base only,
+    or with ``include_parts`` the whole object with its parts in the map's states (right when
+    the map's door states are right; a fridge's carcass hides behind its door).
 
     ``depth``: metres, 0 = no reading; ``T_world_camera``: the believed camera pose. Raises
     ``RegistrationFailed`` when the object is not seen well enough.
@@ -199,7 +202,7 @@ def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: n
     T_obj = world.T_world(object_id)
     meshes = object_meshes(world, obj, children=False)
     ref = render_reference(meshes, K, T_world_camera, scale=cfg.reference_scale)
-    base_ref = ref.select(_object_nodes(obj))
+    base_ref = ref if include_parts else ref.select(_object_nodes(obj))
     if len(base_ref) < cfg.base.min_points:
         raise RegistrationFailed(f"the camera would see only {len(base_ref)} points of it",
                                  node=object_id)
@@ -230,7 +233,18 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
                          parts: Optional[list[str]] = None) -> ObjectRegistration:
     """Register the base, then every part (or the given ``parts``) under its joint, parents
     before children. See the module docstring."""
-    out = register_base(world, object_id, depth, K, T_world_camera, cfg)
+    try:
+        out = register_base(world, object_id, depth, K, T_world_camera, cfg)
+    except RegistrationFailed as err:
+        # The base barely shows (a fridge is all door): keep the map's pose for it and still
+        # read the parts; the reason stays in ``base_note``.
+        if err.result is not None:
+            raise
+        T_obj = world.T_world(object_id)
+        out = ObjectRegistration(object_id, T_obj, np.eye(4),
+                                 ICPResult(np.eye(4), 0.0, float("inf"), False, 0),
+                                 observed=observed_view(depth, K, T_world_camera, cfg.stride),
+                                 base_note=f"base kept from the map: {err.message}")
     obj = world.get(object_id)
     obs = out.observed
     level = [(p, out.T_world_object) for p in getattr(obj, "parts", [])]
