@@ -170,7 +170,7 @@ class _Run:
         self.tick = 0
         self.t0 = 0.0
         self.last: dict[Any, Status] = {}
-        self.running: set = set()
+        self.running: dict = {}
         self.feedback: dict[Any, str] = {}
         self.halting: list = []
         self.halt_deadline = 0.0
@@ -325,6 +325,8 @@ class Executive:
         """One executive step: start a queued mission, apply parameter changes and cancel
         requests, then tick (or keep halting). Returns False when there was nothing to do.
         Only for ``background=False``; the tick thread calls it otherwise."""
+        if self._thread is not None and threading.current_thread() is not self._thread:
+            raise RuntimeError("Executive.tick() is for background=False executives")
         did = self._step()
         if did and self._simulated:
             self.clock.advance(self.period)
@@ -618,8 +620,8 @@ class Executive:
                     f'"t": {run.now_json}, "path": ')
             pairs = _PAIRS
         emit = self._status_event
-        running: set = set()
-        running_add = running.add
+        running: dict = {}   # ordered as ticked: children before parents, deepest first
+        running_add = running.setdefault
         changed_after = []
         for node, st in visited.items():
             prev = last.get(node, INVALID)
@@ -650,13 +652,13 @@ class Executive:
                     emit(run, node, final, prev, True)
                     last[node] = final
                 if final is RUNNING:
-                    running.add(node)
+                    running_add(node)
         for node in changed_after:
             final = node.status
             emit(run, node, final, last[node], True)
             last[node] = final
             if final is RUNNING:
-                running.add(node)
+                running_add(node)
         run.running = running
 
     def _make_output_hook(self, run: _Run) -> Callable:

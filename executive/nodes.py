@@ -160,6 +160,18 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         self._current_item: Any = self._DONE
         self.index = -1
 
+    def tick(self) -> Iterator[Behaviour]:
+        # Like Decorator.tick, but an exhausted (or empty) list never ticks the child.
+        if self.status != Status.RUNNING:
+            self.initialise()
+        if self._current_item is not self._DONE:
+            yield from self.decorated.tick()
+        new_status = self.update()
+        if new_status != Status.RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
     def initialise(self) -> None:
         items = self.source()
         if items is MISSING or items is None:

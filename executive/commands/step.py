@@ -31,10 +31,10 @@ def register(sub) -> None:
 class Stepper:
     """Ticks one mission on a non-background Executive; remembers statuses for printing."""
 
-    def __init__(self, ex: Executive, handle, out=sys.stdout):
+    def __init__(self, ex: Executive, handle, out=None):
         self.ex = ex
         self.handle = handle
-        self.out = out
+        self.out = out if out is not None else sys.stdout
         self.statuses: dict[str, str] = {}
         self.feedback: dict[str, str] = {}
         self.blackboard: dict = {}

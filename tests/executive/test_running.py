@@ -475,3 +475,47 @@ def test_step_ticks_and_prints_tree_with_statuses(make_executive, mission_file):
     assert "+ |-- Act a" in tree and "* `-- Act b" in tree
     st.tick(100)
     assert h.status == "succeeded"
+
+
+def test_for_each_over_an_empty_list_never_ticks_its_child(make_executive, mission_file):
+    for until, expected in (("failure", "succeeded"), ("success", "failed")):
+        path = mission_file(f"""
+            name: x
+            tree:
+              for_each: {{skill: Navigate, inputs: {{target: "{{place}}"}}}}
+              in: []
+              as: place
+              until: {until}
+          """)
+        h, ex = run(make_executive, path)
+        assert h.result.outcome == expected
+        assert ex.make_skill.made["/x/Navigate"].activations == 0
+
+
+def test_concurrent_submits_and_cancels_from_other_threads_all_end(make_executive, mission_file):
+    import random
+    import threading
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=0.5, halt_duration=0.2)], background=True,
+                        runs_dir=None)
+    rng = random.Random(7)
+    handles, lock = [], threading.Lock()
+
+    def client(seed):
+        r = random.Random(seed)
+        for _ in range(15):
+            h = ex.submit(path, priority=r.randint(0, 2))
+            with lock:
+                handles.append(h)
+            if r.random() < 0.5:
+                h.cancel()
+
+    threads = [threading.Thread(target=client, args=(rng.random(),)) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for h in handles:
+        assert h.wait(timeout=60) is not None, h
+    assert {h.status for h in handles} <= {"succeeded", "cancelled", "preempted"}
+    assert ex.idle()
