@@ -561,12 +561,31 @@ class _Compiler:
             name = data.get("name")
             root = self.node(data["tree"], scope, "", data.key_lines.get("tree", data.line),
                              default_name=name if isinstance(name, str) else None)
+        elif isinstance(data.get("subtrees"), LineDict):
+            self.check_library(data, path)
         self.check_keys()
+        if root is None and not self.errors:
+            self.error("the file has subtrees but no tree: it can be included, not run", path,
+                       data.line)
         if self.errors or root is None:
             return None
         return Mission(name=str(data.get("name")), description=str(data.get("description", "")),
                        file=path, parameters=self.params, root=root, blackboard=blackboard,
                        key_types={k: w[0] for k, w in self.writers.items()}, files=self.files)
+
+    def check_library(self, data: LineDict, path: str) -> None:
+        """A file of subtrees only: check each as if it were a mission of its own, its
+        parameters standing for whatever an include will bind."""
+        mission_params = self.params
+        for name, body in data["subtrees"].items():
+            if not isinstance(body, LineDict) or "tree" not in body:
+                continue
+            self.params = self.parse_params(body.get("parameters"), path, allow_runtime=False)
+            scope = _Scope(file=path, prefix=f"{name}/", params={n: Param(n) for n in self.params},
+                           param_types={n: p.type for n, p in self.params.items()},
+                           stack=((path, name),), subtrees=data["subtrees"], data=data)
+            self.node(body["tree"], scope, f"/{name}", body.key_lines.get("tree", body.line))
+        self.params = mission_params
 
     def check_keys(self) -> None:
         for key, type_name, file, line in self.readers:
@@ -1045,5 +1064,7 @@ def load_mission(path: str | Path, skills: dict[str, type] | None = None) -> Mis
 
 
 def validate_file(path: str | Path, skills: dict[str, type] | None = None) -> list[MissionError]:
-    """Every problem in a mission file (and its includes), each with file and line."""
-    return compile_mission(path, skills)[1]
+    """Every problem in a mission file (and its includes), each with file and line. A file
+    with subtrees and no tree (a library for includes) is valid when every subtree is."""
+    errors = compile_mission(path, skills)[1]
+    return [e for e in errors if not e.message.startswith("the file has subtrees but no tree")]

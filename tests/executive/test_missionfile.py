@@ -234,3 +234,47 @@ def test_hearth_show_draws_ascii_and_dot(capsys):
     assert "NavigateTo drive_near_user(target=$rest_near_user)" in out
     assert main(["show", "missions/go_to_rest.yaml", "--format", "dot"]) == 0
     assert capsys.readouterr().out.startswith('digraph "go_to_rest"')
+
+
+def test_a_library_of_subtrees_validates_and_is_included_from_another_file(mission_file):
+    lib = mission_file("""
+        name: shared
+        subtrees:
+          visit:
+            parameters: {place: {type: node_id}}
+            tree: {skill: Navigate, inputs: {target: $place}}
+          broken:
+            tree: {skill: Speak, inputs: {text: "{nothing}"}}
+    """, "shared.yaml")
+    errs = errors(lib)
+    assert errs == [f"{lib}:8: reads key {{nothing}} that nothing writes"]
+    path = mission_file("""
+        name: user
+        tree:
+          include: shared.yaml#visit
+          params: {place: hall}
+    """)
+    m = load_mission(path, test_skills())
+    assert [n.path for n in m.nodes()] == ["/user", "/user/Navigate"]
+    clean = mission_file("name: lib\nsubtrees:\n  s: {tree: {succeed: ok}}\n", "lib.yaml")
+    assert errors(clean) == []
+    with pytest.raises(MissionValidationError, match="subtrees but no tree"):
+        load_mission(clean, test_skills())
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["Act", "Speak"]), st.integers(0, 2),
+                          st.booleans()), min_size=1, max_size=8))
+def test_every_node_reports_the_line_its_mapping_starts_on(tmp_path_factory, leaves):
+    lines = ["name: x", "tree:", "  sequence:"]
+    expected = []
+    for skill, blanks, comment in leaves:
+        lines += [""] * blanks + (["    # a comment"] if comment else [])
+        lines.append(f"    - skill: {skill}")
+        expected.append(len(lines))
+        if skill == "Speak":
+            lines.append("      inputs: {text: hello}")
+    path = tmp_path_factory.mktemp("lines") / "m.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    m = load_mission(str(path), test_skills())
+    assert [n.line for n in m.root.children] == expected
