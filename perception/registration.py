@@ -174,13 +174,16 @@ def register_6dof(source: np.ndarray, target: np.ndarray, target_normals: np.nda
     step = np.linalg.norm(T2[:3, 3] - T[:3, 3]) + np.linalg.norm(T2[:3, :3] - T[:3, :3])
     corr = np.asarray(res.correspondence_set)
     inliers = corr[:, 0].astype(np.int64) if len(corr) else np.zeros(0, dtype=np.int64)
-    info = None
+    info, residual = None, float("inf")
     if len(corr):
         p = transform(T, src[corr[:, 0]])
         n = np.asarray(target_normals)[corr[:, 1]]
         J = np.hstack([np.cross(p, n), n])
         info = J.T @ J / len(J)
-    out = ICPResult(T=T, fitness=float(res.fitness), residual=float(res.inlier_rmse),
+        # point-to-plane, like the other variants (open3d's inlier_rmse is point-to-point)
+        r = np.einsum("ij,ij->i", p - np.asarray(target)[corr[:, 1]], n)
+        residual = float(np.sqrt(np.mean(r ** 2)))
+    out = ICPResult(T=T, fitness=float(res.fitness), residual=residual,
                     converged=bool(step < cfg.tolerance * 10), iterations=total, inliers=inliers,
                     information=info,
                     coverage=(_coverage(np.asarray(target), transform(T, src), 2 * cfg.gates[-1])

@@ -1,0 +1,145 @@
+"""Registration skills: each captures one RGB-D frame through the robot adapter, calls one
+perception function and writes what it found (map updates carry the skill's name as source).
+
+The frame comes from ``robot.capture()``: an object with ``depth`` (metres, 0 = none),
+``intrinsics`` (perception.camera.Intrinsics, or ``K``) and ``T_world_camera`` (the believed
+camera pose, 4x4). The base pose comes from ``robot.base_pose()`` (a Pose), and a localisation
+fix goes back through ``robot.apply_correction(pose)`` with the corrected base Pose.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import py_trees
+
+from perception.errors import PerceptionError
+from skills.base import Port, Skill
+from worldmodel.pose import Pose
+
+S = py_trees.common.Status
+
+
+def capture(robot):
+    """(depth, intrinsics, T_world_camera) of a fresh frame from the robot adapter."""
+    frame = robot.capture()
+    K = getattr(frame, "intrinsics", None) or getattr(frame, "K")
+    return np.asarray(frame.depth, dtype=np.float64), K, np.asarray(frame.T_world_camera, dtype=float)
+
+
+class _PerceptionSkill(Skill):
+    """One tick: run ``perceive()``; a PerceptionError (or bad input) fails with its message."""
+
+    def perceive(self) -> str:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def update(self) -> py_trees.common.Status:
+        try:
+            self.feedback_message = self.perceive()
+        except (PerceptionError, KeyError, ValueError) as err:
+            self.feedback_message = f"{self.NAME}: {err}"
+            return S.FAILURE
+        return S.SUCCESS
+
+
+class RegisterLargeObject(_PerceptionSkill):
+    """Register a large object's model against the view and write its registered pose to the
+    map (it was moved); planar by default (furniture stays on the floor)."""
+
+    NAME = "RegisterLargeObject"
+    DESCRIPTION = "register a large object's model against the current view"
+    INPUTS = (Port("object", "node_id"),
+              Port("mode", "string", required=False, default="planar",
+                   description="planar (x, y, yaw) or 6dof"),
+              Port("update_map", "boolean", required=False, default=True))
+    OUTPUTS = (Port("pose", "pose", required=False), Port("fitness", "number", required=False))
+
+    def perceive(self) -> str:
+        from perception.articulated import ArticulatedConfig, register_base
+        oid = self.input("object")
+        depth, K, T_wc = capture(self.robot)
+        reg = register_base(self.world, oid, depth, K, T_wc,
+                            ArticulatedConfig(mode=self.input("mode")), include_parts=True)
+        parent = self.world.parent(oid)
+        pose = Pose.from_matrix(np.linalg.inv(self.world.T_world(parent.id)) @ reg.T_world_object)
+        moved = self.world.get(oid).pose.planar_distance(pose)
+        if self.input("update_map"):
+            self.world.set_pose(oid, pose, source=self.NAME)
+        self.set_output("pose", pose)
+        self.set_output("fitness", reg.base.fitness)
+        return f"{oid} registered {moved * 100:.1f} cm from the map (fitness {reg.base.fitness:.2f})"
+
+
+class RefineLocalisation(_PerceptionSkill):
+    """Correct the robot's base pose on the landmarks in view (x, y, yaw)."""
+
+    NAME = "RefineLocalisation"
+    AUTONOMY = 0
+    DESCRIPTION = "refine the robot's localisation on landmark objects in view"
+    INPUTS = (Port("landmarks", "list", required=False, default=None,
+                   description="landmark ids (default: fixed large objects in view)"),)
+    OUTPUTS = (Port("correction", "dict", required=False), Port("quality", "dict", required=False))
+
+    def perceive(self) -> str:
+        from perception.localisation import refine_localisation
+        depth, K, T_wc = capture(self.robot)
+        T_wb = self.robot.base_pose().matrix()
+        fix = refine_localisation(self.world, depth, K, T_wc, T_wb,
+                                  landmarks=self.input("landmarks"))
+        self.set_output("quality", fix.quality)
+        if not fix.ok:
+            raise PerceptionError(f"fix not trusted ({fix.quality}); pose left unchanged")
+        self.robot.apply_correction(Pose.from_matrix(fix.T_world_base))
+        corr = dict(dx=fix.dx, dy=fix.dy, dyaw=fix.dyaw)
+        self.set_output("correction", corr)
+        return (f"localisation corrected by {math.hypot(fix.dx, fix.dy) * 100:.1f} cm, "
+                f"{math.degrees(fix.dyaw):.1f} deg on {', '.join(fix.landmarks)}")
+
+
+class RegisterArticulated(_PerceptionSkill):
+    """Register an articulated object part by part and write each part's state to the map;
+    parts seen edge-on or hidden are reported unknown and left as the map has them."""
+
+    NAME = "RegisterArticulated"
+    DESCRIPTION = "read the state of an articulated object's doors and drawers"
+    INPUTS = (Port("object", "node_id"),)
+    OUTPUTS = (Port("states", "dict", required=False, description="part id -> deg (doors) / m"),
+               Port("unknown", "list", required=False))
+
+    def perceive(self) -> str:
+        from perception.articulated import register_articulated
+        oid = self.input("object")
+        depth, K, T_wc = capture(self.robot)
+        reg = register_articulated(self.world, oid, depth, K, T_wc)
+        states, unknown = {}, []
+        for pid, st in reg.parts.items():
+            if st.known and st.joint_type != "fixed":
+                self.world.set_joint_state(pid, st.value, source=self.NAME)
+                states[pid] = round(st.state, 3 if st.joint_type == "revolute" else 4)
+            elif not st.known:
+                unknown.append(pid)
+        self.set_output("states", states)
+        self.set_output("unknown", unknown)
+        said = ", ".join(f"{p} {v:g} {'deg' if reg.parts[p].joint_type == 'revolute' else 'm'}"
+                         for p, v in states.items())
+        return f"{oid}: {said or 'no part state read'}" + (
+            f"; unknown: {', '.join(unknown)}" if unknown else "")
+
+
+class EstimateHandle(_PerceptionSkill):
+    """The fine world pose of a door or drawer handle, for grasping."""
+
+    NAME = "EstimateHandle"
+    DESCRIPTION = "find a handle's exact pose"
+    INPUTS = (Port("handle", "node_id"),)
+    OUTPUTS = (Port("pose", "pose", required=False),)
+
+    def perceive(self) -> str:
+        from perception.articulated import estimate_handle_pose
+        hid = self.input("handle")
+        depth, K, T_wc = capture(self.robot)
+        est, _ = estimate_handle_pose(self.world, hid, depth, K, T_wc)
+        pose = Pose.from_matrix(est.T_world_handle)
+        self.set_output("pose", pose)
+        prior = " (height from the map)" if est.prior_used else ""
+        return f"{hid} at {pose.x:.3f}, {pose.y:.3f}, {pose.z:.3f}{prior} from {est.points} points"

@@ -1,0 +1,140 @@
+"""Registration on rendered views of the demo home with Kinect-class noise."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
+from perception.articulated import register_articulated, register_base, register_handles
+from perception.camera import Intrinsics, look_at
+from perception.errors import PerceptionError
+from perception.handles import rotation_error_deg
+from perception.localisation import refine_localisation
+
+K = Intrinsics.kinect()
+
+
+def _truth(world, states):
+    truth = world.copy()
+    for pid, v in states.items():
+        truth.set_joint_state(pid, v)
+    return truth
+
+
+def _front_camera(world, oid, lateral=0.1, distance=1.5):
+    To = world.T_world(oid)
+    eye = (To @ np.array([distance, lateral, 0, 1]))[:3]
+    eye[2] = 1.4
+    target = (To @ np.array([0.15, 0, 0, 1]))[:3]
+    target[2] = 0.5
+    return look_at(eye, target)
+
+
+@pytest.mark.parametrize("left,right", [(0, 35), (35, 90), (90, 0)])
+def test_cupboard_doors_read_at_0_35_and_90_degrees(demo_world, left, right):
+    states = {"cupboard_door_left": math.radians(left), "cupboard_door_right": math.radians(right)}
+    truth = _truth(demo_world, states)
+    Tc = _front_camera(demo_world, "cupboard")
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(left + right))
+    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    for pid, want in (("cupboard_door_left", left), ("cupboard_door_right", right)):
+        st = reg.parts[pid]
+        assert st.known, st.reason
+        assert st.unit == "deg"
+        assert abs(st.state - want) < 1.0
+        # the part's world pose follows its state
+        assert np.allclose(st.T_world_part[:3, 3], truth.T_world(pid)[:3, 3], atol=0.01)
+    # the map is not touched by perception
+    assert demo_world.get("cupboard_door_left").joint.state == 0.0
+
+
+def test_a_door_seen_edge_on_is_unknown_not_a_wrong_angle(demo_world):
+    # The left door open at 90 degrees stands in the plane y = hinge; a camera in that plane
+    # sees only its edge.
+    states = {"cupboard_door_left": math.radians(90), "cupboard_door_right": 0.0}
+    truth = _truth(demo_world, states)
+    To = demo_world.T_world("cupboard")
+    hinge = demo_world.get("cupboard_door_left").joint.origin
+    eye = (To @ np.array([1.6, hinge.y, 0, 1]))[:3]
+    eye[2] = 0.55
+    target = (To @ np.array([0.0, hinge.y, 0, 1]))[:3]
+    target[2] = 0.55
+    Tc = look_at(eye, target)
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(3))
+    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    st = reg.parts["cupboard_door_left"]
+    assert not st.known and st.state is None
+    assert "edge-on" in st.reason or "too little" in st.reason
+
+
+def test_a_drawer_hidden_below_an_open_one_is_unknown(demo_world):
+    states = {"drawer_0": 0.0, "drawer_1": 0.22, "drawer_2": 0.1}
+    truth = _truth(demo_world, states)
+    Tc = _front_camera(demo_world, "drawer_unit")
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(5))
+    reg = register_articulated(demo_world, "drawer_unit", depth, K, Tc)
+    assert not reg.parts["drawer_0"].known and "hidden" in reg.parts["drawer_0"].reason
+    assert abs(reg.parts["drawer_1"].state - 0.22) < 0.005
+
+
+def test_drawers_read_to_the_millimetre(demo_world):
+    states = {"drawer_0": 0.3, "drawer_1": 0.15, "drawer_2": 0.0}
+    truth = _truth(demo_world, states)
+    Tc = _front_camera(demo_world, "drawer_unit")
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(5))
+    reg = register_articulated(demo_world, "drawer_unit", depth, K, Tc)
+    for pid, want in states.items():
+        assert reg.parts[pid].unit == "m"
+        assert abs(reg.parts[pid].state - want) < 0.005
+
+
+def test_handles_found_within_5_mm_and_1_degree(demo_world):
+    states = {"cupboard_door_left": math.radians(20), "cupboard_door_right": math.radians(50)}
+    truth = _truth(demo_world, states)
+    Tc = _front_camera(demo_world, "cupboard", lateral=-0.2)
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(7))
+    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    hs = register_handles(demo_world, reg, Tc)
+    for hid in ("cupboard_handle_left", "cupboard_handle_right"):
+        est = hs[hid]
+        assert not isinstance(est, Exception), est
+        T = truth.T_world(hid)
+        assert np.linalg.norm(est.T_world_handle[:3, 3] - T[:3, 3]) < 0.005
+        assert rotation_error_deg(est.T_world_handle, T) < 1.0
+
+
+def test_moved_object_is_registered_back(demo_world):
+    from worldmodel.pose import Pose
+    truth = demo_world.copy()
+    p = demo_world.get("drawer_unit").pose
+    truth.set_pose("drawer_unit", Pose(p.x + 0.03, p.y - 0.02, 0, 0, 0, p.yaw + math.radians(2)))
+    Tc = _front_camera(demo_world, "drawer_unit")
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(9))
+    reg = register_base(demo_world, "drawer_unit", depth, K, Tc, include_parts=True)
+    E = np.linalg.inv(truth.T_world("drawer_unit")) @ reg.T_world_object
+    assert np.linalg.norm(E[:3, 3]) < 0.003
+    assert reg.base.fitness > 0.3 and reg.base.residual < 0.005
+
+
+def test_object_out_of_view_fails_with_a_clear_message(demo_world):
+    Tc = _front_camera(demo_world, "fridge")
+    depth = simulate_depth(demo_world, K, Tc, np.random.default_rng(1))
+    with pytest.raises(PerceptionError, match="cupboard"):
+        register_base(demo_world, "cupboard", depth, K, Tc)
+
+
+def test_localisation_corrected_from_12_cm_and_6_degrees(demo_world):
+    To = demo_world.T_world("cupboard")
+    p = To @ np.array([1.8, 0.4, 0, 1])
+    yaw = math.atan2(To[1, 3] - p[1], To[0, 3] - p[0])
+    T_true = planar(p[0], p[1], yaw)
+    depth = simulate_depth(demo_world, K, T_true @ T_BASE_CAMERA, np.random.default_rng(11))
+    T_bel = planar(p[0] + 0.08, p[1] - 0.09, yaw + math.radians(6))
+    fix = refine_localisation(demo_world, depth, K, T_bel @ T_BASE_CAMERA, T_bel)
+    E = np.linalg.inv(T_true) @ fix.T_world_base
+    assert math.hypot(E[0, 3], E[1, 3]) < 0.01
+    assert abs(math.degrees(math.atan2(E[1, 0], E[0, 0]))) < 0.5
+    assert fix.ok and "cupboard" in fix.landmarks
+    assert fix.quality["residual_mm"] < 5
