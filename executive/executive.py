@@ -122,6 +122,7 @@ class MissionHandle:
         m.add_transition("cancel_queued", "queued", "cancelled")
         m.add_transition("end_cancel", "halting", "cancelled")
         m.add_transition("end_preempt", "halting", "preempted")
+        self._given: set[str] = set()   # parameters given to submit (not from runtime values)
         # Requests recorded by other threads, acted on by the tick thread.
         self._cancel_request: tuple[str, str] | None = None   # (final state, reason)
 
@@ -262,6 +263,7 @@ class Executive:
             values = mission.resolve_parameters(params, self._params)
             run_id = self._new_run_id(mission.name)
             handle = MissionHandle(self, run_id, mission, priority, values)
+            handle._given = set(params)
             heapq.heappush(self._queue, (-priority, next(self._seq), handle))
             cur = self._current.handle if self._current is not None else self._starting
             if cur is not None and not cur.done and (
@@ -276,10 +278,12 @@ class Executive:
         mission that declares it with ``runtime: true`` sees the new value from its next
         tick; watch guards on it restart their subtree."""
         with self._lock:
-            run = self._current
-            if run is not None:
-                spec = run.handle.mission.parameters.get(name)
-                if spec is not None:
+            missions = [h.mission for _, _, h in self._queue]
+            if self._current is not None:
+                missions.append(self._current.handle.mission)
+            for mission in missions:
+                spec = mission.parameters.get(name)
+                if spec is not None and spec.runtime:
                     spec.check(value)
             self._params[name] = value
             self._param_changes.append((name, value))
@@ -463,6 +467,10 @@ class Executive:
         try:
             with self._lock:
                 handle._life.start()
+                # Runtime values may have changed while the mission was queued.
+                for name in handle.mission.runtime_parameters():
+                    if name not in handle._given and name in self._params:
+                        handle.params[name] = self._params[name]
                 ns = f"/hearth/r{next(_ns_counter)}"
                 run.tree = build_tree(handle.mission, handle.params, ns, self.make_skill)
                 for node in run.tree.root.iterate():

@@ -519,3 +519,38 @@ def test_concurrent_submits_and_cancels_from_other_threads_all_end(make_executiv
         assert h.wait(timeout=60) is not None, h
     assert {h.status for h in handles} <= {"succeeded", "cancelled", "preempted"}
     assert ex.idle()
+
+
+def test_a_queued_mission_starts_with_the_latest_runtime_value(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          presence: {type: string, default: home, runtime: true}
+        tree: {skill: Speak, inputs: {text: $presence}, name: say}
+      """)
+    ex = make_executive([S("*/say", duration=0.5)])
+    first = ex.submit(path)
+    second = ex.submit(path)
+    ex.tick()
+    ex.set_parameter("presence", "away")     # reaches the running one and the queued one
+    ex.run_until_idle(100)
+    assert first.status == second.status == "succeeded"
+    assert second.params["presence"] == "away"
+
+
+def test_set_parameter_checks_the_type_declared_by_running_and_queued_missions(
+        make_executive, mission_file):
+    import pytest
+    from executive.errors import MissionError
+    path = mission_file("""
+        name: x
+        parameters:
+          level: {type: number, default: 1, runtime: true}
+        tree: {succeed: ok}
+      """)
+    ex = make_executive()
+    ex.submit(path)
+    with pytest.raises(MissionError, match="parameter level: expected number"):
+        ex.set_parameter("level", "high")
+    ex.set_parameter("unrelated", "anything")   # declared by no mission: kept for later ones
+    assert ex.parameters == {"unrelated": "anything"}
