@@ -518,12 +518,37 @@ class Executive:
             run.handle._life.halt()
             self._emit(run, "run", None, state="halting", reason=reason, final=final)
             running = nodes.running_skills(tree.root)
-            if tree.root.status != Status.INVALID:
-                tree.root.stop(Status.INVALID)
+            self._halt_tree(tree.root)
             self._diff(run, {})
             run.halting = nodes.still_halting(running)
             run.halt_started = self.clock.now()
             run.halt_deadline = run.halt_started + nodes.halt_timeout(run.halting)
+
+    @staticmethod
+    def _halt_tree(root: Any) -> None:
+        """Halt every running node, deepest first; a terminate that raises does not keep the
+        others from being halted."""
+        try:
+            if root.status != Status.INVALID:
+                root.stop(Status.INVALID)
+            return
+        except Exception:  # noqa: BLE001
+            log.exception("halting the tree failed; halting node by node")
+        for node in root.iterate():          # children before parents
+            if node.status != Status.INVALID:
+                try:
+                    node.stop(Status.INVALID)
+                except Exception:  # noqa: BLE001
+                    log.exception("terminate failed on %s", node.name)
+                    node.status = Status.INVALID
+
+    def _stop_robot(self) -> None:
+        stop = getattr(self.robot, "stop", None)
+        if callable(stop):
+            try:
+                stop()
+            except Exception:  # noqa: BLE001 - a failing stop must not wedge the executive
+                log.exception("robot.stop() failed")
 
     def _poll_halting(self, run: _Run) -> None:
         run.halting = nodes.still_halting(run.halting)
@@ -536,12 +561,7 @@ class Executive:
         final, reason = run.handle._cancel_request
         self._emit(run, "halted", None, waited=round(now - run.halt_started, 9),
                    timed_out=[run.tree.path_of.get(id(s), s.name) for s in run.halting])
-        stop = getattr(self.robot, "stop", None)
-        if callable(stop):
-            try:
-                stop()
-            except Exception:  # noqa: BLE001
-                log.exception("robot.stop() failed")
+        self._stop_robot()
         if final == "preempted":
             run.handle._life.end_preempt()
         else:
@@ -558,12 +578,8 @@ class Executive:
             visited = {node: node.status for node in root.tick()}
         except Exception as err:  # noqa: BLE001 - a crashing skill fails the mission
             log.exception("tick failed")
-            running = [n for n in root.iterate() if n.status == Status.RUNNING]
-            for n in running:
-                try:
-                    n.stop(Status.INVALID)
-                except Exception:  # noqa: BLE001
-                    pass
+            self._halt_tree(root)
+            self._stop_robot()
             run.handle._life.fail()
             reason = f"{type(err).__name__}: {err}"
             self._emit(run, "run", None, state="failed", reason=reason)

@@ -106,7 +106,12 @@ def load_yaml(path: str | Path) -> Any:
     return load_yaml_text(text, path)
 
 
+MAX_FILE_CHARS = 1_000_000
+
+
 def load_yaml_text(text: str, path: str = "<string>") -> Any:
+    if len(text) > MAX_FILE_CHARS:
+        raise MissionError(f"file is larger than {MAX_FILE_CHARS} characters", file=path, line=0)
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
     except MissionError as err:

@@ -554,3 +554,37 @@ def test_set_parameter_checks_the_type_declared_by_running_and_queued_missions(
         ex.set_parameter("level", "high")
     ex.set_parameter("unrelated", "anything")   # declared by no mission: kept for later ones
     assert ex.parameters == {"unrelated": "anything"}
+
+
+def test_a_terminate_that_raises_does_not_keep_others_from_halting(make_executive, mission_file):
+    from executive.testing import Act
+
+    class BadStop(Act):
+        def terminate(self, new_status):
+            super().terminate(new_status)
+            if new_status.value == "INVALID":
+                raise RuntimeError("stuck")
+
+    path = mission_file("""
+        name: x
+        tree:
+          parallel:
+            - {skill: Act, name: bad}
+            - {skill: Act, name: good}
+      """)
+    robot = FakeRobot()
+    ex = make_executive(robot=robot)
+    made = {}
+
+    def make(spec, b):
+        cls = BadStop if spec.name == "bad" else Act
+        cls = type(cls.__name__, (cls,), {"script": S(duration=10)})
+        made[spec.name] = cls(name=spec.name, bindings=b)
+        return made[spec.name]
+    ex.make_skill = make
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    h.cancel()
+    ex.run_until_idle(100)
+    assert h.status == "cancelled" and robot.stops == 1
+    assert made["good"].halts == 1 and made["good"].status.value == "INVALID"
