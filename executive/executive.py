@@ -37,7 +37,7 @@ from py_trees import common
 from transitions import Machine
 
 from executive import nodes
-from executive.errors import MissionError
+from executive.errors import MissionError, MissionValidationError
 from executive.missionfile import Mission, load_mission, plain
 from executive.tree import BuiltTree, SkillFactory, build_tree
 
@@ -195,14 +195,16 @@ class Executive:
     ``equal_priority``: "queue" (default) or "preempt" (a new mission of the same priority
     preempts the running one). ``make_skill``: how skill nodes are instantiated (skill
     substitution; see executive.testing). ``background``: run the tick thread (False: call
-    ``tick()`` yourself, as tests and ``hearth step`` do).
+    ``tick()`` yourself, as tests and ``hearth step`` do). ``autonomy``: the highest skill
+    AUTONOMY level granted (None: no limit); ``submit`` refuses a mission using a skill above
+    it, naming each such skill with file and line.
     """
 
     def __init__(self, world: Any = None, robot: Any = None, clock: Any = None,
                  tick_hz: float = 10.0, runs_dir: str | os.PathLike | None = "runs",
                  skills: dict[str, type] | None = None, equal_priority: str = "queue",
                  make_skill: SkillFactory | None = None, background: bool = True,
-                 setup_kwargs: dict[str, Any] | None = None):
+                 setup_kwargs: dict[str, Any] | None = None, autonomy: int | None = None):
         if tick_hz <= 0:
             raise ValueError("tick_hz must be positive")
         if equal_priority not in ("queue", "preempt"):
@@ -221,6 +223,7 @@ class Executive:
         self.equal_priority = equal_priority
         self.make_skill = make_skill
         self.setup_kwargs = dict(setup_kwargs or {})
+        self.autonomy = autonomy
         self._lock = threading.RLock()
         self._wake = threading.Condition(self._lock)
         self._queue: list[tuple[int, int, MissionHandle]] = []
@@ -257,6 +260,7 @@ class Executive:
         parameter. A higher ``priority`` preempts the running mission; equal priorities
         queue (or preempt, see ``equal_priority``)."""
         mission = self.load(mission)
+        self._check_autonomy(mission)
         with self._lock:
             if self._closed:
                 raise MissionError("the executive has been shut down")
@@ -272,6 +276,17 @@ class Executive:
                 self._request_cancel(cur, "preempted", f"preempted by {mission.name} ({run_id})")
             self._wake.notify_all()
         return handle
+
+    def _check_autonomy(self, mission: Mission) -> None:
+        if self.autonomy is None:
+            return
+        problems = [MissionError(f"skill {n.skill_name} acts with autonomy {n.skill.AUTONOMY}, "
+                                 f"above the granted level {self.autonomy}", file=n.file,
+                                 line=n.line)
+                    for n in mission.nodes()
+                    if n.kind == "skill" and getattr(n.skill, "AUTONOMY", 0) > self.autonomy]
+        if problems:
+            raise MissionValidationError(problems)
 
     def set_parameter(self, name: str, value: Any) -> None:
         """Set a runtime parameter (e.g. ``presence``) for this and later missions. A running

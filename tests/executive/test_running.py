@@ -588,3 +588,13 @@ def test_a_terminate_that_raises_does_not_keep_others_from_halting(make_executiv
     ex.run_until_idle(100)
     assert h.status == "cancelled" and robot.stops == 1
     assert made["good"].halts == 1 and made["good"].status.value == "INVALID"
+
+
+def test_missions_above_the_granted_autonomy_are_refused(make_executive, mission_file):
+    import pytest
+    from executive.errors import MissionValidationError
+    ex = make_executive(autonomy=0, skills=None)
+    with pytest.raises(MissionValidationError) as err:
+        ex.submit("missions/go_to_rest.yaml")
+    assert "skill NavigateTo acts with autonomy 1, above the granted level 0" in str(err.value)
+    assert str(err.value).startswith("missions/go_to_rest.yaml:")
