@@ -598,3 +598,54 @@ def test_missions_above_the_granted_autonomy_are_refused(make_executive, mission
         ex.submit("missions/go_to_rest.yaml")
     assert "skill NavigateTo acts with autonomy 1, above the granted level 0" in str(err.value)
     assert str(err.value).startswith("missions/go_to_rest.yaml:")
+
+
+def test_every_decorator_and_container_halts_deepest_first(make_executive, mission_file):
+    path = mission_file("""
+        name: x
+        parameters:
+          mode: {type: string, default: a, runtime: true}
+        blackboard: {items: [1, 2]}
+        tree:
+          parallel:
+            - watch:
+                guard:
+                  timeout:
+                    for_each:
+                      retry:
+                        repeat: {skill: Act, name: deep1}
+                        times: 2
+                      times: 2
+                    in: "{items}"
+                    as: item
+                  seconds: 100
+                while: "$mode == a"
+              params: [mode]
+            - state_machine:
+                initial: s
+                states:
+                  s:
+                    do:
+                      include: sub
+                    transitions: {success: done, failure: done}
+                outcomes: {done: success}
+            - inverter: {force_success: {force_failure: {skill: Act, name: deep3}}}
+        subtrees:
+          sub:
+            tree: {sequence: [{selector: [{skill: Act, name: deep2}], reactive: true}]}
+      """)
+    ex = make_executive([S("*/deep*", duration=100)])
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    tree = ex.current_tree
+    order = []
+    for p, node in tree.nodes.items():
+        node.terminate = (lambda o, p: lambda s: (order.append(p), o(s)))(node.terminate, p)
+    running = {p for p, n in tree.nodes.items() if n.status.value == "RUNNING"}
+    h.cancel()
+    ex.run_until_idle(10)
+    assert h.status == "cancelled"
+    assert running <= set(order) and len(running) > 15
+    for i, p in enumerate(order):
+        later_descendants = [q for q in order[i + 1:] if q.startswith(p + "/")]
+        assert not later_descendants, f"{p} terminated before {later_descendants}"
