@@ -62,7 +62,9 @@ class Event:
     (``message``), ``write`` (``key``, ``value``, ``port``: a declared key written by
     ``path``), ``param`` (``name``, ``value``), ``restart`` (a watch guard restarted,
     ``changed``), ``map`` (``node``, ``field``, ``old``, ``new``, ``source``, ``map_time``),
-    ``halted`` (mission-level halting finished; ``waited``), ``tick`` (wall-clock runs only).
+    ``stopped`` (a halted skill no longer reports ``is_halting()``), ``halted``
+    (mission-level halting finished; ``waited``, ``timed_out``), ``tick`` (wall-clock runs
+    only: each tick's time).
     ``tick`` is the tick number (0-based), ``time`` the clock time in seconds.
     """
     kind: str
@@ -493,6 +495,7 @@ class Executive:
                         node.output_hook = self._make_output_hook(run)
                     if isinstance(node, nodes.Watch):
                         node.on_restart = self._make_restart_hook(run)
+                        node.on_stopped = self._make_stopped_hook(run)
                     node.hearth_leaf = not node.children
                     node.hearth_path_json = json.dumps(run.tree.path_of[id(node)])
                     run.path_json[id(node)] = node.hearth_path_json
@@ -535,7 +538,7 @@ class Executive:
             running = nodes.running_skills(tree.root)
             self._halt_tree(tree.root)
             self._diff(run, {})
-            run.halting = nodes.still_halting(running)
+            run.halting = nodes.still_halting(running, self._make_stopped_hook(run))
             run.halt_started = self.clock.now()
             run.halt_deadline = run.halt_started + nodes.halt_timeout(run.halting)
 
@@ -566,7 +569,7 @@ class Executive:
                 log.exception("robot.stop() failed")
 
     def _poll_halting(self, run: _Run) -> None:
-        run.halting = nodes.still_halting(run.halting)
+        run.halting = nodes.still_halting(run.halting, self._make_stopped_hook(run))
         now = self.clock.now()
         if run.halting and now < run.halt_deadline:
             return
@@ -704,6 +707,11 @@ class Executive:
         def hook(node: Any, port: str, key: str, value: Any) -> None:
             self._emit(run, "write", run.tree.path_of.get(id(node)), port=port,
                        key=run.tree.short_key(key), value=plain(value))
+        return hook
+
+    def _make_stopped_hook(self, run: _Run) -> Callable:
+        def hook(node: Any) -> None:
+            self._emit(run, "stopped", run.tree.path_of.get(id(node)))
         return hook
 
     def _make_restart_hook(self, run: _Run) -> Callable:

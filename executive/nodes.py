@@ -290,14 +290,19 @@ def running_skills(node: Behaviour) -> list[Behaviour]:
     return [n for n in node.iterate() if n.status == Status.RUNNING and hasattr(n, "is_halting")]
 
 
-def still_halting(skills: list[Behaviour]) -> list[Behaviour]:
+def still_halting(skills: list[Behaviour],
+                  on_stopped: Callable[[Behaviour], None] | None = None) -> list[Behaviour]:
+    """The skills still reporting ``is_halting()``; ``on_stopped(skill)`` for the others."""
     out = []
     for s in skills:
         try:
-            if s.is_halting():
-                out.append(s)
+            halting = bool(s.is_halting())
         except Exception:  # noqa: BLE001 - a broken skill must not block a cancel
-            pass
+            halting = False
+        if halting:
+            out.append(s)
+        elif on_stopped is not None:
+            on_stopped(s)
     return out
 
 
@@ -325,6 +330,7 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
         self._halting: list[Behaviour] = []
         self._halt_deadline = 0.0
         self.on_restart: Callable[[Behaviour, dict], None] | None = None
+        self.on_stopped: Callable[[Behaviour], None] | None = None
 
     def setup(self, **kwargs: Any) -> None:
         self.clock = kwargs.get("clock") or self.clock
@@ -353,12 +359,12 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
                 running = running_skills(self.decorated)
                 if self.decorated.status != Status.INVALID:
                     self.decorated.stop(Status.INVALID)
-                self._halting = still_halting(running)
+                self._halting = still_halting(running, self.on_stopped)
                 self._halt_deadline = self._now() + halt_timeout(self._halting)
                 if self.on_restart is not None:
                     self.on_restart(self, changed)
         if self._halting:
-            self._halting = still_halting(self._halting)
+            self._halting = still_halting(self._halting, self.on_stopped)
             if self._halting and self._now() < self._halt_deadline:
                 self.feedback_message = f"waiting for {len(self._halting)} skill(s) to stop"
                 self.status = Status.RUNNING

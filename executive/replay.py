@@ -9,7 +9,8 @@ reason, outputs).
 :func:`replay` re-runs the mission against the logged skill results: every skill is
 replaced by a stand-in that returns, at each tick, the status its original returned and
 writes the outputs it wrote; parameter changes, cancels and preempts are applied at the
-ticks they happened, halting skills keep halting as long as they did. The replayed
+ticks they happened, and a halted skill reports ``is_halting()`` until the tick its
+``stopped`` event was logged (mission-level cancels and watch restarts alike). The replayed
 timeline (status changes by tick) must equal the logged one; :class:`ReplayReport` says
 whether it does and where it first differs. Time-based nodes (timeout) see the logged
 times: simulated-clock runs are reproduced exactly; wall-clock runs log each tick's time.
@@ -91,6 +92,8 @@ def format_event(e: dict) -> str:
     if kind == "map":
         return head + (f"map     {e.get('node')}.{e.get('field')}: {e.get('old')!r} -> "
                        f"{e.get('new')!r} ({e.get('source')})")
+    if kind == "stopped":
+        return head + f"stopped {path} (no longer halting)"
     if kind == "halted":
         return head + f"halted  after {e.get('waited')} s" + (
             f", gave up on {e['timed_out']}" if e.get("timed_out") else "")
@@ -133,7 +136,7 @@ class ReplaySkill(Skill):
         super().__init__(name=name, bindings=bindings)
         self.statuses: dict[int, str] = {}
         self.writes: dict[int, list[tuple[str, Any]]] = {}
-        self.halting_until = -1
+        self.halts: list[list] = []    # [halt tick, tick it stopped (None: never)]
         self.current_tick = lambda: 0
 
     def setup(self, **kwargs: Any) -> None:
@@ -146,7 +149,12 @@ class ReplaySkill(Skill):
         return Status(self.statuses.get(t, "RUNNING"))
 
     def is_halting(self) -> bool:
-        return self.current_tick() < self.halting_until
+        """As logged: from a halt until the tick its ``stopped`` event was written."""
+        t = self.current_tick()
+        for halted, stopped in reversed(self.halts):
+            if halted <= t:
+                return stopped is None or t < stopped
+        return False
 
 
 @dataclass
@@ -190,19 +198,24 @@ def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayRep
     params_at: dict[int, list[tuple[str, Any]]] = {}
     cancel_at: dict[int, tuple[str, str]] = {}
     tick_times: dict[int, float] = {}
-    halted_tick = -1
+    halts: dict[str, list[list]] = {p: [] for p in skill_paths}   # [halt tick, stopped tick]
     for e in events:
         kind, tick = e["e"], e["tick"]
         if kind == "status" and e["path"] in skill_paths and not e.get("halted"):
             statuses[e["path"]][tick] = e["status"]
+        elif kind == "status" and e["path"] in skill_paths and e["status"] == "INVALID":
+            halts[e["path"]].append([tick, None])
+        elif kind == "stopped" and e.get("path") in skill_paths:
+            for interval in reversed(halts[e["path"]]):
+                if interval[1] is None:
+                    interval[1] = tick
+                    break
         elif kind == "write" and e.get("path") in skill_paths:
             writes[e["path"]].setdefault(tick, []).append((e["port"], e["value"]))
         elif kind == "param":
             params_at.setdefault(tick, []).append((e["name"], e["value"]))
         elif kind == "run" and e["state"] == "halting":
             cancel_at[tick] = (e.get("final", "cancelled"), e.get("reason", ""))
-        elif kind == "halted":
-            halted_tick = tick
         elif kind == "tick":
             tick_times[tick] = e["t"]
 
@@ -220,7 +233,7 @@ def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayRep
         node = cls(name=spec.name, bindings=bindings)
         node.statuses = statuses[spec.path]
         node.writes = writes[spec.path]
-        node.halting_until = halted_tick
+        node.halts = halts[spec.path]
         node.current_tick = current_tick
         return node
 

@@ -319,6 +319,13 @@ def test_go_to_rest_follows_presence_change_mid_run(make_executive):
     assert near.halts == 1 and away.seen_inputs == [{"target": "kitchen_table", "parking": None}]
     assert robot.said == [] and robot.stops == 0
     assert ex.current is None
+    # the restart waited for the halted drive to stop, and replay reproduces that too
+    _, events, _ = read_log(h.log_path)
+    restart = next(e["tick"] for e in events if e["e"] == "restart")
+    stopped = next(e["tick"] for e in events if e["e"] == "stopped")
+    assert stopped - restart == 3
+    report = replay(h.log_path)
+    assert report.same, report.first_difference()
 
 
 def test_execution_log_replays_to_the_same_timeline(make_executive, mission_file):
