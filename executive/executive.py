@@ -354,10 +354,19 @@ class Executive:
         return did
 
     def run_until_idle(self, max_ticks: int = 1_000_000) -> int:
-        """Tick (background=False) until no mission is running or queued; ticks done."""
+        """Tick (background=False) until no mission is running or queued; ticks done.
+        With a wall clock it keeps the tick rate (sleeps between ticks)."""
         n = 0
+        next_tick = self.clock.now()
         while n < max_ticks and self.tick():
             n += 1
+            if not self._simulated:
+                next_tick += self.period
+                delay = next_tick - self.clock.now()
+                if delay > 0:
+                    self.clock.sleep(delay)
+                else:
+                    next_tick = self.clock.now()
         return n
 
     def shutdown(self, timeout: float = 5.0) -> None:

@@ -656,3 +656,44 @@ def test_every_decorator_and_container_halts_deepest_first(make_executive, missi
     for i, p in enumerate(order):
         later_descendants = [q for q in order[i + 1:] if q.startswith(p + "/")]
         assert not later_descendants, f"{p} terminated before {later_descendants}"
+
+
+def test_wall_clock_runs_replay_at_their_logged_tick_times(tmp_path, mission_file):
+    import random
+    from executive.executive import Executive
+    from executive.testing import Substitution
+
+    class ManualWallClock:
+        simulated = False
+
+        def __init__(self):
+            self.t = 100.0
+
+        def now(self):
+            return self.t
+
+        def wall(self):
+            return 1.7e9 + self.t
+
+        def sleep(self, s):
+            self.t += s
+
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - timeout: {skill: Act, name: a}
+              seconds: 0.5
+            - timeout: {skill: Act, name: b}
+              seconds: 0.5
+      """)
+    clock = ManualWallClock()
+    ex = Executive(clock=clock, runs_dir=str(tmp_path), skills=test_skills(), background=False,
+                   make_skill=Substitution([S("*/a", duration=0.3), S("*/b", duration=0.45)]))
+    h = ex.submit(path)
+    rng = random.Random(3)
+    while not h.done:
+        ex.tick()
+        clock.t += rng.uniform(0.05, 0.2)     # irregular real tick periods
+    report = replay(h.log_path, test_skills())
+    assert report.same, report.first_difference()
