@@ -98,6 +98,24 @@ class BuiltTree:
             Blackboard.metadata.pop(k, None)
 
 
+def _reads(spec: NodeSpec, built: BuiltTree) -> list[str]:
+    """Blackboard keys a condition, guard, watch or for-each node reads."""
+    refs: list[Ref] = []
+    if spec.kind in ("condition", "guard"):
+        refs = spec.attrs["expr"].refs()
+    elif spec.kind == "for_each":
+        refs = [spec.attrs["source"]]
+    elif spec.kind == "watch":
+        return [built.param_key(p) for p in spec.attrs["params"]]
+    out = []
+    for r in refs:
+        if isinstance(r, BBKey):
+            out.append(built.bb_key(r.key))
+        elif isinstance(r, Param):
+            out.append(built.param_key(r.name))
+    return out
+
+
 def build_tree(mission: Mission, params: dict[str, Any], ns: str,
                make_skill: SkillFactory | None = None) -> BuiltTree:
     """Create the behaviours of ``mission`` and write its parameters and initial keys."""
@@ -163,6 +181,13 @@ def build_tree(mission: Mission, params: dict[str, Any], ns: str,
             node = make_skill(spec, b)
         else:  # pragma: no cover - the loader only produces the kinds above
             raise AssertionError(k)
+        reads = _reads(spec, built)
+        if reads:
+            # Declare what the node reads, the py_trees way (blackboard introspection, access
+            # checks); the node itself reads through BuiltTree.read for speed.
+            client = node.attach_blackboard_client(name=f"{spec.name}.reads")
+            for key in reads:
+                client.register_key(key=key, access=common.Access.READ)
         node.hearth_path = spec.path
         built.nodes[spec.path] = node
         built.path_of[id(node)] = spec.path
