@@ -59,6 +59,11 @@ class ArticulatedConfig:
     reference_scale: float = 0.25
     stride: int = 2
     search_range: float = 0.15
+    #: The base is registered only when at least this many of its points would be seen (at
+    #: the reference resolution), and trusted only within these moves from the map.
+    min_base_points: int = 250
+    max_base_move: float = 0.06
+    max_base_turn_deg: float = 3.0
 
 
 @dataclass
@@ -183,6 +188,13 @@ def coarse_joint_search(samples: tuple[np.ndarray, np.ndarray], joint: JointAxis
     return agree.sum(axis=1) - through.sum(axis=1)
 
 
+def _move(correction: np.ndarray, T_world_object: np.ndarray) -> tuple[float, float, float]:
+    """How far a correction moves the object's origin (x, y in metres) and turns it (rad)."""
+    T_new = np.linalg.inv(correction) @ T_world_object
+    d = T_new[:3, 3] - T_world_object[:3, 3]
+    return float(d[0]), float(d[1]), float(math.atan2(correction[1, 0], correction[0, 0]))
+
+
 # -- the pipeline --------------------------------------------------------------------------
 
 def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: np.ndarray,
@@ -203,7 +215,7 @@ def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: n
     meshes = object_meshes(world, obj, children=False)
     ref = render_reference(meshes, K, T_world_camera, scale=cfg.reference_scale)
     base_ref = ref if include_parts else ref.select(_object_nodes(obj))
-    if len(base_ref) < cfg.base.min_points:
+    if len(base_ref) < max(cfg.base.min_points, cfg.min_base_points):
         raise RegistrationFailed(f"the camera would see only {len(base_ref)} points of it",
                                  node=object_id)
     t1 = time.perf_counter()
@@ -233,18 +245,26 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
                          parts: Optional[list[str]] = None) -> ObjectRegistration:
     """Register the base, then every part (or the given ``parts``) under its joint, parents
     before children. See the module docstring."""
+    T_obj = world.T_world(object_id)
+    note = ""
     try:
         out = register_base(world, object_id, depth, K, T_world_camera, cfg)
+        x, y, yaw = _move(out.correction, T_obj)
+        if math.hypot(x, y) > cfg.max_base_move or abs(math.degrees(yaw)) > cfg.max_base_turn_deg:
+            note = (f"base registration moved it {math.hypot(x, y) * 100:.1f} cm, "
+                    f"{math.degrees(yaw):.1f} deg: more than a door reading trusts (register "
+                    f"the object first)")
     except RegistrationFailed as err:
-        # The base barely shows (a fridge is all door): keep the map's pose for it and still
-        # read the parts; the reason stays in ``base_note``.
-        if err.result is not None:
-            raise
-        T_obj = world.T_world(object_id)
+        note = err.message
+    if note:
+        # The base barely shows (a fridge is all door, a wall cabinet shows a few edges) or
+        # moved more than expected: the parts are read from where the map has the base, and
+        # the reason stays in ``base_note``. A door's angle and the base's yaw are confounded
+        # when only the door is seen, so the base is never fitted to the doors.
         out = ObjectRegistration(object_id, T_obj, np.eye(4),
                                  ICPResult(np.eye(4), 0.0, float("inf"), False, 0),
                                  observed=observed_view(depth, K, T_world_camera, cfg.stride),
-                                 base_note=f"base kept from the map: {err.message}")
+                                 base_note=f"base kept from the map: {note}")
     obj = world.get(object_id)
     obs = out.observed
     level = [(p, out.T_world_object) for p in getattr(obj, "parts", [])]

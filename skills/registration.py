@@ -118,6 +118,9 @@ class RegisterArticulated(_PerceptionSkill):
                 states[pid] = round(st.state, 3 if st.joint_type == "revolute" else 4)
             elif not st.known:
                 unknown.append(pid)
+        if not states:
+            why = "; ".join(f"{p}: {st.reason}" for p, st in reg.parts.items())
+            raise PerceptionError(f"{oid}: no part state read ({why or reg.base_note})")
         self.set_output("states", states)
         self.set_output("unknown", unknown)
         said = ", ".join(f"{p} {v:g} {'deg' if reg.parts[p].joint_type == 'revolute' else 'm'}"
