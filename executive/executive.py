@@ -38,7 +38,7 @@ from transitions import Machine
 
 from executive import nodes
 from executive.errors import MissionError, MissionValidationError
-from executive.missionfile import Mission, load_mission, plain
+from executive.missionfile import Mission, load_mission, plain, skill_registry
 from executive.tree import BuiltTree, SkillFactory, build_tree
 
 Status = common.Status
@@ -250,8 +250,7 @@ class Executive:
         if isinstance(mission, Mission):
             return mission
         if self.skills is None:
-            from skills.base import registry
-            self.skills = registry()
+            self.skills = skill_registry()
         return load_mission(mission, self.skills)
 
     def submit(self, mission: str | os.PathLike | Mission, priority: int = 0,

@@ -1043,8 +1043,18 @@ def _schema_message(err: jsonschema.ValidationError) -> str:
 def _registry(skills: dict[str, type] | None) -> dict[str, type]:
     if skills is not None:
         return skills
+    return skill_registry()
+
+
+def skill_registry() -> dict[str, type]:
+    """``skills.base.registry()``, with a broken skill module reported as one MissionError
+    line instead of a traceback."""
     from skills.base import registry
-    return registry()
+    try:
+        return registry()
+    except Exception as err:  # noqa: BLE001 - any import-time failure of a skill module
+        raise MissionError(f"cannot load the skill registry: {type(err).__name__}: {err}") \
+            from None
 
 
 def compile_mission(path: str | Path, skills: dict[str, type] | None = None
