@@ -59,6 +59,7 @@ class ArticulatedConfig:
     reference_scale: float = 0.25
     stride: int = 2
     search_range: float = 0.15
+    search_step: float = 0.0125
     #: The base is registered only when at least this many of its points would be seen (at
     #: the reference resolution), and trusted only within these moves from the map.
     min_base_points: int = 250
@@ -227,9 +228,10 @@ def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: n
         if cfg.mode == "6dof":
             res = register_6dof(src, base_ref.points, base_ref.normals, cfg=cfg.base)
         else:
-            scorer = DepthAgreement(base_ref.points, depth, K, T_world_camera)
+            scorer = DepthAgreement(base_ref.points, depth, K, T_world_camera, max_points=1500)
             res = register_planar(src, base_ref.points, base_ref.normals, cfg=cfg.base,
-                                  scorer=scorer, search_range=cfg.search_range)
+                                  scorer=scorer, search_range=cfg.search_range,
+                                  search_step=cfg.search_step)
     except RegistrationFailed as err:
         raise RegistrationFailed(err.message, err.result, node=object_id) from None
     t3 = time.perf_counter()
