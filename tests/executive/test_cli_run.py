@@ -75,3 +75,16 @@ def test_run_without_a_robot_adapter_is_one_clear_line(monkeypatch, capsys):
     assert main(["run", "missions/go_to_rest.yaml"]) == 2
     assert capsys.readouterr().err.strip() == \
         "no robot adapter: robot.create_adapter() does not exist yet"
+
+
+def test_hearth_step_interactive_commands(adapters, tmp_path, capsys, monkeypatch):
+    commands = iter(["u drive_near_user", "t 2", "p", "b", "u nothing_like_it", "x", "q"])
+    monkeypatch.setattr("builtins.input", lambda prompt="": next(commands))
+    status = main(["step", "missions/go_to_rest.yaml", "--runs-dir", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert status == 1                                   # quit: the mission was cancelled
+    assert "* `-- selector choose_rest_place (memory)" in out
+    assert "$rest_near_user      = 'side_table'" in out
+    assert "no node named 'nothing_like_it'" in out
+    assert "t [N]: tick N times" in out                  # help after the unknown 'x'
+    assert "go_to_rest: cancelled (quit from hearth step)" in out
