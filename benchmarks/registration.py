@@ -49,19 +49,26 @@ def axial_noise(depth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def simulate_depth(truth, K: Intrinsics, T_world_camera: np.ndarray, rng: np.random.Generator,
                    states: dict | None = None, scene=None) -> np.ndarray:
-    """A noisy depth image (metres) of the truth world. Uses the simulated robot's renderer
-    and noise model (robot.sim / robot.noise) when present, else the ray caster plus axial
-    noise. ``scene``: a prebuilt perception.render.Scene of the truth, to save rebuilding."""
-    try:  # the simulated robot's own model, once it exists
-        from robot.sim import render_view  # type: ignore
-        r = render_view(truth, K, T_world_camera, rng, noise=True, states=states)
-        return np.asarray(r.depth, dtype=np.float64)
-    except ImportError:
-        pass
+    """A noisy depth image (metres) of the truth world: the ray caster, then the simulated
+    robot's Kinect noise model (``robot.noise.add_kinect_noise``) when it is there, else
+    ``axial_noise``. ``scene``: a prebuilt perception.render.Scene of the truth."""
     from perception.render import Scene
     from worldmodel.geometry import scene_meshes
     scene = scene or Scene(scene_meshes(truth, states=states))
-    return axial_noise(scene.render(K, T_world_camera).depth, rng)
+    rendering = scene.render(K, T_world_camera)
+    noise = _kinect_noise()
+    if noise is not None:
+        out = noise(rendering, rng)
+        return np.asarray(getattr(out, "depth", out), dtype=np.float64)
+    return axial_noise(rendering.depth, rng)
+
+
+def _kinect_noise():
+    try:
+        from robot.noise import add_kinect_noise  # type: ignore
+        return add_kinect_noise
+    except ImportError:
+        return None
 
 
 def planar(x: float, y: float, yaw: float) -> np.ndarray:
@@ -312,11 +319,8 @@ def run(args) -> dict:
                                        REFERENCE["handle_rot_err_deg"]),
         "reference": REFERENCE,
     }
-    try:
-        import robot.noise  # noqa: F401
-        out["noise_model"] = "robot.noise"
-    except ImportError:
-        out["noise_model"] = "axial gaussian 1.2 mm + 1.9 mm (z - 0.4)^2"
+    out["noise_model"] = ("robot.noise.add_kinect_noise" if _kinect_noise() is not None
+                          else "axial gaussian 1.2 mm + 1.9 mm (z - 0.4)^2")
     out["scenes_per_figure"] = n
     out["seed"] = seed
     out["wall_s"] = round(time.perf_counter() - t0, 1)
