@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from executive.missionfile import BBKey, Lit, NodeSpec, Param, Ref
+from executive.missionfile import BBKey, Lit, NodeSpec, Ref
 
 _MARK = {"SUCCESS": "+", "FAILURE": "x", "RUNNING": "*", "INVALID": "-"}
 

@@ -697,3 +697,24 @@ def test_wall_clock_runs_replay_at_their_logged_tick_times(tmp_path, mission_fil
         clock.t += rng.uniform(0.05, 0.2)     # irregular real tick periods
     report = replay(h.log_path, test_skills())
     assert report.same, report.first_difference()
+
+
+def test_example_case_file_for_go_to_rest(tmp_path, capsys):
+    from executive.cli import main
+    case = "tests/executive/cases/go_to_rest_presence_change.yaml"
+    assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", case,
+                 "--runs-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "outcome: succeeded (completed) after 45 ticks, 4.40 s simulated" in out
+    assert "never ticked: /follow_presence/choose_rest_place/user_home/announce" in out
+    (log,) = tmp_path.glob("*.jsonl")
+    assert main(["log", "replay", str(log)]) == 0
+
+
+def test_bad_substitution_file_is_one_line_with_file_and_line(tmp_path, capsys):
+    from executive.cli import main
+    case = tmp_path / "case.yaml"
+    case.write_text("substitute:\n  - {match: NavigateTo, outcome: maybe}\n")
+    assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 2
+    assert capsys.readouterr().err.strip() == \
+        f"{case}:2: script NavigateTo: outcome 'maybe' is not success or failure"
