@@ -987,9 +987,23 @@ class _Compiler:
                 ok = False
                 continue
             child.attrs["state"] = sname
-            possible = list(child.attrs["outcomes"]) if child.kind == "state_machine" \
-                else ["success", "failure"]
             trans: LineDict = sdata["transitions"]
+            outcome_key = None
+            if "outcome" in sdata:
+                # A named outcome read from a key when the node succeeds (SMACH's outcome
+                # strings); failure stays "failure". Any name may be mapped.
+                if child.kind == "state_machine":
+                    self.error(f"state {sname}: a nested state machine has its own outcomes; "
+                               "outcome: is for other nodes", spec.file,
+                               sdata.key_lines["outcome"])
+                    ok = False
+                outcome_key = self.key(scope, sdata["outcome"][1:-1])
+                self.readers.append((outcome_key, "string", spec.file, sdata.key_lines["outcome"]))
+                possible = list(dict.fromkeys(["failure", *trans]))
+            elif child.kind == "state_machine":
+                possible = list(child.attrs["outcomes"])
+            else:
+                possible = ["success", "failure"]
             for outcome, target in trans.items():
                 tline = trans.key_lines[outcome]
                 if outcome not in possible:
@@ -1007,6 +1021,8 @@ class _Compiler:
                     ok = False
             spec.children.append(child)
             table.append((sname, dict(trans)))
+            if outcome_key is not None:
+                child.attrs["outcome_key"] = outcome_key
         if not ok:
             return None
         spec.attrs.update(initial=sm["initial"], states=table, outcomes=dict(outcomes))

@@ -392,17 +392,20 @@ class _Model:
 class StateMachine(py_trees.composites.Composite):
     """A SMACH-style state machine as one tree node.
 
-    Each state runs one child node to completion. Its outcome (``success``/``failure``, or a
-    nested state machine's own outcome name) is fed to a ``transitions`` machine as a
-    trigger; the machine moves to the next state or to one of the container's outcomes,
+    Each state runs one child node to completion. Its outcome (``success``/``failure``, a
+    nested state machine's own outcome name, or, when the state names an outcome key, that
+    key's value after a success) is fed to a ``transitions`` machine as a trigger; the machine moves to the next state or to one of the container's outcomes,
     which ends the block with success or failure (``outcomes`` maps each). Instantly finishing
     states chain within one tick, up to one pass over all states, then the block yields.
     Halting halts the current state's node. ``outcome`` is the container outcome reached.
     """
 
     def __init__(self, name: str, states: list[tuple[str, Behaviour, dict[str, str]]],
-                 initial: str, outcomes: dict[str, str]):
+                 initial: str, outcomes: dict[str, str],
+                 outcome_readers: dict[str, Callable[[], Any]] | None = None):
         super().__init__(name=name, children=[child for _, child, _ in states])
+        self.outcome_readers = outcome_readers or {}
+        self.tables = {state: table for state, _, table in states}
         self.initial = initial
         self.outcomes = outcomes
         self.by_state = {state: child for state, child, _ in states}
@@ -443,8 +446,20 @@ class StateMachine(py_trees.composites.Composite):
                 return
             if isinstance(child, StateMachine):
                 outcome = child.outcome or "failure"
+            elif child.status != Status.SUCCESS:
+                outcome = "failure"
+            elif state in self.outcome_readers:
+                outcome = self.outcome_readers[state]()
+                if outcome is MISSING or outcome not in self.tables[state]:
+                    # SMACH raises on an unmapped outcome; here the block fails, saying why.
+                    self.feedback_message = f"state {state}: unmapped outcome {outcome!r}" \
+                        if outcome is not MISSING else f"state {state}: outcome key not set"
+                    self.outcome = None
+                    self.stop(Status.FAILURE)
+                    yield self
+                    return
             else:
-                outcome = "success" if child.status == Status.SUCCESS else "failure"
+                outcome = "success"
             self.model.trigger(f"on_{outcome}")
             self.history.append((state, outcome, self.model.state))
             self.feedback_message = f"{state} --{outcome}--> {self.model.state}"

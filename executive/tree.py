@@ -170,7 +170,9 @@ def build_tree(mission: Mission, params: dict[str, Any], ns: str,
             node = nodes.PassThrough(name, kids[0])
         elif k == "state_machine":
             states = [(state, kid, table) for (state, table), kid in zip(a["states"], kids)]
-            node = nodes.StateMachine(name, states, a["initial"], a["outcomes"])
+            readers = {c.attrs["state"]: (lambda k=c.attrs["outcome_key"]: built.read(BBKey(k)))
+                       for c in spec.children if "outcome_key" in c.attrs}
+            node = nodes.StateMachine(name, states, a["initial"], a["outcomes"], readers)
         elif k == "succeed":
             node = nodes.Message(name, common.Status.SUCCESS, a.get("message", ""))
         elif k == "fail":

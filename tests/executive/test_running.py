@@ -718,3 +718,39 @@ def test_bad_substitution_file_is_one_line_with_file_and_line(tmp_path, capsys):
     assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 2
     assert capsys.readouterr().err.strip() == \
         f"{case}:2: script NavigateTo: outcome 'maybe' is not success or failure"
+
+
+def test_state_machine_transitions_on_a_named_outcome_from_a_key(make_executive, mission_file,
+                                                                  journal):
+    path = mission_file("""
+        name: x
+        tree:
+          state_machine:
+            initial: look
+            states:
+              look:
+                do: {skill: Act, name: look, outputs: {result: verdict}}
+                outcome: "{verdict}"
+                transitions: {found: grab, ambiguous: move, failure: gave_up}
+              move:
+                do: {skill: Act, name: move}
+                transitions: {success: look, failure: gave_up}
+              grab:
+                do: {skill: Act, name: grab}
+                transitions: {success: done, failure: gave_up}
+            outcomes: {done: success, gave_up: failure}
+      """)
+    verdicts = iter(["ambiguous", "ambiguous", "found"])   # per tick; a look spans 2 ticks
+    script = S("*/look", duration=0.1)        # one look per tick, one verdict per look
+    ex = make_executive([script])
+    h = ex.submit(path)
+    while not h.done:
+        script.outputs = {"result": next(verdicts, "found")}
+        ex.tick()
+    assert h.result.outcome == "succeeded"
+    assert [p for k, p in journal if k == "start"] == ["/x/look", "/x/move", "/x/look", "/x/grab"]
+    # an outcome nobody mapped fails the block, saying which
+    ex2 = make_executive([S("*/look", outputs={"result": "exploded"})])
+    h2 = ex2.submit(path)
+    ex2.run_until_idle(100)
+    assert h2.result.outcome == "failed" and "unmapped outcome 'exploded'" in h2.result.reason
