@@ -225,6 +225,7 @@ def test_cancel_waits_for_halting_skill_then_stops_robot(make_executive, mission
     assert h.cancel() is True
     ex.tick()
     assert h.status == "halting" and not h.done
+    assert h.cancel() is True            # a cancel during a cancel: accepted, still one stop
     ex.run_until_idle(100)
     assert h.status == "cancelled" and robot.stops == 1
     assert 0.4 < h.result.duration - 0.2 < 0.7
@@ -754,3 +755,17 @@ def test_state_machine_transitions_on_a_named_outcome_from_a_key(make_executive,
     h2 = ex2.submit(path)
     ex2.run_until_idle(100)
     assert h2.result.outcome == "failed" and "unmapped outcome 'exploded'" in h2.result.reason
+
+
+def test_a_user_cancel_during_a_preempt_wins(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    ex = make_executive([S("*/drive", duration=1.0, halt_duration=0.5)])
+    low = ex.submit(path)
+    ex.tick(); ex.tick()
+    high = ex.submit(path, priority=1)
+    ex.tick()
+    assert low.status == "halting"
+    assert low.cancel("user said stop") is True
+    ex.run_until_idle(1000)
+    assert low.status == "cancelled" and low.result.reason == "user said stop"
+    assert high.status == "succeeded"
