@@ -57,7 +57,15 @@ class RobotActionSkill(Skill):
         return py_trees.common.Status.FAILURE
 
     def terminate(self, new_status: py_trees.common.Status) -> None:
+        self._halted = None
         if (new_status == py_trees.common.Status.INVALID and self.action is not None
                 and self.action.status() == "running"):
             self.action.cancel()
+            self._halted = self.action
             self.feedback_message = f"{self.describe()}: cancelled"
+
+    def is_halting(self) -> bool:
+        """True while a cancelled action is still stopping (the base braking, the arm
+        retracting): the executive reports the cancel only when it has stopped."""
+        halted = getattr(self, "_halted", None)
+        return halted is not None and halted.status() == "running"

@@ -161,3 +161,25 @@ def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
     s = make(OpenArticulated, demo_world, robot, inputs={"part": "fridge_door"})
     assert tick(s) == S.FAILURE and "locked" in s.feedback_message
     assert demo_world.get("fridge_door").joint.state == 0.0
+
+
+def test_a_halted_action_reports_halting_until_the_robot_has_stopped(demo_world):
+    class Braking(ScriptedAction):
+        def cancel(self):
+            self.braking = 2
+
+        def status(self):
+            if getattr(self, "braking", None) is not None:
+                if self.braking == 0:
+                    return "cancelled"
+                self.braking -= 1
+                return "running"
+            return "running"
+
+    robot = FakeRobot()
+    robot.next = Braking()
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven"})
+    assert tick(s) == S.RUNNING
+    s.stop(S.INVALID)
+    assert s.is_halting() is True
+    assert s.is_halting() is False
