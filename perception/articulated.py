@@ -53,7 +53,7 @@ class ArticulatedConfig:
     samples: int = 1200
     min_points: int = 40
     min_fitness: float = 0.5
-    min_incidence: float = 0.25
+    min_incidence: float = 0.15
     margin: float = 0.10
     mode: str = "planar"
     reference_scale: float = 0.25
@@ -299,7 +299,7 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
         nxt = []
         for pid, (part, joint, best, samples, grid, scores) in coarse.items():
             st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg,
-                              T_world_camera[:3, 3])
+                              T_world_camera[:3, 3], _face_normal(world, part))
             out.parts[pid] = st
             if st.value is not None:
                 states[pid] = st.value
@@ -310,14 +310,20 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
 
 
 def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: View, obs: View,
-                 cfg: ArticulatedConfig, cam_position: np.ndarray) -> PartState:
+                 cfg: ArticulatedConfig, cam_position: np.ndarray,
+                 face_normal: np.ndarray) -> PartState:
     view = ref.select(_part_nodes(part))
     jt = part.joint.type
-    # Points seen at less than ~75 degrees from their normal: a door seen edge-on shows only
+    # Points seen at less than ~80 degrees from their normal: a door seen edge-on shows only
     # its thin edge (and, on a real sensor, grazing-angle dropouts), too little to trust.
+    # Only the broad faces count (normals along the face's thin axis): seen edge-on, a door
+    # shows its edge strip squarely, which pins down where the edge is but not, on a real
+    # sensor, reliably the angle.
     rays = view.points - cam_position
     rays /= np.linalg.norm(rays, axis=1, keepdims=True) + 1e-12
-    well_seen = int(np.sum(-np.einsum("ij,ij->i", rays, view.normals) > cfg.min_incidence))
+    n_face = joint.T_world_part(best)[:3, :3] @ face_normal
+    broad = np.abs(view.normals @ n_face) > 0.8
+    well_seen = int(np.sum(broad & (-np.einsum("ij,ij->i", rays, view.normals) > cfg.min_incidence)))
     if well_seen < cfg.min_points:
         return PartState(part.id, jt, None, None, points=well_seen, coarse_value=best,
                          reason=f"only {well_seen} points of it would be seen well at the best "
@@ -350,6 +356,22 @@ def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: 
 
 
 # -- handles -------------------------------------------------------------------------------
+
+def _face_visual(world, part: Part):
+    vis = [v for v in model_visuals(part.model, world.apartment.library) if v.shape == "box"]
+    if not vis:
+        return None
+    faces = [v for v in vis if v.name == "face"] or [max(vis, key=lambda v: np.prod(v.size))]
+    return faces[0]
+
+
+def _face_normal(world, part: Part) -> np.ndarray:
+    """The part's face normal in the part frame: the thin axis of its face box (else +x)."""
+    v = _face_visual(world, part)
+    if v is None:
+        return np.array([1.0, 0.0, 0.0])
+    return v.pose.matrix()[:3, int(np.argmin(v.size))]
+
 
 def _face_corners(world, part: Part) -> np.ndarray:
     """(8, 3) corners, part frame, of the part's face (the visual named "face", else its
