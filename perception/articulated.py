@@ -30,7 +30,8 @@ import open3d as o3d
 from perception.errors import PerceptionError
 from perception.registration import (
     DepthAgreement, ICPConfig, ICPResult, JointAxis, RegistrationFailed, View, crop_box,
-    observed_view, register_6dof, register_joint, register_planar, render_reference, transform,
+    observed_view, register_6dof, register_joint, register_planar, render_reference,
+    single_threaded_blas, transform,
 )
 from worldmodel.geometry import handle_visuals, knob_T, knob_visuals, model_visuals, object_meshes, visual_mesh
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part
@@ -198,6 +199,7 @@ def _move(correction: np.ndarray, T_world_object: np.ndarray) -> tuple[float, fl
 
 # -- the pipeline --------------------------------------------------------------------------
 
+@single_threaded_blas
 def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: np.ndarray,
                   cfg: ArticulatedConfig = ArticulatedConfig(),
                   observed: Optional[View] = None, include_parts: bool = False) -> ObjectRegistration:
@@ -242,6 +244,7 @@ def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: n
                                           "base_icp": 1000 * (t3 - t2)})
 
 
+@single_threaded_blas
 def register_articulated(world, object_id: str, depth: np.ndarray, K,
                          T_world_camera: np.ndarray, cfg: ArticulatedConfig = ArticulatedConfig(),
                          parts: Optional[list[str]] = None) -> ObjectRegistration:
@@ -386,6 +389,7 @@ def _face_corners(world, part: Part) -> np.ndarray:
     return transform(v.pose.matrix(), c)
 
 
+@single_threaded_blas
 def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
                      part_ids: Optional[list[str]] = None, cfg=None,
                      observed: Optional[np.ndarray] = None) -> dict:
@@ -417,6 +421,7 @@ def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
     return out
 
 
+@single_threaded_blas
 def estimate_handle_pose(world, handle_id: str, depth: np.ndarray, K,
                          T_world_camera: np.ndarray,
                          cfg: ArticulatedConfig = ArticulatedConfig(), handle_cfg=None):

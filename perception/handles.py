@@ -28,6 +28,7 @@ import numpy as np
 from scipy.spatial import Delaunay, QhullError
 
 from perception.errors import PerceptionError
+from perception.registration import single_threaded_blas
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,7 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c, vt[2]
 
 
+@single_threaded_blas
 def estimate_handle(observed_world: np.ndarray, T_world_part: np.ndarray,
                     face_half_extent: tuple[float, float, float, float],
                     T_world_handle_prior: np.ndarray, radius: float, length: float,

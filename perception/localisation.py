@@ -25,7 +25,7 @@ import numpy as np
 from perception.errors import PerceptionError
 from perception.registration import (
     DepthAgreement, ICPConfig, ICPResult, RegistrationFailed, crop_box, observed_view,
-    planar_params, register_planar, render_reference,
+    planar_params, register_planar, render_reference, single_threaded_blas,
 )
 from worldmodel.geometry import object_meshes, room_visuals, visual_mesh, LabelledMesh
 
@@ -93,6 +93,7 @@ def _planar_about(x: float, y: float, yaw: float, centre: np.ndarray) -> np.ndar
     return T
 
 
+@single_threaded_blas
 def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                         T_world_base: np.ndarray, cfg: LocalisationConfig = LocalisationConfig(),
                         landmarks: Optional[list[str]] = None) -> LocalisationFix:
