@@ -76,48 +76,64 @@ class Scene:
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         """Render the view of camera ``K`` at ``T_world_camera``."""
         H, W = K.height, K.width
-        # open3d casts the ray of pixel (u, v) through (u + 0.5, v + 0.5); our camera model
-        # (camera.py) puts pixel centres at integer coordinates, so shift the principal point.
-        Km = K.matrix()
-        Km[0, 2] += 0.5
-        Km[1, 2] += 0.5
-        rays = o3d.t.geometry.RaycastingScene.create_rays_pinhole(
-            o3d.core.Tensor(Km, dtype=o3d.core.float64),
-            o3d.core.Tensor(np.linalg.inv(T_world_camera), dtype=o3d.core.float64), W, H)
-        ans = self._scene.cast_rays(rays)
-        t_hit = ans["t_hit"].numpy()
-        gid = ans["geometry_ids"].numpy().astype(np.int64)
+        T = np.asarray(T_world_camera, dtype=np.float64)
+        R_wc = T[:3, :3].astype(np.float32)
+        dirs_camera, unit_camera = _pixel_rays(K)
+        # Rays in float32 (what Embree uses anyway): pixel directions cached per camera, rotated
+        # into the world; this is much cheaper than open3d's float64 create_rays_pinhole.
+        rays = np.empty((H, W, 6), dtype=np.float32)
+        rays[..., :3] = T[:3, 3]
+        np.matmul(dirs_camera, R_wc.T, out=rays[..., 3:])
+        ans = self._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
+        # Directions have z = 1 in the camera frame, so t_hit is depth along the optical axis.
+        depth = ans["t_hit"].numpy()
+        gid = ans["geometry_ids"].numpy()
+        hit = np.isfinite(depth) & (depth <= max_range) & (depth > 0)
+        depth = np.where(hit, depth, np.float32(0)).astype(np.float32, copy=False)
+        index = self._index
+        labels = np.where(hit, index[np.minimum(gid, index.shape[0] - 1).astype(np.int64)],
+                          -1).astype(np.int32)
+        # Normals in the camera frame (n_camera = R_cw n_world), turned to face the camera.
         n_world = ans["primitive_normals"].numpy()
-        dirs = rays.numpy()[..., 3:6]
-        hit = np.isfinite(t_hit) & (t_hit < max_range * 4)
-        # Rays from create_rays_pinhole are unnormalised with z = 1 in the camera frame, so
-        # t_hit is already depth along the optical axis.
-        depth = np.where(hit, t_hit, 0.0).astype(np.float32)
-        depth[depth > max_range] = 0.0
-        hit &= depth > 0
-        safe_gid = np.where(hit, gid, self._index.shape[0] - 1)
-        labels = np.where(hit, self._index[np.clip(safe_gid, 0, self._index.shape[0] - 1)], -1)
-        dn = dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
-        # Normals face the camera.
-        cos = np.sum(n_world * dn, axis=-1)
-        n_world = np.where(cos[..., None] > 0, -n_world, n_world)
-        incidence = np.abs(cos).astype(np.float32)
-        incidence[~hit] = 0
-        R_cw = np.linalg.inv(T_world_camera)[:3, :3]
-        normals_camera = (n_world @ R_cw.T).astype(np.float32)
+        normals_camera = n_world @ R_wc
+        cos = np.einsum("hwk,hwk->hw", normals_camera, unit_camera)
+        flip = np.where(cos > 0, np.float32(-1), np.float32(1))
+        normals_camera *= flip[..., None]
         normals_camera[~hit] = 0
-        shade = AMBIENT + (1 - AMBIENT) * np.clip(n_world @ LIGHT_WORLD, 0, 1)
-        # A little view-dependent light so that faces parallel to the light still differ.
-        shade = 0.85 * shade + 0.15 * incidence
-        base = np.zeros((H, W, 3), dtype=np.float32)
-        if len(self._colors):
-            base[hit] = self._colors[labels[hit]]
-        color = np.clip(base * shade[..., None] * 255.0, 0, 255).astype(np.uint8)
-        color[~hit] = 0
-        return Rendering(depth=depth, color=color, labels=labels.astype(np.int32),
+        incidence = np.abs(cos)
+        incidence[~hit] = 0
+        light_camera = (R_wc.T @ LIGHT_WORLD.astype(np.float32)).astype(np.float32)
+        lit = np.clip(normals_camera @ light_camera, 0, 1)
+        shade = 0.85 * (AMBIENT + (1 - AMBIENT) * lit) + 0.15 * incidence
+        # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
+        palette = np.vstack([self._colors, np.zeros((1, 3), np.float32)]) * np.float32(255.0)
+        color = palette[labels] * shade[..., None]
+        color = np.clip(color, 0, 255, out=color).astype(np.uint8)
+        return Rendering(depth=depth, color=color, labels=labels,
                          nodes=self.nodes, owners=self.owners, names=self.names,
                          materials=self.materials, normals_camera=normals_camera,
-                         incidence=incidence)
+                         incidence=incidence.astype(np.float32, copy=False))
+
+
+_RAYS_CACHE: dict = {}
+
+
+def _pixel_rays(K: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W, 3) float32 camera-frame ray directions with z = 1 through every pixel centre
+    (integer pixel coordinates, camera.py's convention), and the same normalised. Cached per
+    intrinsics: they do not depend on the pose."""
+    key = (K.fx, K.fy, K.cx, K.cy, K.width, K.height)
+    hit = _RAYS_CACHE.get(key)
+    if hit is None:
+        u, v = np.meshgrid(np.arange(K.width, dtype=np.float64),
+                           np.arange(K.height, dtype=np.float64))
+        d = np.stack([(u - K.cx) / K.fx, (v - K.cy) / K.fy, np.ones_like(u)], axis=-1)
+        unit = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        hit = (d.astype(np.float32), unit.astype(np.float32))
+        if len(_RAYS_CACHE) > 16:
+            _RAYS_CACHE.clear()
+        _RAYS_CACHE[key] = hit
+    return hit
 
 
 def render(meshes, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
