@@ -1,0 +1,546 @@
+"""Small-object detection and hypothesis verification on a supporting surface.
+
+Pipeline for one RGB-D view (all points in the world frame, metres):
+
+1. ``find_support_plane``: RANSAC plane (open3d ``segment_plane``) among the points near the
+   height the map expects for a surface (e.g. the kitchen table's ``top``).
+2. Points above the plane and inside the surface's extent; Euclidean clusters (connected
+   components of a scipy KD-tree radius graph).
+3. For each cluster and each candidate model (sampled from the map's small-object models):
+   pose by an x/y/yaw search (objects stand upright on a known plane: z, roll and pitch are
+   fixed by the plane), refined by planar ICP.
+4. Verification of every hypothesis: inlier fraction of the model surface expected to be
+   visible (points hidden behind nearer measurements are not counted against it), normal
+   agreement, colour agreement in HSV, a penalty for scene points in the hypothesis' volume it
+   does not explain and one for points another, stronger hypothesis already claims. Each
+   hypothesis carries a ``confidence`` in [0, 1].
+
+Pure functions: arrays and the map in, dataclasses out. See docs/objects.md.
+"""
+from __future__ import annotations
+
+import colorsys
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Optional, Sequence
+
+import numpy as np
+import open3d as o3d
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from perception.camera import Intrinsics, depth_to_points, project
+from perception.errors import PerceptionError
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Parameters of ``detect_objects`` (metres, radians)."""
+    stride: int = 2                 #: keep every stride-th pixel row/column
+    plane_window: float = 0.05      #: points within this of the expected surface height
+    plane_distance: float = 0.008   #: RANSAC inlier distance
+    min_height: float = 0.008       #: object points start this far above the plane
+    max_height: float = 0.40
+    surface_margin: float = 0.03    #: around the surface's extent
+    cluster_radius: float = 0.015
+    min_cluster_points: int = 15
+    inlier_distance: float = 0.010
+    icp_iterations: int = 12
+    yaw_steps: int = 8              #: initial yaws for models that are not rotationally symmetric
+    occlusion_margin: float = 0.02  #: a model point is hidden when measured this much nearer
+    accept_confidence: float = 0.5  #: ``Detection.accepted`` threshold
+    model_spacing: float = 0.005    #: model surface sample spacing
+
+
+# -- models -----------------------------------------------------------------------------------
+
+@dataclass
+class ObjectModel:
+    """A small object's model surface in its own frame (z up, origin on its base)."""
+    object_id: str
+    points: np.ndarray      #: (N, 3) object frame
+    normals: np.ndarray     #: (N, 3) outward unit normals
+    hsv: np.ndarray         #: (N, 3) in [0, 1]
+    radius: float           #: xy extent from the origin
+    height: float
+    symmetric: bool         #: rotationally symmetric about z (yaw unobservable)
+    tree: cKDTree = field(repr=False, default=None)
+
+    def __post_init__(self):
+        if self.tree is None:
+            self.tree = cKDTree(self.points)
+
+
+def model_from_world(world, object_id: str, spacing: float = 0.005) -> ObjectModel:
+    """Sample a small object's model (from ``worldmodel.geometry``) into coloured surface
+    points with normals, dropping its base (it stands on a surface and is never seen)."""
+    from worldmodel.geometry import small_object_meshes
+    obj = world.get(object_id)
+    meshes = small_object_meshes(world, obj, T_world_object=np.eye(4))
+    if not meshes:
+        raise PerceptionError(f"{object_id} has no model")
+    pts, nrm, col = [], [], []
+    for lm in meshes:
+        m = lm.mesh
+        m.compute_triangle_normals()
+        area = m.get_surface_area()
+        n = max(int(area / spacing ** 2), 30)
+        pc = m.sample_points_uniformly(number_of_points=n, use_triangle_normal=True)
+        p = np.asarray(pc.points)
+        pts.append(p)
+        nrm.append(np.asarray(pc.normals))
+        col.append(np.tile(colorsys.rgb_to_hsv(*lm.color), (len(p), 1)))
+    P, N, C = np.vstack(pts), np.vstack(nrm), np.vstack(col)
+    keep = ~((P[:, 2] < 0.003) & (N[:, 2] < -0.9))
+    P, N, C = P[keep], N[keep], C[keep]
+    # Points of one visual that lie inside another (a handle's end in the body) are not surface.
+    P, N, C = _drop_inner(meshes, P, N, C)
+    radius = float(np.linalg.norm(P[:, :2], axis=1).max())
+    height = float(P[:, 2].max())
+    model = ObjectModel(object_id, P, N, C, radius, height, symmetric=False)
+    model.symmetric = _is_symmetric(model)
+    return model
+
+
+def _drop_inner(meshes, P, N, C):
+    if len(meshes) < 2:
+        return P, N, C
+    scene = o3d.t.geometry.RaycastingScene()
+    for lm in meshes:
+        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+    occ = scene.compute_occupancy(o3d.core.Tensor((P - 0.0015 * N).astype(np.float32))).numpy()
+    inside = occ > 0.5
+    # compute_occupancy counts a point inside its own closed visual too; shifting it along its
+    # outward normal by 1.5 mm and asking again separates "inside another visual".
+    occ2 = scene.compute_occupancy(o3d.core.Tensor((P + 0.0015 * N).astype(np.float32))).numpy()
+    keep = ~(inside & (occ2 > 0.5))
+    return P[keep], N[keep], C[keep]
+
+
+def _is_symmetric(model: ObjectModel) -> bool:
+    for a in (math.pi / 4, math.pi / 3):
+        R = _rot_z(a)
+        d, _ = model.tree.query(model.points @ R.T)
+        if np.percentile(d, 95) > 0.006:
+            return False
+    return True
+
+
+def model_library(world, object_ids: Optional[Sequence[str]] = None,
+                  spacing: float = 0.005) -> dict[str, ObjectModel]:
+    """Models of the given small objects (default: every small object in the map)."""
+    ids = object_ids if object_ids is not None else [o.id for o in world.small_objects()]
+    return {oid: _cached_model(world, oid, spacing) for oid in ids}
+
+
+_MODEL_CACHE: dict = {}
+
+
+def _cached_model(world, oid: str, spacing: float) -> ObjectModel:
+    obj = world.get(oid)
+    key = (oid, repr(obj.model), spacing)
+    m = _MODEL_CACHE.get(key)
+    if m is None:
+        if len(_MODEL_CACHE) > 256:
+            _MODEL_CACHE.clear()
+        m = _MODEL_CACHE[key] = model_from_world(world, oid, spacing)
+    return m
+
+
+# -- results ------------------------------------------------------------------------------------
+
+@dataclass
+class Hypothesis:
+    """One object hypothesis. ``T_world_object`` places the model; scores are in [0, 1]."""
+    object_id: str
+    T_world_object: np.ndarray
+    confidence: float
+    inlier_fraction: float
+    normal_agreement: float
+    color_agreement: float
+    unexplained: float         #: fraction of scene points in its volume it does not explain
+    conflict: float            #: fraction of its inliers a stronger hypothesis claims
+    visible_fraction: float    #: expected model surface not hidden by nearer measurements
+    cluster: int
+    inliers: np.ndarray = field(repr=False, default=None)  #: indices into Detection.points_world
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.T_world_object[:3, 3].copy()
+
+    @property
+    def yaw(self) -> float:
+        return math.atan2(self.T_world_object[1, 0], self.T_world_object[0, 0])
+
+
+@dataclass
+class Detection:
+    """Everything ``detect_objects`` found in one view."""
+    plane: Optional[np.ndarray]            #: (a, b, c, d), a x + b y + c z + d = 0, world frame
+    surface: Optional[str]                 #: "large_object/surface" it belongs to
+    points_world: np.ndarray               #: the points above the plane
+    colors_hsv: np.ndarray
+    clusters: list[np.ndarray]             #: indices into points_world
+    hypotheses: list[Hypothesis]           #: best first
+    accept_confidence: float = 0.5
+
+    @property
+    def accepted(self) -> list[Hypothesis]:
+        """Hypotheses at or above the acceptance confidence that no stronger one contradicts."""
+        return [h for h in self.hypotheses if h.confidence >= self.accept_confidence
+                and h.conflict < 0.5]
+
+    def best(self, object_id: str) -> Optional[Hypothesis]:
+        hs = [h for h in self.hypotheses if h.object_id == object_id]
+        return hs[0] if hs else None
+
+
+# -- the pipeline -------------------------------------------------------------------------------
+
+def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
+                      max_range: float = 4.0) -> list[tuple[str, np.ndarray, float, float]]:
+    """Surfaces of the map's large objects whose centre is in view:
+    (``object/surface``, ``T_world_surface``, size_x, size_y), nearest first."""
+    out = []
+    T_cw = np.linalg.inv(T_world_camera)
+    for obj in world.large_objects():
+        for s in getattr(obj, "surfaces", []):
+            T = world.T_world(obj.id) @ s.pose.matrix()
+            pc = T_cw[:3, :3] @ T[:3, 3] + T_cw[:3, 3]
+            uv, front = project(pc[None], K)
+            if front[0] and 0 <= uv[0, 0] < K.width and 0 <= uv[0, 1] < K.height \
+                    and pc[2] < max_range:
+                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y, float(pc[2])))
+    out.sort(key=lambda t: t[4])
+    return [t[:4] for t in out]
+
+
+def find_support_plane(points_world: np.ndarray, expected_height: float,
+                       config: DetectionConfig = DetectionConfig(),
+                       rng_seed: int = 0) -> Optional[np.ndarray]:
+    """RANSAC plane (a, b, c, d), normal up, among points within ``plane_window`` of the
+    expected height; None when too few points or the plane is not horizontal."""
+    near = points_world[np.abs(points_world[:, 2] - expected_height) < config.plane_window]
+    if len(near) < 50:
+        return None
+    if len(near) > 4000:  # RANSAC needs far fewer points than a view has
+        near = near[np.random.default_rng(rng_seed).choice(len(near), 4000, replace=False)]
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near))
+    o3d.utility.random.seed(rng_seed)
+    plane, inl = pc.segment_plane(config.plane_distance, 3, 200)
+    plane = np.asarray(plane, dtype=float)
+    if plane[2] < 0:
+        plane = -plane
+    n = np.linalg.norm(plane[:3])
+    plane /= n
+    if plane[2] < math.cos(math.radians(10)) or len(inl) < 30:
+        return None
+    # Least-squares height on the inliers (RANSAC's plane is from three points).
+    z = near[inl, 2]
+    plane = np.array([0.0, 0.0, 1.0, -float(np.median(z))]) if plane[2] > 0.995 else plane
+    return plane
+
+
+def euclidean_clusters(points: np.ndarray, radius: float, min_points: int) -> list[np.ndarray]:
+    """Connected components of the radius graph (scipy; faster here than open3d's DBSCAN,
+    which would also label core/border points we do not need)."""
+    if len(points) == 0:
+        return []
+    tree = cKDTree(points)
+    pairs = tree.query_pairs(radius, output_type="ndarray")
+    n = len(points)
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, labels = connected_components(g, directed=False)
+    out = [np.flatnonzero(labels == k) for k in np.unique(labels)]
+    out = [c for c in out if len(c) >= min_points]
+    out.sort(key=len, reverse=True)
+    return out
+
+
+def rgb_to_hsv(rgb: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 or [0, 1] RGB -> HSV in [0, 1] (OpenCV's ranges rescaled)."""
+    import cv2
+    a = np.asarray(rgb)
+    if a.dtype != np.uint8:
+        a = np.clip(a * 255.0, 0, 255).astype(np.uint8)
+    hsv = cv2.cvtColor(a.reshape(-1, 1, 3), cv2.COLOR_RGB2HSV_FULL).reshape(-1, 3)
+    return hsv.astype(np.float64) / 255.0
+
+
+def color_agreement(hsv_a: np.ndarray, hsv_b: np.ndarray, sat: float = 0.25,
+                    hue_tol: float = 25 / 360) -> np.ndarray:
+    """Per pair: 1 where two HSV colours agree (both saturated with hues within ``hue_tol``,
+    or both unsaturated), else 0. Value is ignored: shading changes it, not the hue."""
+    sa, sb = hsv_a[:, 1] > sat, hsv_b[:, 1] > sat
+    dh = np.abs(hsv_a[:, 0] - hsv_b[:, 0])
+    dh = np.minimum(dh, 1 - dh)
+    return np.where(sa & sb, dh < hue_tol, ~sa & ~sb).astype(float)
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def _planar_T(x, y, z, yaw) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = _rot_z(yaw)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def planar_icp(scene_xyz: np.ndarray, model: ObjectModel, x: float, y: float, yaw: float,
+               z: float, view_dir_xy: np.ndarray, iterations: int = 12,
+               max_dist: float = 0.03, final_dist: float = 0.008):
+    """Fit x, y, yaw of an upright model to scene points (world frame) on a plane at height
+    ``z``. Written here because open3d's ICP solves all six degrees of freedom, and the plane
+    fixes three of them: each step is a 2-D Kabsch on trimmed scene->model correspondences,
+    matching only model points whose normals face the camera (``view_dir_xy``: horizontal
+    direction from the camera to the object). Returns (x, y, yaw, rmse, n_inliers)."""
+    thresholds = np.geomspace(max_dist, final_dist, iterations)
+    rmse, n_in = np.inf, 0
+    for it in range(iterations):
+        R = _rot_z(yaw)
+        mp, tree = _front_tree(model, R[:2, :2].T @ view_dir_xy)
+        local = (scene_xyz - np.array([x, y, z])) @ R  # world -> object frame (R^T p)
+        d, j = tree.query(local, distance_upper_bound=thresholds[it])
+        ok = np.isfinite(d)
+        n_in = int(ok.sum())
+        if n_in < 6:
+            return x, y, yaw, np.inf, 0
+        rmse = float(np.sqrt(np.mean(d[ok] ** 2)))
+        # Solve for the 2-D rigid motion taking model correspondences to scene points.
+        src = (mp[j[ok]] @ R.T)[:, :2] + (x, y)   # model points in the world
+        dst = scene_xyz[ok, :2]
+        cs, cd = src.mean(0), dst.mean(0)
+        H = (src - cs).T @ (dst - cd)
+        a = 0.0 if model.symmetric else math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+        Rd = _rot_z(a)[:2, :2]
+        t = cd - Rd @ cs
+        p = Rd @ np.array([x, y]) + t
+        step = math.hypot(p[0] - x, p[1] - y)
+        x, y, yaw = float(p[0]), float(p[1]), yaw + a
+        if step < 2e-4 and abs(a) < 2e-3 and thresholds[it] < 2 * final_dist:
+            break
+    return x, y, yaw, rmse, n_in
+
+
+_VIEW_BINS = 16
+
+
+def _front_tree(model: ObjectModel, view_dir_model_xy: np.ndarray):
+    """Model points whose normals face a camera looking along ``view_dir_model_xy`` (object
+    frame, horizontal) and their KD-tree, cached per 1/16 turn of viewing direction."""
+    b = int(round(math.atan2(view_dir_model_xy[1], view_dir_model_xy[0])
+                  / (2 * math.pi / _VIEW_BINS))) % _VIEW_BINS
+    cache = model.__dict__.setdefault("_front", {})
+    hit = cache.get(b)
+    if hit is None:
+        a = b * 2 * math.pi / _VIEW_BINS
+        front = model.normals[:, :2] @ np.array([math.cos(a), math.sin(a)]) < 0.1
+        if front.sum() < 10:
+            front[:] = True
+        mp = model.points[front]
+        hit = cache[b] = (mp, cKDTree(mp))
+    return hit
+
+
+def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Intrinsics,
+                   T_world_camera: np.ndarray, candidates: Optional[Sequence[str]] = None,
+                   surface: Optional[str] = None,
+                   config: DetectionConfig = DetectionConfig()) -> Detection:
+    """Detect and verify the map's small objects on the surface in view.
+
+    ``depth`` metres (0 = none), ``color`` uint8 RGB (None: colour agreement is not used),
+    ``T_world_camera`` the (believed) camera pose. ``candidates``: small-object ids whose
+    models to try (default: every small object in the map). ``surface``: "object/surface"
+    (default: the nearest surface in view). Raises PerceptionError when no surface is in view.
+    """
+    T_world_camera = np.asarray(T_world_camera, dtype=float)
+    surfaces = expected_surfaces(world, T_world_camera, K)
+    if surface is not None:
+        surfaces = [s for s in surfaces if s[0] == surface] or [
+            _surface_by_name(world, surface)]
+    if not surfaces:
+        raise PerceptionError("no supporting surface of the map in view")
+    name, T_ws, sx, sy = surfaces[0]
+
+    d = np.asarray(depth, dtype=np.float64)
+    s = config.stride
+    pts_c = depth_to_points(d, K, stride=s)
+    ok = np.isfinite(d[::s, ::s]) & (d[::s, ::s] > 0)
+    P = pts_c @ T_world_camera[:3, :3].T + T_world_camera[:3, 3]
+    if color is not None:
+        hsv_all = rgb_to_hsv(np.asarray(color)[::s, ::s][ok])
+    else:
+        hsv_all = np.zeros((len(P), 3))
+
+    plane = find_support_plane(P, T_ws[2, 3], config)
+    height0 = -plane[3] if plane is not None else T_ws[2, 3]
+    # Height above the plane, and position in the surface's frame (its extent).
+    h = P @ plane[:3] + plane[3] if plane is not None else P[:, 2] - height0
+    local = (P - T_ws[:3, 3]) @ T_ws[:3, :3]
+    inside = (np.abs(local[:, 0]) < sx / 2 + config.surface_margin) & \
+             (np.abs(local[:, 1]) < sy / 2 + config.surface_margin)
+    above = inside & (h > config.min_height) & (h < config.max_height)
+    pts, hsv = P[above], hsv_all[above]
+    clusters = euclidean_clusters(pts, config.cluster_radius, config.min_cluster_points)
+
+    models = model_library(world, candidates, config.model_spacing)
+    cam = T_world_camera[:3, 3]
+    hyps: list[Hypothesis] = []
+    normals = _normals(pts, clusters)
+    T_cw = np.linalg.inv(T_world_camera)
+    for ci, idx in enumerate(clusters):
+        cp = pts[idx]
+        for model in models.values():
+            for seeds in _initial_poses(cp, hsv[idx], model, cam, config):
+                x, y = seeds[0][:2]
+                vd = np.array([x, y]) - cam[:2]
+                vd /= max(np.linalg.norm(vd), 1e-9)
+                # Fit to the cluster points near the seed only: a cluster may hold touching objects.
+                near = np.linalg.norm(cp[:, :2] - (x, y), axis=1) < model.radius + 0.03
+                if near.sum() < 6:
+                    continue
+                # Coarse to fine: a few ICP steps from every yaw, then finish the best two.
+                coarse = [planar_icp(cp[near], model, x, y, a, height0, vd, 4, 0.03, 0.012)
+                          for (x, y, a) in seeds]
+                coarse.sort(key=lambda r: (-r[4], r[3]))
+                for (x0, y0, a0, _, n0) in coarse[:2]:
+                    if n0 < 6:
+                        continue
+                    x1, y1, yaw1, rmse, n_in = planar_icp(cp[near], model, x0, y0, a0, height0,
+                                                          vd, config.icp_iterations, 0.015)
+                    if n_in < 6:
+                        continue
+                    T = _planar_T(x1, y1, height0, yaw1)
+                    hyps.append(_verify(model, T, ci, idx, pts, hsv, normals, d, K, T_cw,
+                                        color is not None, config))
+    hyps = _resolve(hyps)
+    return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence)
+
+
+def _surface_by_name(world, surface: str):
+    oid, sid = surface.split("/")
+    obj = world.get(oid)
+    for s in obj.surfaces:
+        if s.id == sid:
+            return (surface, world.T_world(oid) @ s.pose.matrix(), s.size_x, s.size_y)
+    raise PerceptionError(f"no surface {surface!r} in the map")
+
+
+def _normals(pts: np.ndarray, clusters: list[np.ndarray]) -> np.ndarray:
+    out = np.zeros_like(pts)
+    for idx in clusters:
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[idx]))
+        pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=16))
+        out[idx] = np.asarray(pc.normals)
+    return out
+
+
+def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.ndarray,
+                   config: DetectionConfig):
+    """Seeds (x, y, yaw) for a model in a cluster: one per model-sized piece of the cluster
+    (k-means centres), moved half a radius away from the camera (only the near side is seen);
+    several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose colours mostly disagree with the
+    model's are skipped (a cheap gate before any ICP)."""
+    xy = cp[:, :2]
+    extent = np.ptp(xy, axis=0).max() if len(xy) > 1 else 0.0
+    k = max(1, int(math.ceil(extent / (2 * model.radius + 0.01))))
+    if k == 1:
+        centres = [xy.mean(0)]
+        groups = [np.arange(len(xy))]
+    else:
+        from scipy.cluster.vq import kmeans2
+        centres, lab = kmeans2(xy, min(k, len(xy)), seed=0, minit="++")
+        groups = [np.flatnonzero(lab == i) for i in range(len(centres))]
+    model_hsv = np.median(model.hsv, axis=0)
+    out = []
+    for c, g in zip(centres, groups):
+        if len(g) < 6:
+            continue
+        agree = color_agreement(hsv[g], np.tile(model_hsv, (len(g), 1))).mean()
+        if agree < 0.25:
+            continue
+        v = c - cam[:2]
+        v /= max(np.linalg.norm(v), 1e-9)
+        x, y = c + v * model.radius * 0.5
+        yaws = [0.0] if model.symmetric else list(np.arange(config.yaw_steps) * 2 * math.pi
+                                                  / config.yaw_steps)
+        out.append([(float(x), float(y), float(a)) for a in yaws])
+    return out
+
+
+def _verify(model: ObjectModel, T: np.ndarray, ci: int, idx: np.ndarray, pts, hsv, normals,
+            depth, K, T_cw, use_color: bool, config: DetectionConfig) -> Hypothesis:
+    """Score one hypothesis against the view (see the module docstring)."""
+    R = T[:3, :3]
+    mp_w = model.points @ R.T + T[:3, 3]
+    mn_w = model.normals @ R.T
+    pc = mp_w @ T_cw[:3, :3].T + T_cw[:3, 3]
+    nc = mn_w @ T_cw[:3, :3].T
+    facing = np.einsum("ij,ij->i", nc, pc) < 0
+    uv, front = project(pc, K)
+    u = np.round(uv[:, 0]).astype(int)
+    v = np.round(uv[:, 1]).astype(int)
+    inimg = front & (u >= 0) & (u < K.width) & (v >= 0) & (v < K.height)
+    measured = np.zeros(len(pc))
+    measured[inimg] = depth[v[inimg], u[inimg]]
+    expected = facing & inimg
+    hidden = expected & (measured > 0) & (measured < pc[:, 2] - config.occlusion_margin)
+    visible = expected & ~hidden
+    n_exp, n_vis = int(expected.sum()), int(visible.sum())
+    visible_fraction = n_vis / n_exp if n_exp else 0.0
+
+    # Model -> scene: how much of the visible model surface has a measurement on it.
+    cloud = pts[idx]
+    tree = cKDTree(cloud)
+    dm, _ = tree.query(mp_w[visible], distance_upper_bound=config.inlier_distance * 1.5)
+    inlier_fraction = float(np.isfinite(dm).mean()) if n_vis else 0.0
+
+    # Scene -> model: cluster points within the hypothesis' volume, explained or not.
+    local = (cloud - T[:3, 3]) @ R
+    region = (np.linalg.norm(local[:, :2], axis=1) < model.radius + 0.015) & \
+             (local[:, 2] < model.height + 0.015)
+    dd, jj = model.tree.query(local[region])
+    expl = dd < config.inlier_distance
+    unexplained = float(1 - expl.mean()) if region.any() else 1.0
+    ridx = np.flatnonzero(region)[expl]
+    inliers = idx[ridx]
+    if len(ridx):
+        n_scene = normals[idx][ridx]
+        n_model = mn_w[jj[expl]]
+        normal_agreement = float(np.mean(np.abs(np.einsum("ij,ij->i", n_scene, n_model)) > 0.8))
+        color = float(color_agreement(hsv[idx][ridx], model.hsv[jj[expl]]).mean()) \
+            if use_color else 1.0
+    else:
+        normal_agreement, color = 0.0, 0.0
+    # Too little of the model in sight to say anything: confidence falls with the count.
+    support = min(1.0, n_vis * inlier_fraction / 40.0)
+    confidence = inlier_fraction * normal_agreement ** 0.5 * color * (1 - unexplained) * support
+    return Hypothesis(model.object_id, T, float(confidence), inlier_fraction, normal_agreement,
+                      color, unexplained, 0.0, visible_fraction, ci, inliers)
+
+
+def _resolve(hyps: list[Hypothesis]) -> list[Hypothesis]:
+    """Keep the best pose per object and place; penalise hypotheses whose inliers a stronger
+    one already claims (two models cannot explain the same points); best first."""
+    hyps.sort(key=lambda h: h.confidence, reverse=True)
+    kept: list[Hypothesis] = []
+    for h in hyps:
+        if any(k.object_id == h.object_id and np.linalg.norm(k.position[:2] - h.position[:2]) < 0.05
+               for k in kept):
+            continue  # the same object at the same place from another seed or yaw
+        kept.append(h)
+    claimed: set[int] = set()
+    for h in kept:
+        mine = set(h.inliers.tolist())
+        if mine:
+            h.conflict = len(mine & claimed) / len(mine)
+            h.confidence *= (1 - h.conflict)
+        if h.conflict < 0.5:
+            claimed |= mine
+    kept.sort(key=lambda h: h.confidence, reverse=True)
+    return kept
