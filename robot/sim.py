@@ -1,0 +1,150 @@
+"""Simulated views of a world: the camera head on the robot base, and noisy RGB-D frames.
+
+Frames (see docs/robot-adapter.md):
+
+- world: x, y on the floor, z up.
+- base: the robot's base on the floor, x forward, y left, z up; a base pose is (x, y, yaw).
+- camera: OpenCV axes (x right, y down, z forward), as in perception/camera.py.
+
+The head (``HeadMount``): a pan joint (about the base's z axis) at ``pan_xy`` in the base,
+a tilt joint (about the panned y axis; positive tilt looks down) at ``tilt_height`` above the
+floor, and the camera's optical centre ``camera_forward`` ahead of the tilt axis on its
+optical axis, so the optical axis always passes through the pan and tilt axes and looking at
+a point is exact. With the defaults the camera is 1.30 m above the floor, 0.15 m ahead of the
+base centre at pan = tilt = 0.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from perception.camera import Intrinsics
+from robot.noise import KinectNoise, add_kinect_noise
+from worldmodel.pose import Pose
+
+#: Camera axes (OpenCV: x right, y down, z forward) expressed in a body frame with x forward,
+#: y left, z up.
+R_BODY_CAMERA = np.array([[0.0, 0.0, 1.0],
+                          [-1.0, 0.0, 0.0],
+                          [0.0, -1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class HeadMount:
+    """Where the pan/tilt head and its camera sit on the base (metres, radians)."""
+    pan_xy: tuple[float, float] = (0.10, 0.0)
+    tilt_height: float = 1.30
+    camera_forward: float = 0.05
+    pan_limits: tuple[float, float] = (-math.radians(170), math.radians(170))
+    tilt_limits: tuple[float, float] = (-math.radians(45), math.radians(75))
+
+    def clip(self, pan: float, tilt: float) -> tuple[float, float]:
+        return (float(np.clip(pan, *self.pan_limits)), float(np.clip(tilt, *self.tilt_limits)))
+
+
+HEAD = HeadMount()
+
+
+def _as_T(pose) -> np.ndarray:
+    if isinstance(pose, Pose):
+        return pose.matrix()
+    if isinstance(pose, (tuple, list)) and len(pose) == 3:
+        return Pose.planar(*map(float, pose)).matrix()
+    return np.asarray(pose, dtype=float)
+
+
+def T_base_camera(pan: float = 0.0, tilt: float = 0.0, mount: HeadMount = HEAD) -> np.ndarray:
+    """4x4 camera pose in the base frame for head angles ``pan``, ``tilt`` (rad)."""
+    cp, sp = math.cos(pan), math.sin(pan)
+    ct, st = math.cos(tilt), math.sin(tilt)
+    R_pan = np.array([[cp, -sp, 0.0], [sp, cp, 0.0], [0.0, 0.0, 1.0]])
+    R_tilt = np.array([[ct, 0.0, st], [0.0, 1.0, 0.0], [-st, 0.0, ct]])   # +tilt: look down
+    R_head = R_pan @ R_tilt
+    T = np.eye(4)
+    T[:3, :3] = R_head @ R_BODY_CAMERA
+    T[:3, 3] = (np.array([mount.pan_xy[0], mount.pan_xy[1], mount.tilt_height])
+                + R_head @ np.array([mount.camera_forward, 0.0, 0.0]))
+    return T
+
+
+def camera_pose(base_pose, pan: float = 0.0, tilt: float = 0.0,
+                mount: HeadMount = HEAD) -> np.ndarray:
+    """``T_world_camera`` for a base pose (a Pose, (x, y, yaw) or a 4x4 T_world_base) and
+    head angles (rad)."""
+    return _as_T(base_pose) @ T_base_camera(pan, tilt, mount)
+
+
+def pan_tilt_to(base_pose, point_world, mount: HeadMount = HEAD) -> tuple[float, float]:
+    """Head angles (pan, tilt; rad, within the mount's limits) that put ``point_world`` on
+    the optical axis for the given base pose."""
+    T_wb = _as_T(base_pose)
+    p = np.linalg.inv(T_wb) @ np.append(np.asarray(point_world, dtype=float), 1.0)
+    dx, dy = p[0] - mount.pan_xy[0], p[1] - mount.pan_xy[1]
+    pan = math.atan2(dy, dx)
+    tilt = math.atan2(mount.tilt_height - p[2], math.hypot(dx, dy))
+    return mount.clip(pan, tilt)
+
+
+@dataclass
+class Frame:
+    """One RGB-D capture. ``color`` uint8 RGB (H, W, 3); ``depth`` float32 metres (0 = no
+    reading); ``T_world_camera`` the *believed* camera pose (4x4); ``timestamp`` seconds on the
+    robot's clock; ``pan``/``tilt`` the head angles (rad). Ground truth where known:
+    ``T_world_camera_true``, ``base_pose_true``, ``labels`` (node index per pixel, -1 none)
+    with ``nodes``/``owners`` naming them, ``rendering`` (the noise-free rendering)."""
+    color: np.ndarray
+    depth: np.ndarray
+    intrinsics: Intrinsics
+    T_world_camera: np.ndarray
+    timestamp: float = 0.0
+    pan: float = 0.0
+    tilt: float = 0.0
+    base_pose: Optional[Pose] = None
+    T_world_camera_true: Optional[np.ndarray] = None
+    base_pose_true: Optional[Pose] = None
+    labels: Optional[np.ndarray] = None
+    nodes: list = field(default_factory=list)
+    owners: list = field(default_factory=list)
+    rendering: Optional[object] = None
+    parking: Optional[str] = None
+
+    @property
+    def K(self) -> Intrinsics:
+        return self.intrinsics
+
+    def mask(self, node_ids) -> np.ndarray:
+        """Ground-truth pixels of the given nodes (needs ``labels``)."""
+        idx = [i for i, n in enumerate(self.nodes) if n in set(node_ids)]
+        return np.isin(self.labels, idx)
+
+    def owner_mask(self, owner_ids) -> np.ndarray:
+        idx = [i for i, n in enumerate(self.owners) if n in set(owner_ids)]
+        return np.isin(self.labels, idx)
+
+
+def world_scene(world, states: Optional[dict] = None):
+    """A perception.render.Scene of every mesh of ``world`` (in the given states)."""
+    from perception.render import Scene
+    from worldmodel.geometry import scene_meshes
+    return Scene(scene_meshes(world, states=states))
+
+
+def render_view(world, K: Intrinsics, T_world_camera, rng: Optional[np.random.Generator] = None,
+                noise: Optional[KinectNoise] = KinectNoise(), states: Optional[dict] = None,
+                scene=None, T_world_camera_believed=None, timestamp: float = 0.0) -> Frame:
+    """Render ``world`` from ``T_world_camera`` (the true camera pose) with Kinect-class
+    noise (``noise=None``: noise-free). ``states`` overrides joint states / knob angles;
+    ``scene`` reuses a prebuilt Scene (``world_scene``) of the same world and states.
+    The frame's ``T_world_camera`` is ``T_world_camera_believed`` when given, else the truth."""
+    T_true = np.asarray(T_world_camera, dtype=float)
+    scene = scene if scene is not None else world_scene(world, states)
+    clean = scene.render(K, T_true)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    noisy = add_kinect_noise(clean, rng, noise) if noise is not None else clean
+    T_bel = T_true if T_world_camera_believed is None else np.asarray(T_world_camera_believed)
+    return Frame(color=noisy.color, depth=noisy.depth, intrinsics=K, T_world_camera=T_bel.copy(),
+                 timestamp=timestamp, T_world_camera_true=T_true.copy(), labels=clean.labels,
+                 nodes=clean.nodes, owners=clean.owners, rendering=clean)

@@ -1,0 +1,99 @@
+"""The Kinect-class noise model and simulated views (robot/noise.py, robot/sim.py)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from perception.camera import Intrinsics
+from perception.render import Scene
+from robot.noise import KinectNoise, add_kinect_noise
+from robot.sim import camera_pose, pan_tilt_to, render_view
+from worldmodel.geometry import LabelledMesh
+
+K = Intrinsics.kinect()
+
+
+def plane_rendering(z: float, material: str = "matte", tilt_deg: float = 0.0):
+    """A wide plane facing the camera (at the identity pose) at depth z, turned about x."""
+    m = o3d.geometry.TriangleMesh.create_box(8.0, 8.0, 0.01)
+    m.translate((-4.0, -4.0, 0.0))           # the face the camera sees at z = 0
+    R = o3d.geometry.get_rotation_matrix_from_xyz((math.radians(tilt_deg), 0.0, 0.0))
+    m.rotate(R, center=(0, 0, 0))
+    m.translate((0, 0, z))
+    return Scene([LabelledMesh("wall", "wall", m, (0.8, 0.8, 0.8), material)]).render(K, np.eye(4))
+
+
+def test_plane_at_1_5_m_reads_1_5_m_within_the_noise():
+    noisy = add_kinect_noise(plane_rendering(1.5), np.random.default_rng(0))
+    d = noisy.depth[noisy.depth > 0]
+    assert d.size > 0.95 * K.width * K.height
+    assert abs(float(np.mean(d)) - 1.5) < 0.002
+    assert np.all(np.abs(d - 1.5) < 6 * KinectNoise().axial_std(1.5) + 0.02)
+
+
+@pytest.mark.parametrize("z", [1.0, 2.0])
+def test_depth_std_is_within_20_percent_of_the_documented_model(z):
+    noisy = add_kinect_noise(plane_rendering(z), np.random.default_rng(1))
+    d = noisy.depth[noisy.depth > 0]
+    model = 0.0012 + 0.0019 * (z - 0.4) ** 2     # Nguyen et al. 2012, docs/robot-adapter.md
+    assert abs(float(np.std(d - z)) - model) < 0.2 * model
+
+
+def test_depth_is_quantised_in_disparity_steps():
+    noisy = add_kinect_noise(plane_rendering(2.0), np.random.default_rng(2))
+    assert len(np.unique(noisy.depth[noisy.depth > 0])) < 40
+
+
+def test_dark_and_glass_surfaces_lose_readings_matte_does_not():
+    rng = np.random.default_rng(3)
+    frac = {mat: float((add_kinect_noise(plane_rendering(1.5, mat), rng).depth == 0).mean())
+            for mat in ("matte", "dark", "glass")}
+    assert frac["matte"] < 0.01
+    assert 0.3 < frac["dark"] < 0.7
+    assert frac["glass"] > 0.8
+
+
+def test_grazing_surfaces_lose_readings():
+    clean = plane_rendering(3.0, tilt_deg=84.0)
+    noisy = add_kinect_noise(clean, np.random.default_rng(4))
+    grazing = (clean.depth > 0) & (clean.incidence < math.cos(math.radians(86)))
+    steep = (clean.depth > 0) & (clean.incidence > math.cos(math.radians(70)))
+    assert grazing.sum() > 1000 and steep.sum() > 1000
+    assert (noisy.depth[grazing] == 0).mean() > 0.95
+    assert (noisy.depth[steep] == 0).mean() < 0.05
+
+
+def test_same_seed_same_noise_and_none_is_noise_free():
+    clean = plane_rendering(1.2)
+    a = add_kinect_noise(clean, np.random.default_rng(5))
+    b = add_kinect_noise(clean, np.random.default_rng(5))
+    assert np.array_equal(a.depth, b.depth) and np.array_equal(a.color, b.color)
+    assert add_kinect_noise(clean, np.random.default_rng(5), None) is clean
+    assert a.labels is clean.labels          # ground truth stays
+
+
+def test_head_looks_exactly_at_the_point_and_camera_is_1_3_m_high():
+    base = (1.0, 2.0, 0.5)
+    T0 = camera_pose(base, 0.0, 0.0)
+    assert T0[2, 3] == pytest.approx(1.30)
+    target = np.array([3.0, 2.5, 0.7])
+    pan, tilt = pan_tilt_to(base, target)
+    T = camera_pose(base, pan, tilt)
+    ray = (target - T[:3, 3]) / np.linalg.norm(target - T[:3, 3])
+    assert ray @ T[:3, 2] == pytest.approx(1.0, abs=1e-9)
+    assert tilt > 0                           # looking down at a table
+
+
+def test_render_view_of_the_demo_oven_shows_its_knobs(demo_world):
+    w = demo_world
+    base = w.parking_positions("oven")[0][1]
+    knob = w.T_world("oven_knob_2")[:3, 3]
+    T = camera_pose(base, *pan_tilt_to(base, knob))
+    frame = render_view(w, K, T, np.random.default_rng(0))
+    assert frame.color.shape == (480, 640, 3) and frame.color.dtype == np.uint8
+    assert frame.depth.dtype == np.float32
+    assert frame.mask(["oven_knob_2"]).sum() > 100
+    assert np.array_equal(frame.T_world_camera, T)
