@@ -1,0 +1,313 @@
+"""Rendered knob views for training and benchmarking the knob models (perception/knobs.py).
+
+Every view is rendered from the knob models in the map (worldmodel.geometry's knob meshes in
+the whole home, so panels, neighbouring knobs and walls are where they are): a camera 0.5 to
+1.5 m from a knob, up to 60 degrees off its axis, every knob of the object at a random angle
+(uniform over the full turn), sometimes the knob removed (a region with no knob). Only the
+pixels around the knob are ray cast (a cropped camera), which keeps a view to a few ms.
+The image then gets lighting (gain, gamma, offset, a gradient), optical blur and sensor
+noise (``noise``: a callable ``(rendering, rng) -> rendering`` such as the simulated robot's
+``robot.noise.add_kinect_noise``, applied first; colour noise of our own is always added).
+The map's belief of the knob's pose is perturbed as registration would (a few mm, a degree
+or two), so the models learn to read knobs that are not quite where the map says.
+
+``training_patches`` cuts detector windows (positives centred on the knob, negatives
+elsewhere in the region and from other surfaces of rendered scenes: ``scene_negatives``)
+and angle windows from views. Pure: the world in, arrays out; the same seed gives the same
+data.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from perception.camera import Intrinsics, look_at
+from perception.knobs import (
+    BORDER, DETECTOR_HOG, PATCH, WINDOW, KnobConfig, KnobPrior, face_patch, knob_priors, plane_homography,
+    rectify, to_gray,
+)
+from perception.render import Scene
+
+
+@dataclass(frozen=True)
+class KnobDataConfig:
+    """How views are drawn. Distances in m, angles in degrees; ``pose_sigma_m`` /
+    ``pose_sigma_deg``: the belief's error (clipped at 2.5 sigma); ``missing_rate``: share of
+    views whose knob is removed; ``blur_sigma``: max Gaussian blur (px); ``noise_sigma``: max
+    colour noise (grey levels)."""
+    distance: tuple[float, float] = (0.5, 1.5)
+    max_off_axis_deg: float = 60.0
+    pose_sigma_m: float = 0.005
+    pose_sigma_deg: float = 1.0
+    missing_rate: float = 0.15
+    blur_sigma: float = 1.5
+    noise_sigma: float = 6.0
+    gain: tuple[float, float] = (0.55, 1.35)
+    gamma: tuple[float, float] = (0.7, 1.5)
+    at_states: bool = False
+    state_jitter_deg: float = 2.0
+
+
+@dataclass
+class KnobView:
+    """One rendered view around one knob: ``image`` (H, W, 3) uint8 of the cropped camera
+    ``K``; ``believed``: the map's (perturbed) prior used to search; ``truth``: the true
+    prior; ``angle``: the true angle (rad); ``present``: False when the knob was removed; ``state``: the true state
+    when views are drawn at states."""
+    image: np.ndarray
+    K: Intrinsics
+    T_world_camera: np.ndarray
+    believed: KnobPrior
+    truth: KnobPrior
+    angle: float
+    present: bool
+    distance: float
+    off_axis_deg: float
+    state: str = ""
+
+
+class KnobScenes:
+    """Meshes of a home, split into what never changes and the knob-bearing objects (rebuilt
+    per view with new knob angles)."""
+
+    def __init__(self, world):
+        from worldmodel.geometry import object_meshes, scene_meshes
+        self.world = world
+        self.priors = {p.knob_id: p for p in knob_priors(world)}
+        if not self.priors:
+            from perception.errors import PerceptionError
+            raise PerceptionError("the map has no knobs")
+        self.owner = {kid: world.large_object_of(kid).id for kid in self.priors}
+        owners = set(self.owner.values())
+        self.static = [lm for lm in scene_meshes(world) if lm.owner not in owners]
+        self._object_meshes = object_meshes
+        self.knobs_of = {o: [k for k in self.priors if self.owner[k] == o] for o in owners}
+
+    def scene(self, owner: str, angles: dict, missing: tuple = ()) -> Scene:
+        obj = self.world.get(owner)
+        meshes = [lm for lm in self._object_meshes(self.world, obj, states=angles)
+                  if lm.node not in missing]
+        return Scene(self.static + meshes)
+
+
+def _perturb(prior: KnobPrior, rng, cfg: KnobDataConfig) -> KnobPrior:
+    t = np.clip(rng.normal(0, cfg.pose_sigma_m, 3), -2.5 * cfg.pose_sigma_m, 2.5 * cfg.pose_sigma_m)
+    t[2] *= 0.4
+    r = np.clip(rng.normal(0, math.radians(cfg.pose_sigma_deg), 3), -2.5 * math.radians(cfg.pose_sigma_deg),
+                2.5 * math.radians(cfg.pose_sigma_deg))
+    D = np.eye(4)
+    D[:3, :3] = Rotation.from_rotvec(r).as_matrix()
+    D[:3, 3] = t
+    return KnobPrior(prior.knob_id, prior.T_world_knob @ D, prior.radius, prior.depth,
+                     prior.state_names, prior.state_angles)
+
+
+def _camera(prior: KnobPrior, rng, cfg: KnobDataConfig):
+    """A camera pose 0.5-1.5 m from the knob, up to the max off-axis angle, head height-ish."""
+    T = prior.T_world_face()
+    p = T[:3, 3]
+    for _ in range(50):
+        cos_a = rng.uniform(math.cos(math.radians(cfg.max_off_axis_deg)), 1.0)
+        a = math.acos(cos_a)
+        phi = rng.uniform(-math.pi, math.pi)
+        d = rng.uniform(*cfg.distance)
+        dir_k = np.array([math.sin(a) * math.cos(phi), math.sin(a) * math.sin(phi), cos_a])
+        eye = p + d * (T[:3, :3] @ dir_k)
+        if 0.25 < eye[2] < 2.0:
+            # look near the knob, not always straight at it
+            side = rng.normal(0, 0.08 * d, 3)
+            return look_at(eye, p + side), d, math.degrees(a)
+    return look_at(p + 1.0 * T[:3, 2], p), 1.0, 0.0
+
+
+def _crop(K: Intrinsics, T_world_camera, prior: KnobPrior, cfg: KnobConfig, pad: int = 6):
+    """The cropped camera that sees the knob's search region at every pyramid scale."""
+    size = WINDOW + 2 * cfg.search_px
+    rho = cfg.px_per_radius * min(cfg.scales) / prior.radius
+    H = plane_homography(K, T_world_camera, prior.T_world_face(), rho, size)
+    c = np.array([[0, 0, 1], [size, 0, 1], [0, size, 1], [size, size, 1]], dtype=float).T
+    uv = H @ c
+    uv = uv[:2] / uv[2]
+    u0, v0 = np.floor(uv.min(1)).astype(int) - pad
+    u1, v1 = np.ceil(uv.max(1)).astype(int) + pad
+    u0, v0 = max(u0, 0), max(v0, 0)
+    u1, v1 = min(u1, K.width), min(v1, K.height)
+    if u1 - u0 < 8 or v1 - v0 < 8:
+        return None
+    return Intrinsics(K.fx, K.fy, K.cx - u0, K.cy - v0, int(u1 - u0), int(v1 - v0))
+
+
+def photometric(image: np.ndarray, rng, cfg: KnobDataConfig) -> np.ndarray:
+    """Lighting, blur and colour noise on a uint8 RGB image."""
+    x = image.astype(np.float32) / 255.0
+    h, w = x.shape[:2]
+    g = rng.uniform(*cfg.gain)
+    yy, xx = np.mgrid[0:h, 0:w]
+    grad = 1.0 + rng.uniform(-0.15, 0.15) * (xx / max(w, 1) - 0.5) + rng.uniform(-0.15, 0.15) * (yy / max(h, 1) - 0.5)
+    x = np.clip(x * g * grad[..., None], 0, 1) ** rng.uniform(*cfg.gamma)
+    x = x * 255.0 + rng.uniform(-20, 20)
+    sigma = rng.uniform(0, cfg.blur_sigma)
+    if sigma > 0.3:
+        x = cv2.GaussianBlur(x, (0, 0), sigma)
+    x = x + rng.normal(0, rng.uniform(1.0, cfg.noise_sigma), x.shape)
+    return np.clip(x, 0, 255).astype(np.uint8)
+
+
+def render_views(world, n: int, seed: int, data: KnobDataConfig = KnobDataConfig(),
+                 cfg: KnobConfig = KnobConfig(), noise: Optional[Callable] = None,
+                 scenes: Optional[KnobScenes] = None, progress: Optional[Callable] = None) -> list[KnobView]:
+    """``n`` views drawn with ``seed``; ``progress(done, n)`` is called now and then."""
+    rng = np.random.default_rng(seed)
+    scenes = scenes or KnobScenes(world)
+    K_full = Intrinsics.kinect()
+    ids = sorted(scenes.priors)
+    out: list[KnobView] = []
+    while len(out) < n:
+        kid = ids[int(rng.integers(len(ids)))]
+        owner = scenes.owner[kid]
+        states = {}
+        if data.at_states:
+            angles = {}
+            for k in scenes.knobs_of[owner]:
+                i = int(rng.integers(len(scenes.priors[k].state_angles)))
+                states[k] = scenes.priors[k].state_names[i]
+                angles[k] = float(scenes.priors[k].state_angles[i]
+                                  + math.radians(rng.uniform(-1, 1) * data.state_jitter_deg))
+        else:
+            angles = {k: float(rng.uniform(-math.pi, math.pi)) for k in scenes.knobs_of[owner]}
+        present = rng.random() >= data.missing_rate
+        truth = scenes.priors[kid]
+        believed = _perturb(truth, rng, data)
+        T_wc, dist, off = _camera(truth, rng, data)
+        K = _crop(K_full, T_wc, believed, cfg)
+        if K is None:
+            continue
+        r = scenes.scene(owner, angles, () if present else (kid,)).render(K, T_wc)
+        if noise is not None:
+            r = noise(r, rng) or r
+        out.append(KnobView(photometric(r.color, rng, data), K, T_wc, believed, truth,
+                            angles[kid], bool(present), dist, off, states.get(kid, "")))
+        if progress and len(out) % 50 == 0:
+            progress(len(out), n)
+    return out
+
+
+def true_center_m(view: KnobView) -> tuple[float, float]:
+    """Where the true knob face centre appears on the believed face plane (m): the camera ray
+    through it, cut with the believed plane."""
+    T_bf = view.believed.T_world_face()
+    T_fw = np.linalg.inv(T_bf)
+    c = (T_fw @ np.append(view.T_world_camera[:3, 3], 1.0))[:3]
+    q = (T_fw @ view.truth.T_world_face()[:, 3])[:3]
+    t = -c[2] / (q[2] - c[2]) if abs(q[2] - c[2]) > 1e-9 else 1.0
+    p = c + t * (q - c)
+    return float(p[0]), float(p[1])
+
+
+def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobConfig(),
+                     positives: int = 3, negatives: int = 6, angle_patches: int = 2):
+    """Detector patches and labels, angle patches and angles (rad) from views.
+
+    Positives: windows centred within half a HOG block stride (3 px) on the knob at scales
+    within half a pyramid step; negatives: windows of the searched canvas whose centre is at
+    least 9 px (about half a knob radius) from the knob, or anywhere when it is missing.
+    Angle windows: centred within 2 px (the detector's refined error), same scale range."""
+    rng = np.random.default_rng(seed)
+    det_p, det_y, ang_p, ang_y = [], [], [], []
+    st = DETECTOR_HOG["stride"][0]
+    size = WINDOW + 2 * cfg.search_px
+    for v in views:
+        gray = to_gray(v.image)
+        pr = v.believed
+        cx, cy = true_center_m(v)
+        if v.present:
+            for k in range(positives + angle_patches):
+                s = rng.uniform(0.93, 1.08)
+                rho = cfg.px_per_radius * s / pr.radius
+                j = (3.0 if k < positives else 2.0) / rho
+                patch = face_patch(gray, v.K, v.T_world_camera, pr,
+                                   (cx + rng.uniform(-j, j), cy + rng.uniform(-j, j)), s, cfg)
+                if k < positives:
+                    det_p.append(patch)
+                    det_y.append(1)
+                else:
+                    ang_p.append(patch)
+                    ang_y.append(v.angle)
+        s = float(rng.choice(cfg.scales))
+        rho = cfg.px_per_radius * s / pr.radius
+        full = size + 2 * BORDER
+        canvas = rectify(gray, plane_homography(v.K, v.T_world_camera, pr.T_world_face(), rho, full), full)
+        c0 = (full - 1) / 2
+        tx, ty = c0 + cx * rho, c0 - cy * rho
+        cand = []
+        for y0 in range(0, size - WINDOW + 1, st):
+            for x0 in range(0, size - WINDOW + 1, st):
+                wx, wy = x0 + BORDER + (WINDOW - 1) / 2, y0 + BORDER + (WINDOW - 1) / 2
+                if not v.present or math.hypot(wx - tx, wy - ty) > 9.0:
+                    cand.append((x0, y0))
+        for idx in rng.permutation(len(cand))[:negatives]:
+            x0, y0 = cand[idx]
+            det_p.append(canvas[y0:y0 + PATCH, x0:x0 + PATCH])
+            det_y.append(0)
+    return (np.array(det_p, dtype=np.uint8).reshape(-1, PATCH, PATCH), np.array(det_y, dtype=int),
+            np.array(ang_p, dtype=np.uint8).reshape(-1, PATCH, PATCH), np.array(ang_y, dtype=float))
+
+
+def scene_negatives(world, n_views: int, seed: int, cfg: KnobConfig = KnobConfig(),
+                    data: KnobDataConfig = KnobDataConfig(), per_view: int = 4,
+                    scenes: Optional[KnobScenes] = None) -> np.ndarray:
+    """Negative windows from other surfaces of the rendered home: a camera looks at a random
+    object from 0.5-2.5 m; a random surface point (away from every knob) and its normal define
+    a plane, rectified as a knob's face would be."""
+    rng = np.random.default_rng(seed)
+    scenes = scenes or KnobScenes(world)
+    objs = [o for o in world.large_objects()]
+    K_full = Intrinsics.kinect()
+    radius = float(np.median([p.radius for p in scenes.priors.values()]))
+    knob_pts = np.array([p.T_world_face()[:3, 3] for p in scenes.priors.values()])
+    owners = sorted(scenes.knobs_of)
+    out = []
+    tries = 0
+    while len(out) < n_views * per_view and tries < n_views * 20:
+        tries += 1
+        o = objs[int(rng.integers(len(objs)))]
+        b = world.bounds_world(o.id)
+        target = rng.uniform(b[0], b[1])
+        d = rng.uniform(0.5, 2.5)
+        a = rng.uniform(-math.pi, math.pi)
+        eye = target + np.array([d * math.cos(a), d * math.sin(a), rng.uniform(-0.3, 0.8)])
+        if not 0.3 < eye[2] < 2.0:
+            continue
+        T_wc = look_at(eye, target)
+        u0, v0 = int(rng.integers(0, K_full.width - 128)), int(rng.integers(0, K_full.height - 128))
+        K = Intrinsics(K_full.fx, K_full.fy, K_full.cx - u0, K_full.cy - v0, 128, 128)
+        owner = owners[int(rng.integers(len(owners)))]
+        angles = {k: float(rng.uniform(-math.pi, math.pi)) for k in scenes.knobs_of[owner]}
+        r = scenes.scene(owner, angles).render(K, T_wc)
+        gray = to_gray(photometric(r.color, rng, data))
+        for _ in range(per_view):
+            i, j = int(rng.integers(20, 108)), int(rng.integers(20, 108))
+            z = float(r.depth[i, j])
+            if z <= 0:
+                continue
+            pc = np.array([(j - K.cx) * z / K.fx, (i - K.cy) * z / K.fy, z])
+            pw = T_wc[:3, :3] @ pc + T_wc[:3, 3]
+            if np.min(np.linalg.norm(knob_pts - pw, axis=1)) < 4 * radius:
+                continue
+            nz = T_wc[:3, :3] @ r.normals_camera[i, j]
+            if np.linalg.norm(nz) < 0.5:
+                continue
+            nz = nz / np.linalg.norm(nz)
+            x = np.cross(nz, rng.normal(size=3))
+            x /= np.linalg.norm(x)
+            T_plane = np.eye(4)
+            T_plane[:3, 0], T_plane[:3, 1], T_plane[:3, 2], T_plane[:3, 3] = x, np.cross(nz, x), nz, pw
+            prior = KnobPrior("none", T_plane, radius, 0.0, ("x",), (0.0,))
+            s = float(rng.uniform(0.85, 1.15))
+            out.append(face_patch(gray, K, T_wc, prior, (0.0, 0.0), s, cfg))
+    return np.array(out, dtype=np.uint8).reshape(-1, PATCH, PATCH)

@@ -1,0 +1,119 @@
+"""Knob skills: read every knob of an appliance (and write the states to the map), turn one.
+
+ReadKnobs captures one frame through ``robot.capture()`` (``color``, ``intrinsics`` or ``K``,
+``T_world_camera``), reads the knobs with perception.knobs in regions projected from the map
+(the registered pose when RegisterLargeObject ran before), and writes each knob it could read
+with ``world.set_knob_state(knob, state, angle, source="ReadKnobs")``; knobs it could not
+find or was unsure of are listed as unknown and left as the map has them. The models come
+from skills/knob_models.py in ``setup`` (loaded, or trained on first use), unless the
+executive passes a ready ``knob_reader`` to ``setup``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import py_trees
+
+from perception.errors import PerceptionError
+from skills.actions import RobotActionSkill
+from skills.base import Port, Skill
+from worldmodel.nodes import Knob
+
+S = py_trees.common.Status
+
+
+class ReadKnobs(Skill):
+    """Read the angle and discrete state of every knob of ``object`` (or the given knobs)."""
+
+    NAME = "ReadKnobs"
+    DESCRIPTION = "read the state of an appliance's knobs"
+    INPUTS = (Port("object", "node_id", required=False, default=None,
+                   description="appliance whose knobs to read"),
+              Port("knobs", "list", required=False, default=None, description="knob ids"),
+              Port("update_map", "boolean", required=False, default=True))
+    OUTPUTS = (Port("states", "dict", required=False, description="knob id -> state name"),
+               Port("angles", "dict", required=False, description="knob id -> degrees"),
+               Port("on", "list", required=False, description="knobs read as not off"),
+               Port("unknown", "list", required=False))
+
+    def setup(self, **kwargs) -> None:
+        super().setup(**kwargs)
+        self.reader = kwargs.get("knob_reader")
+
+    def _reader(self):
+        if self.reader is None:
+            from skills.knob_models import load_or_train
+            self.reader, _ = load_or_train(self.world)
+        return self.reader
+
+    def update(self) -> py_trees.common.Status:
+        from perception.knobs import knob_priors
+        try:
+            obj, ids = self.input("object"), self.input("knobs")
+            priors = knob_priors(self.world, obj)
+            if ids:
+                priors = [p for p in priors if p.knob_id in set(ids)]
+            if not priors:
+                raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
+            frame = self.robot.capture()
+            K = getattr(frame, "intrinsics", None) or getattr(frame, "K")
+            readings = self._reader().read(np.asarray(frame.color), K,
+                                           np.asarray(frame.T_world_camera, dtype=float), priors)
+        except (PerceptionError, KeyError, ValueError) as err:
+            self.feedback_message = f"{self.NAME}: {err}"
+            return S.FAILURE
+        states, angles, on, unknown = {}, {}, [], []
+        for r in readings:
+            if r.state == "unknown":
+                unknown.append(r.knob_id)
+                continue
+            states[r.knob_id] = r.state
+            angles[r.knob_id] = round(math.degrees(r.angle), 1)
+            if r.state != self.world.get(r.knob_id).off:
+                on.append(r.knob_id)
+            if self.input("update_map"):
+                self.world.set_knob_state(r.knob_id, r.state, r.angle, source=self.NAME)
+        for name, value in (("states", states), ("angles", angles), ("on", on), ("unknown", unknown)):
+            self.set_output(name, value)
+        said = ", ".join(f"{k} {v}" for k, v in states.items())
+        if unknown:
+            why = "; ".join(f"{r.knob_id}: {r.reason}" for r in readings if r.state == "unknown")
+            said += f"; unknown: {why}"
+        self.feedback_message = f"knobs: {said}"
+        return S.SUCCESS if states else S.FAILURE
+
+
+class TurnKnob(RobotActionSkill):
+    """Turn a knob to a state (default: off) or an angle (degrees) through the robot adapter;
+    the map gets the new state when the robot reports success (read again to verify)."""
+
+    NAME = "TurnKnob"
+    AUTONOMY = 2
+    DESCRIPTION = "turn an appliance knob to a state (default off)"
+    INPUTS = (Port("knob", "node_id"),
+              Port("state", "string", required=False, default=None),
+              Port("angle", "number", required=False, default=None, description="degrees"))
+    OUTPUTS = (Port("state", "string", required=False),)
+
+    def start(self):
+        knob = self.world.get(self.input("knob"))
+        if not isinstance(knob, Knob):
+            raise ValueError(f"{knob.id} is not a knob")
+        state, angle = self.input("state"), self.input("angle")
+        if angle is not None:
+            a = math.radians(float(angle))
+            d = [abs(math.remainder(s.angle - a, 2 * math.pi)) for s in knob.states]
+            state = knob.states[int(np.argmin(d))].name
+        else:
+            state = state or knob.off
+            a = knob.state_angle(state)
+        self._knob, self._state, self._angle = knob.id, state, a
+        return self.robot.turn_knob(knob.id, a)
+
+    def describe(self) -> str:
+        return f"turning {getattr(self, '_knob', '')} to {getattr(self, '_state', '')}"
+
+    def succeeded(self, action) -> None:
+        self.world.set_knob_state(self._knob, self._state, self._angle, source=self.NAME)
+        self.set_output("state", self._state)
