@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -236,6 +236,23 @@ def register_base(world, object_id: str, depth: np.ndarray, K, T_world_camera: n
                                   search_step=cfg.search_step)
     except RegistrationFailed as err:
         raise RegistrationFailed(err.message, err.result, node=object_id) from None
+    # ICP can slide to where other surfaces (open drawers in front of the carcass) pull it;
+    # the depth image says whether it explains the view better than where it started.
+    check = DepthAgreement(base_ref.points, depth, K, T_world_camera, max_points=2000)
+    s_new, s_old = check([res.T, np.eye(4)])
+    if s_new < s_old and cfg.mode != "6dof":
+        # Once more from the map's pose with the tighter gates only.
+        fine = replace(cfg.base, gates=cfg.base.gates[1:], iterations=cfg.base.iterations[1:])
+        try:
+            res2 = register_planar(src, base_ref.points, base_ref.normals, cfg=fine)
+            s2 = check([res2.T])[0]
+            if s2 >= s_old:
+                res, s_new = res2, s2
+        except RegistrationFailed:
+            pass
+    if s_new < s_old:
+        raise RegistrationFailed(f"the registration explains the view worse than the map's pose "
+                                 f"({s_new} vs {s_old} agreeing points)", res, node=object_id)
     t3 = time.perf_counter()
     T_world_object = np.linalg.inv(res.T) @ T_obj
     return ObjectRegistration(object_id, T_world_object, res.T, res, observed=obs,
