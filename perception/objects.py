@@ -393,6 +393,8 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     hyps: list[Hypothesis] = []
     normals = _normals(pts, clusters)
     T_cw = np.linalg.inv(T_world_camera)
+    tree_xy = cKDTree(pts[:, :2]) if len(pts) else None
+    tree_xyz = cKDTree(pts) if len(pts) else None
     for ci, idx in enumerate(clusters):
         cp = pts[idx]
         for model in models.values():
@@ -400,24 +402,26 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
                 x, y = seeds[0][:2]
                 vd = np.array([x, y]) - cam[:2]
                 vd /= max(np.linalg.norm(vd), 1e-9)
-                # Fit to the cluster points near the seed only: a cluster may hold touching objects.
-                near = np.linalg.norm(cp[:, :2] - (x, y), axis=1) < model.radius + 0.03
-                if near.sum() < 6:
+                # Fit to the points near the seed, from any cluster: a cluster may hold touching
+                # objects, and an occluder may split one object into several clusters.
+                near = np.asarray(tree_xy.query_ball_point((x, y), model.radius + 0.03), int)
+                if len(near) < 6:
                     continue
+                npts = pts[near]
                 # Coarse to fine: a few ICP steps from every yaw, then finish the best two.
-                coarse = [planar_icp(cp[near], model, x, y, a, height0, vd, 4, 0.03, 0.012)
+                coarse = [planar_icp(npts, model, x, y, a, height0, vd, 4, 0.03, 0.012)
                           for (x, y, a) in seeds]
                 coarse.sort(key=lambda r: (-r[4], r[3]))
                 for (x0, y0, a0, _, n0) in coarse[:2]:
                     if n0 < 6:
                         continue
-                    x1, y1, yaw1, rmse, n_in = planar_icp(cp[near], model, x0, y0, a0, height0,
+                    x1, y1, yaw1, rmse, n_in = planar_icp(npts, model, x0, y0, a0, height0,
                                                           vd, config.icp_iterations, 0.015)
                     if n_in < 6:
                         continue
                     T = _planar_T(x1, y1, height0, yaw1)
-                    hyps.append(_verify(model, T, ci, idx, pts, hsv, normals, d, K, T_cw,
-                                        color is not None, config))
+                    hyps.append(_verify(model, T, ci, pts, hsv, normals, tree_xy, tree_xyz, d,
+                                        K, T_cw, color is not None, config))
     hyps = _resolve(hyps)
     return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence)
 
@@ -473,7 +477,7 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
     return out
 
 
-def _verify(model: ObjectModel, T: np.ndarray, ci: int, idx: np.ndarray, pts, hsv, normals,
+def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_xy, tree_xyz,
             depth, K, T_cw, use_color: bool, config: DetectionConfig) -> Hypothesis:
     """Score one hypothesis against the view (see the module docstring)."""
     R = T[:3, :3]
@@ -495,25 +499,36 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, idx: np.ndarray, pts, hs
     visible_fraction = n_vis / n_exp if n_exp else 0.0
 
     # Model -> scene: how much of the visible model surface has a measurement on it.
-    cloud = pts[idx]
-    tree = cKDTree(cloud)
-    dm, _ = tree.query(mp_w[visible], distance_upper_bound=config.inlier_distance * 1.5)
+    dm, _ = tree_xyz.query(mp_w[visible], distance_upper_bound=config.inlier_distance * 1.5)
     inlier_fraction = float(np.isfinite(dm).mean()) if n_vis else 0.0
 
-    # Scene -> model: cluster points within the hypothesis' volume, explained or not.
-    local = (cloud - T[:3, 3]) @ R
-    region = (np.linalg.norm(local[:, :2], axis=1) < model.radius + 0.015) & \
-             (local[:, 2] < model.height + 0.015)
-    dd, jj = model.tree.query(local[region])
+    # Scene -> model: points in the hypothesis' column (its footprint, any height: a taller
+    # object is not this one), explained or not.
+    col = np.asarray(tree_xy.query_ball_point(T[:2, 3], model.radius + 0.04), int)
+    local = (pts[col] - T[:3, 3]) @ R
+    dd, jj = model.tree.query(local)
     expl = dd < config.inlier_distance
-    unexplained = float(1 - expl.mean()) if region.any() else 1.0
-    ridx = np.flatnonzero(region)[expl]
-    inliers = idx[ridx]
-    if len(ridx):
-        n_scene = normals[idx][ridx]
-        n_model = mn_w[jj[expl]]
+    r_xy = np.linalg.norm(local[:, :2], axis=1)
+    inner = r_xy < model.radius + 0.015
+    # Beyond the footprint, unexplained points count only where they continue the object's
+    # surface in the object's colour (a bigger object of that colour); a neighbour does not.
+    ring = ~inner & ~expl & (dd < 0.04)
+    if ring.any() and expl.any():
+        adj, _ = cKDTree(local[expl]).query(local[ring], distance_upper_bound=config.cluster_radius)
+        same = color_agreement(hsv[col][ring], np.tile(np.median(model.hsv, 0), (ring.sum(), 1))) \
+            if use_color else np.ones(ring.sum())
+        extension = int((np.isfinite(adj) & (same > 0)).sum())
+    else:
+        extension = 0
+    n_region = int(inner.sum()) + extension
+    unexplained = float((int((inner & ~expl).sum()) + extension) / n_region) if n_region else 1.0
+    sel = expl & inner
+    inliers = col[sel]
+    if sel.any():
+        n_scene = normals[inliers]
+        n_model = mn_w[jj[sel]]
         normal_agreement = float(np.mean(np.abs(np.einsum("ij,ij->i", n_scene, n_model)) > 0.8))
-        color = float(color_agreement(hsv[idx][ridx], model.hsv[jj[expl]]).mean()) \
+        color = float(color_agreement(hsv[inliers], model.hsv[jj[sel]]).mean()) \
             if use_color else 1.0
     else:
         normal_agreement, color = 0.0, 0.0
@@ -526,7 +541,8 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, idx: np.ndarray, pts, hs
 
 def _resolve(hyps: list[Hypothesis]) -> list[Hypothesis]:
     """Keep the best pose per object and place; penalise hypotheses whose inliers a stronger
-    one already claims (two models cannot explain the same points); best first."""
+    one already claims (two models cannot explain the same points) and second places of the
+    same object; best first."""
     hyps.sort(key=lambda h: h.confidence, reverse=True)
     kept: list[Hypothesis] = []
     for h in hyps:
@@ -542,5 +558,14 @@ def _resolve(hyps: list[Hypothesis]) -> list[Hypothesis]:
             h.confidence *= (1 - h.conflict)
         if h.conflict < 0.5:
             claimed |= mine
+    kept.sort(key=lambda h: h.confidence, reverse=True)
+    # The map holds each small object once: where a stronger hypothesis places the same object
+    # elsewhere, this one is at most as likely as that one is wrong.
+    best: dict[str, float] = {}
+    for h in kept:
+        if h.object_id in best:
+            h.confidence *= (1 - best[h.object_id])
+        else:
+            best[h.object_id] = h.confidence
     kept.sort(key=lambda h: h.confidence, reverse=True)
     return kept
