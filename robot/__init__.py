@@ -1,1 +1,46 @@
+"""Robot adapters: the protocol (robot/adapter.py), the simulated robot over a truth world
+(robot/simulated.py), recordings and the replay robot (robot/recording.py), scenarios
+(robot/scenario.py), the Kinect-class noise model (robot/noise.py) and simulated views
+(robot/sim.py). See docs/robot-adapter.md and docs/recording-format.md.
+"""
+from __future__ import annotations
 
+from typing import Any, Optional
+
+from robot.adapter import Action, DoneAction, FailedAction, RobotAdapter, TimedAction, wait
+from robot.errors import RobotError
+
+__all__ = ["Action", "DoneAction", "FailedAction", "RobotAdapter", "RobotError", "TimedAction",
+           "create_adapter", "wait"]
+
+
+def create_adapter(world=None, scenario: Optional[str] = None, recording: Optional[str] = None,
+                   clock: Any = None, **kw):
+    """The robot adapter for a run.
+
+    - ``recording`` (a directory): a ``ReplayRobot`` serving its frames (keywords go to it,
+      e.g. ``position_tolerance``, ``yaw_tolerance``).
+    - ``scenario`` (a directory from ``hearth scenario make`` / ``robot.scenario``): a
+      ``SimulatedRobot`` on the scenario's truth, start pose, localisation error, stuck knobs
+      and locked doors.
+    - neither: a ``SimulatedRobot`` whose truth is a copy of ``world`` (the belief map).
+
+    Other keywords go to ``SimulatedRobot`` (``seed``, ``noise``, ``intrinsics``, ...).
+    Raises RobotError (one line, with the file) for a bad recording or scenario.
+    """
+    if recording is not None and scenario is not None:
+        raise RobotError("give a scenario or a recording, not both")
+    if recording is not None:
+        from robot.recording import ReplayRobot
+        return ReplayRobot(recording, clock=clock, **kw)
+    from robot.simulated import SimulatedRobot
+    if scenario is not None:
+        from robot.scenario import load_scenario
+        sc = load_scenario(scenario, clock=clock)
+        kw.setdefault("seed", sc.seed)
+        return SimulatedRobot(sc.truth, clock=clock, start_pose=sc.start_pose,
+                              localisation_error=sc.localisation_error,
+                              stuck_knobs=sc.stuck_knobs, locked=sc.locked, **kw)
+    if world is None:
+        raise RobotError("a simulated robot needs a world (or a scenario, or a recording)")
+    return SimulatedRobot(world.copy(), clock=clock, **kw)

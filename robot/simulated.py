@@ -1,0 +1,433 @@
+"""The simulated robot: a truth world, a drifting localisation, a pan/tilt RGB-D camera and
+an arm whose actions change the truth, on a (simulated) clock.
+
+- The *truth* is a ``worldmodel.World`` (same format as the belief map) that only this robot
+  changes; it is rendered in its current articulation state by open3d ray casting
+  (perception/render.py) with the Kinect-class noise of robot/noise.py. The ray-casting scene
+  is rebuilt only when the truth's geometry changes (a door moved, an object picked up).
+- Localisation: the believed base pose is the true pose composed with a body-frame error,
+  ``T_believed = T_true @ T_error``. Driving to a believed goal therefore ends at
+  ``T_goal @ inv(T_error)`` in truth; ``apply_correction`` replaces the error.
+- Time: every action takes simulated time on the injected clock (driving: path length over
+  speed plus turning over turn speed; arm motions: approach time plus joint travel over joint
+  speed). Actions are evaluated lazily from the clock, so a SimClock runs as fast as the CPU
+  allows; nothing here sleeps.
+"""
+from __future__ import annotations
+
+import math
+from typing import Iterable, Optional
+
+import numpy as np
+
+from perception.camera import Intrinsics
+from robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from robot.clock import SimClock
+from robot.errors import RobotError
+from robot.noise import KinectNoise
+from robot.sim import HEAD, Frame, HeadMount, camera_pose, pan_tilt_to, render_view
+from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
+from worldmodel.pose import Pose, wrap_angle
+
+#: Where a held object is carried, in the base frame (in front of the robot, below the camera).
+T_BASE_CARRY = Pose(0.40, 0.0, 0.85).matrix()
+
+
+class SimulatedRobot:
+    """A robot adapter (robot/adapter.py) over a simulated home.
+
+    ``truth``: the true world (changed by the robot's actions; pass a copy to keep yours).
+    ``start_pose``: true base pose (Pose or (x, y, yaw)); default the first parking position.
+    ``localisation_error``: body-frame error, believed = true composed with it.
+    ``stuck_knobs`` / ``locked``: knob ids that will not turn / part ids that will not open.
+    Speeds in m/s and rad/s; ``reach`` (m) from the base centre to what the arm touches.
+    """
+
+    def __init__(self, truth, clock=None, start_pose=None, localisation_error=Pose(),
+                 intrinsics: Optional[Intrinsics] = None,
+                 noise: Optional[KinectNoise] = KinectNoise(), seed: int = 0,
+                 mount: HeadMount = HEAD, stuck_knobs: Iterable[str] = (),
+                 locked: Iterable[str] = (), speed: float = 0.5, turn_speed: float = 1.0,
+                 joint_speed: float = 0.5, drawer_speed: float = 0.15, approach_time: float = 2.0,
+                 reach: float = 1.6, grasp_tolerance: float = 0.08):
+        self.truth = truth
+        self.clock = clock if clock is not None else SimClock()
+        self.intrinsics = intrinsics or Intrinsics.kinect()
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+        self.mount = mount
+        self.stuck_knobs = set(stuck_knobs)
+        self.locked = set(locked)
+        self.speed, self.turn_speed = float(speed), float(turn_speed)
+        self.joint_speed, self.drawer_speed = float(joint_speed), float(drawer_speed)
+        self.approach_time, self.reach = float(approach_time), float(reach)
+        self.grasp_tolerance = float(grasp_tolerance)
+        if start_pose is None:
+            start_pose = _first_parking(truth)
+        self._true = as_base_pose(start_pose)
+        self._error = as_base_pose(localisation_error)
+        self._pan, self._tilt = 0.0, 0.0
+        self._actions: list[tuple[str, Action]] = []
+        self.held: Optional[SmallObject] = None
+        self.handed_over: list[str] = []
+        self.said: list[str] = []
+        self.log: list[dict] = []
+        self.stops = 0
+        self._scene = None
+        self._scene_key = None
+        self._dirty = True
+        self._unsubscribe = truth.subscribe(self._on_truth_change)
+
+    # -- ground truth (for tests, scoring and recordings; skills must not use these) -------
+    def true_pose(self) -> Pose:
+        self._poll()
+        return self._true
+
+    def localisation_error(self) -> Pose:
+        return self._error
+
+    def _on_truth_change(self, change) -> None:
+        self._dirty = True
+
+    # -- localisation ----------------------------------------------------------------------
+    def base_pose(self) -> Pose:
+        self._poll()
+        return self._believed()
+
+    def _believed(self) -> Pose:
+        return _planar(self._true.matrix() @ self._error.matrix())
+
+    def apply_correction(self, pose) -> None:
+        self._poll()
+        believed = as_base_pose(pose)
+        self._error = _planar(np.linalg.inv(self._true.matrix()) @ believed.matrix())
+        self._log("apply_correction", pose=believed.as_dict())
+
+    # -- base and head ---------------------------------------------------------------------
+    def navigate_to(self, pose) -> Action:
+        self._poll()
+        goal = as_base_pose(pose)
+        busy = self._busy("base", "navigate_to")
+        if busy:
+            return busy
+        goal_true = _planar(goal.matrix() @ np.linalg.inv(self._error.matrix()))
+        if not self._inside_home(goal_true):
+            return self._refuse("navigate_to", f"goal ({goal.x:.2f}, {goal.y:.2f}) is outside "
+                                               "every room")
+        start = self._true
+        dist = start.planar_distance(goal_true)
+        turn = abs(wrap_angle(goal_true.yaw - start.yaw))
+        duration = dist / self.speed + turn / self.turn_speed
+
+        def at(f: float) -> None:
+            self._true = _interpolate(start, goal_true, f)
+
+        act = TimedAction("navigate_to", self.clock, duration, on_done=self._believed,
+                          on_progress=at, on_cancel=at)
+        return self._start("base", act, goal=goal.as_dict())
+
+    def head(self) -> tuple[float, float]:
+        return self._pan, self._tilt
+
+    def set_head(self, pan: float, tilt: float) -> Action:
+        self._pan, self._tilt = self.mount.clip(float(pan), float(tilt))
+        return DoneAction("set_head", result=(self._pan, self._tilt))
+
+    def look_at(self, point_world) -> Action:
+        # The robot aims with what it believes, so a localisation error shows in the image.
+        pan, tilt = pan_tilt_to(self.base_pose(), point_world, self.mount)
+        return self.set_head(pan, tilt)
+
+    # -- sensing ---------------------------------------------------------------------------
+    def capture(self) -> Frame:
+        self._poll()
+        T_true = camera_pose(self._true, self._pan, self._tilt, self.mount)
+        believed = self.base_pose()
+        T_bel = camera_pose(believed, self._pan, self._tilt, self.mount)
+        frame = render_view(self.truth, self.intrinsics, T_true, self.rng, self.noise,
+                            scene=self._current_scene(), T_world_camera_believed=T_bel,
+                            timestamp=self.clock.now())
+        frame.pan, frame.tilt = self._pan, self._tilt
+        frame.base_pose, frame.base_pose_true = believed, self._true
+        frame.parking = self._parking_at(believed)
+        return frame
+
+    def _current_scene(self):
+        from perception.render import Scene
+        from worldmodel.geometry import scene_meshes, small_object_meshes
+        held_key = None
+        if self.held is not None:
+            held_key = (self.held.id, self._true.as_tuple())
+        if self._scene is None or self._dirty or held_key != self._scene_key:
+            meshes = scene_meshes(self.truth)
+            if self.held is not None:
+                meshes += small_object_meshes(self.truth, self.held,
+                                              T_world_object=self._true.matrix() @ T_BASE_CARRY)
+            self._scene = Scene(meshes)
+            self._scene_key, self._dirty = held_key, False
+        return self._scene
+
+    # -- arm -------------------------------------------------------------------------------
+    def open_articulated(self, part_id: str, handle_id: Optional[str] = None,
+                         target_state: Optional[float] = None) -> Action:
+        return self._move_part("open_articulated", part_id, handle_id, target_state)
+
+    def close_articulated(self, part_id: str, handle_id: Optional[str] = None,
+                          target_state: Optional[float] = None) -> Action:
+        return self._move_part("close_articulated", part_id, handle_id, target_state)
+
+    def _move_part(self, name, part_id, handle_id, target) -> Action:
+        self._poll()
+        busy = self._busy("arm", name)
+        if busy:
+            return busy
+        part = self._node(part_id)
+        if not isinstance(part, Part) or part.joint.type == "fixed":
+            return self._refuse(name, f"{part_id} is not a door or drawer", part=part_id)
+        j = part.joint
+        if handle_id is not None and handle_id not in [h.id for h in part.handles]:
+            return self._refuse(name, f"{handle_id} is not a handle of {part_id}", part=part_id)
+        if target is None:
+            target = (j.lower if name == "close_articulated"
+                      else (math.radians(90) if j.type == "revolute" else 0.8 * j.upper))
+        target = float(target)
+        if not (j.lower - 1e-6 <= target <= j.upper + 1e-6):
+            return self._refuse(name, f"{part_id}: {target:.3f} is outside the joint's limits "
+                                      f"[{j.lower:.3f}, {j.upper:.3f}]", part=part_id)
+        where = handle_id or (part.handles[0].id if part.handles else part_id)
+        far = self._out_of_reach(where)
+        if far:
+            return self._refuse(name, far, part=part_id)
+        start = j.state
+        rate = self.joint_speed if j.type == "revolute" else self.drawer_speed
+        travel = abs(target - start) / rate
+        duration = self.approach_time + travel
+        fa = self.approach_time / duration if duration > 0 else 0.0
+
+        def at(f: float) -> None:
+            g = 0.0 if f <= fa else (f - fa) / max(1.0 - fa, 1e-9)
+            value = start + (target - start) * min(g, 1.0)
+            if abs(value - part.joint.state) > 1e-9:
+                self.truth.set_joint_state(part_id, value, source="simulator")
+
+        fail = f"{part_id} is locked" if part_id in self.locked and target > start else None
+        act = TimedAction(name, self.clock, duration, on_done=lambda: target,
+                          on_progress=None if fail else at, on_cancel=None if fail else at,
+                          fail=fail, fail_at=fa)
+        return self._start("arm", act, part=part_id, handle=handle_id, target=target)
+
+    def turn_knob(self, knob_id: str, angle: float) -> Action:
+        self._poll()
+        busy = self._busy("arm", "turn_knob")
+        if busy:
+            return busy
+        knob = self._node(knob_id)
+        if getattr(knob, "kind", "") != "Knob":
+            return self._refuse("turn_knob", f"{knob_id} is not a knob", knob=knob_id)
+        far = self._out_of_reach(knob_id)
+        if far:
+            return self._refuse("turn_knob", far, knob=knob_id)
+        angle = float(angle)
+        start = knob.angle
+        duration = self.approach_time + abs(angle - start) / self.joint_speed
+        fa = self.approach_time / duration
+        state = min(knob.states, key=lambda s: abs(wrap_angle(s.angle - angle))).name
+
+        def done():
+            self.truth.set_knob_state(knob_id, state, angle=angle, source="simulator")
+            return state
+
+        fail = f"{knob_id} is stuck" if knob_id in self.stuck_knobs else None
+        act = TimedAction("turn_knob", self.clock, duration, on_done=done, fail=fail, fail_at=fa)
+        return self._start("arm", act, knob=knob_id, angle=angle)
+
+    def grasp(self, object_id: str, pose=None) -> Action:
+        self._poll()
+        busy = self._busy("arm", "grasp")
+        if busy:
+            return busy
+        if self.held is not None:
+            return self._refuse("grasp", f"already holding {self.held.id}", object=object_id)
+        obj = self._node(object_id)
+        if not isinstance(obj, SmallObject):
+            return self._refuse("grasp", f"{object_id} is not a small object here",
+                                object=object_id)
+        far = self._out_of_reach(object_id)
+        if far:
+            return self._refuse("grasp", far, object=object_id)
+        if pose is not None:
+            p = pose.position if isinstance(pose, Pose) else np.asarray(pose, float)[:3]
+            off = float(np.linalg.norm(self.truth.T_world(object_id)[:3, 3] - p))
+            if off > self.grasp_tolerance:
+                return self._timed_failure("grasp", f"the gripper closed on nothing at "
+                                           f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})",
+                                           object=object_id)
+        closed = self._closed_container(obj)
+        if closed:
+            return self._timed_failure("grasp", f"{object_id} is behind the closed {closed}",
+                                       object=object_id)
+
+        def done():
+            if object_id not in self.truth:
+                raise RobotError(f"{object_id} is gone")
+            held = self.truth.get(object_id)
+            self.truth.remove_small_object(object_id, source="simulator")
+            self.held = held
+            self._dirty = True
+            return object_id
+
+        act = TimedAction("grasp", self.clock, self.approach_time * 2, on_done=done)
+        return self._start("arm", act, object=object_id)
+
+    def place(self, parent_id: str, pose, relation: str = "on") -> Action:
+        self._poll()
+        busy = self._busy("arm", "place")
+        if busy:
+            return busy
+        if self.held is None:
+            return self._refuse("place", "not holding anything", parent=parent_id)
+        parent = self._node(parent_id)
+        if not isinstance(parent, LargeObject):
+            return self._refuse("place", f"{parent_id} is not a large object", parent=parent_id)
+        T_world = pose.matrix() if isinstance(pose, Pose) else np.asarray(pose, float)
+        far = self._out_of_reach(None, point=T_world[:3, 3])
+        if far:
+            return self._refuse("place", far, parent=parent_id)
+        obj = self.held
+
+        def done():
+            obj.pose = Pose.from_matrix(np.linalg.inv(self.truth.T_world(parent_id)) @ T_world)
+            obj.relation = relation
+            self.truth.add_small_object(obj, parent_id, source="simulator")
+            self.held = None
+            self._dirty = True
+            return obj.id
+
+        act = TimedAction("place", self.clock, self.approach_time * 2, on_done=done)
+        return self._start("arm", act, parent=parent_id, object=obj.id)
+
+    def hand_over(self) -> Action:
+        self._poll()
+        busy = self._busy("arm", "hand_over")
+        if busy:
+            return busy
+        if self.held is None:
+            return self._refuse("hand_over", "not holding anything")
+        obj = self.held
+
+        def done():
+            self.handed_over.append(obj.id)
+            self.held = None
+            self._dirty = True
+            return obj.id
+
+        act = TimedAction("hand_over", self.clock, self.approach_time * 1.5, on_done=done)
+        return self._start("arm", act, object=obj.id)
+
+    # -- speech and safety -------------------------------------------------------------------
+    def say(self, text: str) -> Action:
+        self.said.append(str(text))
+        self._log("say", text=str(text))
+        return DoneAction("say", result=str(text))
+
+    def stop(self) -> None:
+        self.stops += 1
+        for _, act in list(self._actions):
+            act.cancel()
+        self._log("stop")
+
+    # -- helpers -----------------------------------------------------------------------------
+    def _poll(self) -> None:
+        still = []
+        for res, act in self._actions:
+            if act.status() == "running":
+                still.append((res, act))
+        self._actions = still
+
+    def _busy(self, resource: str, name: str) -> Optional[Action]:
+        for res, act in self._actions:
+            if res == resource and act.status() == "running":
+                return self._refuse(name, f"the {resource} is busy with {act.name}")
+        return None
+
+    def _start(self, resource: str, act: Action, **info) -> Action:
+        self._actions.append((resource, act))
+        self._log(act.name, **info)
+        return act
+
+    def _refuse(self, name: str, reason: str, **info) -> Action:
+        self._log(name, refused=reason, **info)
+        return FailedAction(name, reason)
+
+    def _timed_failure(self, name: str, reason: str, **info) -> Action:
+        act = TimedAction(name, self.clock, self.approach_time * 2, fail=reason)
+        return self._start("arm", act, **info)
+
+    def _log(self, action: str, **info) -> None:
+        self.log.append(dict(time=self.clock.now(), action=action, **info))
+
+    def _node(self, node_id: str):
+        return self.truth.get(node_id) if node_id in self.truth else None
+
+    def _out_of_reach(self, node_id: Optional[str], point=None) -> Optional[str]:
+        p = self.truth.T_world(node_id)[:3, 3] if point is None else np.asarray(point, float)
+        d = math.hypot(p[0] - self._true.x, p[1] - self._true.y)
+        if d > self.reach:
+            what = node_id or f"({p[0]:.2f}, {p[1]:.2f})"
+            return f"{what} is out of reach ({d:.2f} m from the base, reach {self.reach:.2f} m)"
+        return None
+
+    def _closed_container(self, obj: SmallObject) -> Optional[str]:
+        if obj.relation != "in":
+            return None
+        parent = self.truth.parent(obj.id)
+        if not isinstance(parent, LargeArticulatedObject):
+            return None
+        movable = [p for p in _all_parts(parent.parts) if p.joint.type != "fixed"]
+        if movable and all(abs(p.joint.state - p.joint.lower) < 0.05 for p in movable):
+            return parent.id
+        return None
+
+    def _inside_home(self, pose: Pose) -> bool:
+        rooms = [r for r in self.truth.rooms if r.bounds is not None]
+        if not rooms:
+            return True
+        for r in rooms:
+            p = np.linalg.inv(r.pose.matrix()) @ np.array([pose.x, pose.y, 0.0, 1.0])
+            x0, y0, x1, y1 = r.bounds
+            if x0 - 0.05 <= p[0] <= x1 + 0.05 and y0 - 0.05 <= p[1] <= y1 + 0.05:
+                return True
+        return False
+
+    def _parking_at(self, believed: Pose, tol: float = 0.05) -> Optional[str]:
+        """The parking position id (of the truth's map) the believed pose is at, if any."""
+        for obj in self.truth.large_objects():
+            for p, pose in self.truth.parking_positions(obj.id):
+                if (pose.planar_distance(believed) < tol
+                        and abs(pose.yaw_difference(believed)) < math.radians(5)):
+                    return p.id
+        return None
+
+
+def _all_parts(parts):
+    for p in parts:
+        yield p
+        yield from _all_parts(p.parts)
+
+
+def _planar(T) -> Pose:
+    return as_base_pose(np.asarray(T, dtype=float))
+
+
+def _interpolate(a: Pose, b: Pose, f: float) -> Pose:
+    f = min(max(f, 0.0), 1.0)
+    return Pose.planar(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f,
+                       wrap_angle(a.yaw + wrap_angle(b.yaw - a.yaw) * f))
+
+
+def _first_parking(world) -> Pose:
+    for obj in world.large_objects():
+        pp = world.parking_positions(obj.id)
+        if pp:
+            return pp[0][1]
+    return Pose()
