@@ -1,0 +1,258 @@
+"""Small skills the named missions need to glue the other skills together (issue 8).
+
+Each one reads the map or formats words; none holds an algorithm:
+
+- ``LocateUser``: the room the user is in (the robot adapter's ``user_room()`` when it has one,
+  else the mission's default) and where to bring things to them.
+- ``PlaceOfPose``: the large object an observed world pose lies on or in (the object's new
+  parent; the cup may sit on another table than the one searched from).
+- ``KnobsOn`` / ``ExpectKnobsOff``: which of an appliance's knobs the map says are on;
+  the check after turning them off, failing with the knobs still on.
+- ``Remember``: append an item to a list key (places searched, notes on what went wrong).
+- ``Tell`` / ``GiveUp``: say a sentence built from map labels; ``GiveUp`` then fails with it,
+  so the mission's reason is a sentence a person can act on.
+- ``DescribeCorrection``: a localisation correction in words.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import py_trees
+
+from skills.base import Port, Skill
+from skills.values import as_pose
+from worldmodel.nodes import Knob
+
+S = py_trees.common.Status
+
+
+def _label(world, value: Any) -> str:
+    """Words for a node id, a search place dict, a door {part, handle} or anything else."""
+    if isinstance(value, dict):
+        value = value.get("part") or value.get("place") or value.get("id") or value
+    if isinstance(value, str) and world is not None and value in world:
+        if isinstance(world.get(value), Knob):   # knobs have no name: "oven knob 2"
+            return value.replace("_", " ")
+        return world.label(value)
+    if isinstance(value, dict):
+        return "the position at {:.1f}, {:.1f}".format(float(value.get("x", 0.0)),
+                                                        float(value.get("y", 0.0)))
+    return "" if value is None else str(value)
+
+
+def _join(words: list[str]) -> str:
+    words = [w for w in words if w]
+    if len(words) <= 1:
+        return "".join(words)
+    return ", ".join(words[:-1]) + " and " + words[-1]
+
+
+class Tell(Skill):
+    """Say a sentence built from a template and map labels (through ``robot.say``).
+
+    Template fields: ``{object}``, ``{place}``, ``{part}`` (labels of node ids, search places
+    or doors), ``{count}`` (a number, or a list's length), ``{places}`` (a list's labels
+    joined: "the kitchen table, the side table and the cupboard"), ``{detail}`` (text, or a
+    list joined with "; ")."""
+
+    NAME = "Tell"
+    DESCRIPTION = "say a sentence built from map labels"
+    INPUTS = (Port("text", "string"),
+              Port("object", "any", required=False, default=None),
+              Port("place", "any", required=False, default=None),
+              Port("part", "any", required=False, default=None),
+              Port("count", "any", required=False, default=None),
+              Port("places", "list", required=False, default=None),
+              Port("detail", "any", required=False, default=None),
+              Port("say", "boolean", required=False, default=True))
+    OUTPUTS = (Port("said", "string", required=False),)
+    RESULT = S.SUCCESS
+
+    def sentence(self) -> str:
+        count = self.input("count")
+        if isinstance(count, (list, tuple)):
+            count = len(count)
+        detail = self.input("detail")
+        if isinstance(detail, (list, tuple)):
+            detail = "; ".join(str(d) for d in detail if d)
+        places = self.input("places") or []
+        fields = dict(object=_label(self.world, self.input("object")),
+                      place=_label(self.world, self.input("place")),
+                      part=_label(self.world, self.input("part")),
+                      count=0 if count is None else count,
+                      places=_join(["the " + _label(self.world, p) for p in places]),
+                      detail=detail or "")
+        text = str(self.input("text")).format(**fields)
+        # A template whose {detail} came out empty leaves a dangling ": " or "; ".
+        return text.strip().rstrip(" :;,")
+
+    def update(self) -> S:
+        text = self.sentence()
+        if self.input("say") and self.robot is not None and hasattr(self.robot, "say"):
+            self.robot.say(text)
+        self.set_output("said", text)
+        self.feedback_message = text
+        return self.RESULT
+
+
+class GiveUp(Tell):
+    """Tell the user why the mission cannot go on, then fail with that sentence (the mission's
+    reason): "no blue cup at the 3 places searched"."""
+
+    NAME = "GiveUp"
+    DESCRIPTION = "say why the mission cannot go on, and fail with it"
+    RESULT = S.FAILURE
+
+
+class LocateUser(Skill):
+    """Where the user is: ``robot.user_room()`` / ``robot.user_place()`` when the adapter
+    knows (a presence sensor), else the given defaults. ``room`` is "" when unknown (no
+    room penalty in the search order)."""
+
+    NAME = "LocateUser"
+    DESCRIPTION = "find which room the user is in"
+    INPUTS = (Port("room", "string", required=False, default=""),
+              Port("place", "node_id", required=False, default=""))
+    OUTPUTS = (Port("room", "string", required=False), Port("place", "node_id", required=False))
+
+    def update(self) -> S:
+        room = self.input("room") or ""
+        place = self.input("place") or ""
+        for attr, name in (("user_room", "room"), ("user_place", "place")):
+            fn = getattr(self.robot, attr, None)
+            value = fn() if callable(fn) else None
+            if value:
+                room, place = (value, place) if name == "room" else (room, value)
+        if room and self.world is not None:
+            # Accept a room id or its name; the search cost compares room ids.
+            for r in self.world.rooms:
+                if room in (r.id, r.name):
+                    room = r.id
+        if not place and room and self.world is not None:
+            inside = [o for o in self.world.large_objects()
+                      if self.world.room_of(o.id).id == room and o.parking]
+            place = inside[0].id if inside else ""
+        self.set_output("room", room)
+        self.set_output("place", place)
+        self.feedback_message = f"the user is in the {room}" if room else "user's room unknown"
+        return S.SUCCESS
+
+
+class PlaceOfPose(Skill):
+    """The large object an observed world pose is on or in: the one whose world bounds,
+    grown by ``margin``, contain the point, the smallest first; else the nearest by bounds
+    distance within ``max_distance``. Fails when none is near."""
+
+    NAME = "PlaceOfPose"
+    DESCRIPTION = "find the furniture an observed object stands on or in"
+    INPUTS = (Port("pose", "pose", description="world pose of the object"),
+              Port("margin", "number", required=False, default=0.05),
+              Port("max_distance", "number", required=False, default=0.5))
+    OUTPUTS = (Port("place", "node_id", required=False),
+               Port("relation", "string", required=False))
+
+    def update(self) -> S:
+        p = as_pose(self.input("pose"))
+        point = np.array([p.x, p.y, p.z])
+        margin = float(self.input("margin"))
+        best = None
+        for obj in self.world.large_objects():
+            if not (obj.surfaces or obj.children):
+                continue
+            lo, hi = self.world.bounds_world(obj.id)
+            gap = np.maximum(0.0, np.maximum(lo - margin - point, point - hi - margin))
+            dist = float(np.linalg.norm(gap))
+            volume = float(np.prod(hi - lo))
+            key = (dist, volume)
+            if best is None or key < best[0]:
+                best = (key, obj)
+        if best is None or best[0][0] > float(self.input("max_distance")):
+            self.feedback_message = f"nothing to hold an object near {p.x:.2f}, {p.y:.2f}"
+            return S.FAILURE
+        obj = best[1]
+        relation = obj.surfaces[0].relation if obj.surfaces else "on"
+        self.set_output("place", obj.id)
+        self.set_output("relation", relation)
+        self.feedback_message = f"{relation} the {self.world.label(obj.id)}"
+        return S.SUCCESS
+
+
+def knobs_on(world, object_id: str) -> list[Knob]:
+    return [k for k in world.knobs(object_id) if k.state != k.off]
+
+
+class KnobsOn(Skill):
+    """The knobs of an appliance that the map says are on (read them first with ReadKnobs)."""
+
+    NAME = "KnobsOn"
+    DESCRIPTION = "list an appliance's knobs that are on"
+    INPUTS = (Port("object", "node_id"),)
+    OUTPUTS = (Port("knobs", "list", required=False), Port("count", "integer", required=False))
+
+    def update(self) -> S:
+        oid = self.input("object")
+        on = knobs_on(self.world, oid)
+        self.set_output("knobs", [k.id for k in on])
+        self.set_output("count", len(on))
+        self.feedback_message = (", ".join(f"{k.id} {k.state}" for k in on) + " on" if on
+                                 else f"every knob of the {self.world.label(oid)} is off")
+        return S.SUCCESS
+
+
+class ExpectKnobsOff(Skill):
+    """Succeed when every knob of the appliance (or just ``knob``) is off in the map; else
+    fail naming the knobs still on."""
+
+    NAME = "ExpectKnobsOff"
+    DESCRIPTION = "check that an appliance's knobs are off"
+    INPUTS = (Port("object", "node_id"),
+              Port("knob", "node_id", required=False, default=None))
+    OUTPUTS = ()
+
+    def update(self) -> S:
+        oid, knob = self.input("object"), self.input("knob")
+        on = [k for k in knobs_on(self.world, oid) if knob in (None, k.id)]
+        if on:
+            self.feedback_message = ", ".join(f"{k.id} is still {k.state}" for k in on)
+            return S.FAILURE
+        self.feedback_message = f"{knob or 'every knob'} off"
+        return S.SUCCESS
+
+
+class Remember(Skill):
+    """Append ``item`` to a list (bind ``list`` and ``result`` to the same key)."""
+
+    NAME = "Remember"
+    DESCRIPTION = "append an item to a list on the blackboard"
+    INPUTS = (Port("item", "any"), Port("list", "list", required=False, default=None))
+    OUTPUTS = (Port("result", "list", required=False),)
+
+    def update(self) -> S:
+        items = list(self.input("list") or [])
+        items.append(self.input("item"))
+        self.set_output("result", items)
+        self.feedback_message = f"{len(items)} remembered"
+        return S.SUCCESS
+
+
+class DescribeCorrection(Skill):
+    """A localisation correction {dx, dy, dyaw} in words: "4.2 cm and 1.0 degrees"."""
+
+    NAME = "DescribeCorrection"
+    DESCRIPTION = "say a localisation correction in words"
+    INPUTS = (Port("correction", "dict"),)
+    OUTPUTS = (Port("text", "string", required=False),)
+
+    def update(self) -> S:
+        c = self.input("correction") or {}
+        text = (f"{math.hypot(c.get('dx', 0.0), c.get('dy', 0.0)) * 100:.1f} cm and "
+                f"{abs(math.degrees(c.get('dyaw', 0.0))):.1f} degrees")
+        self.set_output("text", text)
+        self.feedback_message = text
+        return S.SUCCESS
+
+
+__all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
+           "Remember", "DescribeCorrection"]
