@@ -4,9 +4,8 @@ Each scene is the demo home's kitchen table (data/demo_home/world.xml) with its 
 sugar container and blue cup at random places and yaws, one to four clutter boxes the map does
 not know, and an occluder box put between the camera and a random object so that objects are
 up to (and sometimes beyond) 50 % hidden. A Kinect-class camera about 1.3 m high looks at the
-table from a random side; depth gets Kinect-class noise (``robot.noise.add_kinect_noise`` when
-it is there, else axial Gaussian noise, sigma = 1.2 mm + 1.9 mm (z - 0.4 m)^2) and colour a
-little Gaussian noise. The detector gets the belief map (no clutter, objects at their old
+table from a random side; the view is rendered with ``robot.sim.render_view`` (Kinect-class
+noise: lateral edge noise, axial noise, disparity quantisation, dropouts, colour noise). The detector gets the belief map (no clutter, objects at their old
 places) and tries every small object of the map as a candidate.
 
 Scoring: an object counts when at most 50 % of it is hidden (the occlusion is measured by
@@ -126,29 +125,25 @@ def cluttered_scene(rng, n_clutter=(1, 4), occlude: bool = True, base=None):
 
 
 def observe(truth, T_world_camera, rng, K: Intrinsics | None = None, scene=None):
-    """(depth m, colour uint8, noise-free Rendering) of the truth from ``T_world_camera``."""
+    """(depth m, colour uint8, noise-free Rendering) of the truth from ``T_world_camera``:
+    ``robot.sim.render_view`` (Kinect-class noise on depth and colour) when it is there."""
     from perception.render import Scene
     from worldmodel.geometry import scene_meshes
     K = K or Intrinsics.kinect()
     scene = scene or Scene(scene_meshes(truth, room_ids=[truth.room_of(TABLE).id]))
-    r = scene.render(K, T_world_camera)
-    depth = _noisy_depth(r, rng)
-    color = np.clip(r.color.astype(np.float64) + rng.normal(0, 3, r.color.shape), 0, 255)
-    return depth, color.astype(np.uint8), r
-
-
-def _noisy_depth(r, rng) -> np.ndarray:
     try:
-        from robot.noise import add_kinect_noise  # type: ignore
-    except ImportError:
-        add_kinect_noise = None
-    if add_kinect_noise is not None:
-        out = add_kinect_noise(r, rng)
-        return np.asarray(getattr(out, "depth", out), dtype=np.float64)
+        from robot.sim import render_view
+    except ImportError:  # pragma: no cover - before the simulated robot landed
+        render_view = None
+    if render_view is not None:
+        f = render_view(truth, K, T_world_camera, rng, scene=scene)
+        return np.asarray(f.depth, np.float64), f.color, f.rendering
+    r = scene.render(K, T_world_camera)
     d = r.depth.astype(np.float64).copy()
     ok = d > 0
     d[ok] += rng.standard_normal(ok.sum()) * (0.0012 + 0.0019 * (d[ok] - 0.4) ** 2)
-    return d
+    color = np.clip(r.color.astype(np.float64) + rng.normal(0, 3, r.color.shape), 0, 255)
+    return d, color.astype(np.uint8), r
 
 
 def visible_fractions(truth, rendering, T_world_camera, K, ids) -> dict[str, float]:

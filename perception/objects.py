@@ -50,7 +50,7 @@ class DetectionConfig:
     icp_iterations: int = 12
     yaw_steps: int = 8              #: initial yaws for models that are not rotationally symmetric
     occlusion_margin: float = 0.02  #: a model point is hidden when measured this much nearer
-    accept_confidence: float = 0.5  #: ``Detection.accepted`` threshold
+    accept_confidence: float = 0.45  #: ``Detection.accepted`` threshold
     model_spacing: float = 0.005    #: model surface sample spacing
 
 
@@ -534,7 +534,7 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
         normal_agreement, color = 0.0, 0.0
     # Too little of the model in sight to say anything: confidence falls with the count.
     support = min(1.0, n_vis * inlier_fraction / 40.0)
-    confidence = inlier_fraction * normal_agreement ** 0.5 * color * (1 - unexplained) * support
+    confidence = inlier_fraction * normal_agreement * color * (1 - unexplained) ** 2 * support
     return Hypothesis(model.object_id, T, float(confidence), inlier_fraction, normal_agreement,
                       color, unexplained, 0.0, visible_fraction, ci, inliers)
 
