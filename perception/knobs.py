@@ -423,9 +423,10 @@ def _parabola(score: np.ndarray, i: int, j: int, axis: int) -> float:
 
 
 def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = None) -> tuple[str, float]:
-    """The nearest discrete state to ``angle`` (rad) and a confidence: with class probabilities,
-    the probability mass within half a state step of that state; without, how far inside
-    that half step the angle lies."""
+    """The nearest discrete state to ``angle`` (rad) and a confidence: how far inside half a
+    state step of that state the angle lies (1 on the state, 0 half-way to the next), averaged,
+    when class probabilities are given, with the forest's probability mass within that half
+    step (a forest torn between states lowers it)."""
     a = np.asarray(prior.state_angles)
     d = np.abs(_wrap(a - angle))
     k = int(np.argmin(d))
@@ -434,12 +435,11 @@ def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = 
         half = float(np.min(steps[steps > 1e-6])) / 2 if np.any(steps > 1e-6) else np.pi
     else:
         half = np.pi
+    conf = float(max(0.0, 1.0 - d[k] / half))
     if proba is not None:
         centres = np.radians(np.arange(N_CLASSES) * 10.0)
         near = np.abs(_wrap(centres - a[k])) <= half + 1e-9
-        conf = float(proba[near].sum())
-    else:
-        conf = float(max(0.0, 1.0 - d[k] / half))
+        conf = 0.5 * conf + 0.5 * float(proba[near].sum())
     return prior.state_names[k], conf
 
 
@@ -450,7 +450,7 @@ class KnobReader:
     "svr" (cos/sin linear SVR), or "fused" (the circular mean of both when the SVR's lies
     within ``fuse_gate_deg`` of the forest's, else the forest's: the forest is robust, the
     SVR occasionally far off: where they agree, their errors partly cancel). Confidence = the detection's (a logistic of the SVM
-    score) times the state's (the forest's probability mass on the snapped state)."""
+    score) times the state's (``snap_to_state``)."""
 
     def __init__(self, detector: KnobDetector, forest: KnobAngleForest, svr: KnobAngleSVR,
                  config: KnobConfig = KnobConfig()):
