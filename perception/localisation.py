@@ -37,7 +37,7 @@ class LocalisationConfig:
     normalised information matrix (x, y in metres, yaw in metres at the cloud's radius) for the
     fix to count as well constrained; ``use_walls``: add the rooms' walls as landmarks."""
     icp: ICPConfig = ICPConfig(gates=(0.05, 0.02, 0.01), iterations=(10, 8, 8),
-                               min_fitness=0.15, min_coverage=0.3)
+                               min_fitness=0.05, min_coverage=0.3)
     max_xy: float = 0.18
     max_yaw_deg: float = 9.0
     grid_xy: float = 0.06
@@ -49,6 +49,9 @@ class LocalisationConfig:
     margin: float = 0.25
     min_weakest: float = 0.004
     use_walls: bool = False
+    #: Below this many points of the landmarks' fixed bodies, their doors and drawers (in the
+    #: map's states) are registered against too.
+    min_body_points: int = 300
 
 
 @dataclass
@@ -120,6 +123,14 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                                                tuple(v.color), v.material, v.name))
     ref = render_reference(meshes, K, T_world_camera, scale=cfg.reference_scale,
                            max_range=cfg.max_range)
+    # Doors, drawers and knobs may not be where the map has them (a door left ajar): the
+    # whole objects are rendered (so a closed door hides what it hides) but only the fixed
+    # bodies (and walls) are registered against, unless they show too little (a fridge seen
+    # from the front is all door); ``quality["parts_used"]`` says so.
+    bodies = ref.select(list(ids) + [r.id for r in world.rooms])
+    parts_used = len(bodies) < cfg.min_body_points
+    if not parts_used:
+        ref = bodies
     if len(ref) < cfg.icp.min_points:
         raise RegistrationFailed(f"the landmarks {ids} would cover only {len(ref)} points")
     t1 = time.perf_counter()
@@ -149,7 +160,8 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     ok = bool(res.converged or res.residual < 0.004) and weakest >= cfg.min_weakest
     quality = dict(fitness=round(res.fitness, 4), coverage=round(res.coverage, 4),
                    residual_mm=round(res.residual * 1000, 3), converged=res.converged,
-                   weakest=round(weakest, 4), landmarks=len(ids), points=len(src))
+                   weakest=round(weakest, 4), landmarks=len(ids), points=len(src),
+                   parts_used=parts_used)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
                             "coarse": 1000 * (t3 - t2), "icp": 1000 * (t4 - t3)})

@@ -286,7 +286,7 @@ def register_planar(source: np.ndarray, target: np.ndarray, target_normals: np.n
                 H = H + (Jx * lw[:, None]).T @ Jx + (Jy * lw[:, None]).T @ Jy
                 g = g + (Jx * lw[:, None]).T @ e[:, 0] + (Jy * lw[:, None]).T @ e[:, 1]
             # A little damping so a direction nothing constrains (one flat wall) stays put.
-            x = -np.linalg.solve(H + 1e-6 * np.trace(H) * np.eye(3), g)
+            x = -np.linalg.solve(H + (1e-6 * np.trace(H) + 1e-12) * np.eye(3), g)
             # Trust region: correspondences gated at ``gate`` say nothing about moves much
             # larger than it; a full Gauss-Newton step from a first, mostly wrong matching
             # along a weakly constrained direction jumps into another minimum.
