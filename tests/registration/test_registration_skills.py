@@ -129,3 +129,26 @@ def test_an_object_out_of_view_fails_with_one_line(demo_world):
     s.tick_once()
     assert s.status == S.FAILURE
     assert "cupboard" in s.feedback_message and "\n" not in s.feedback_message
+
+
+def test_simulated_robot_with_a_door_ajar_is_relocalised_and_reads_the_door(demo_world):
+    from robot.simulated import SimulatedRobot
+    truth = demo_world.copy()
+    truth.set_joint_state("cupboard_door_left", math.radians(30))     # the map says closed
+    start = demo_world.parking_pose("cupboard", "cupboard_front")
+    robot = SimulatedRobot(truth, start_pose=start, seed=1,
+                           localisation_error=Pose.planar(0.08, -0.06, math.radians(5)))
+    look = robot.look_at(demo_world.T_world("cupboard")[:3, 3] + np.array([0, 0, 0.45]))
+    while look.status() == "running":
+        robot.clock.advance(0.1)
+    s = make(RefineLocalisation, demo_world, robot, outputs={"correction": "/c"})
+    s.tick_once()
+    assert s.status == S.SUCCESS, s.feedback_message
+    b = robot.base_pose()
+    assert math.hypot(b.x - start.x, b.y - start.y) < 0.01
+    assert abs(math.degrees(b.yaw - start.yaw)) < 0.5
+    s = make(RegisterArticulated, demo_world, robot, inputs={"object": "cupboard"},
+             outputs={"states": "/states"})
+    s.tick_once()
+    assert s.status == S.SUCCESS, s.feedback_message
+    assert abs(py_trees.blackboard.Blackboard.get("/states")["cupboard_door_left"] - 30) < 1
