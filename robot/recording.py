@@ -154,6 +154,9 @@ class Recording:
             self.captures = [self._capture(c) for c in data["captures"]]
             self.actions = list(data.get("actions", []))
             self.info = dict(data.get("info", {}))
+            sp = data.get("start_pose")
+            self.start_pose = (None if sp is None else
+                               Pose.planar(float(sp["x"]), float(sp["y"]), float(sp["yaw"])))
         except (KeyError, TypeError, ValueError) as err:
             raise RobotError(f"corrupt manifest: bad or missing field {err}",
                              file=str(self.path)) from None
@@ -250,6 +253,11 @@ class RecordingRobot:
         self.inner = inner
         self.writer = RecordingWriter(directory, getattr(inner, "intrinsics", None), info)
         self._goal = None
+        try:
+            self.writer.manifest["start_pose"] = _pose_dict(inner.base_pose())
+            self.writer.flush()
+        except (AttributeError, RobotError):
+            pass
 
     def capture(self):
         frame = self.inner.capture()
@@ -317,7 +325,8 @@ class ReplayRobot:
         self.speed, self.turn_speed, self.action_time = speed, turn_speed, action_time
         self.intrinsics = self.recording.intrinsics
         self.mount = mount
-        first = next((c.base_pose for c in self.recording.captures if c.base_pose is not None), None)
+        first = self.recording.start_pose or next(
+            (c.base_pose for c in self.recording.captures if c.base_pose is not None), None)
         self._pose = as_base_pose(start_pose) if start_pose is not None else (first or Pose())
         self._pan, self._tilt = 0.0, 0.0
         self._served: set[int] = set()
