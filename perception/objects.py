@@ -398,7 +398,8 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     for ci, idx in enumerate(clusters):
         cp = pts[idx]
         for model in models.values():
-            for seeds in _initial_poses(cp, hsv[idx], model, cam, config):
+            for seeds in _initial_poses(cp, hsv[idx] if color is not None else None, model,
+                                        cam, config):
                 x, y = seeds[0][:2]
                 vd = np.array([x, y]) - cam[:2]
                 vd /= max(np.linalg.norm(vd), 1e-9)
@@ -465,8 +466,8 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
     for c, g in zip(centres, groups):
         if len(g) < 6:
             continue
-        agree = color_agreement(hsv[g], np.tile(model_hsv, (len(g), 1))).mean()
-        if agree < 0.25:
+        if hsv is not None and \
+                color_agreement(hsv[g], np.tile(model_hsv, (len(g), 1))).mean() < 0.25:
             continue
         v = c - cam[:2]
         v /= max(np.linalg.norm(v), 1e-9)
@@ -569,3 +570,25 @@ def _resolve(hyps: list[Hypothesis]) -> list[Hypothesis]:
             best[h.object_id] = h.confidence
     kept.sort(key=lambda h: h.confidence, reverse=True)
     return kept
+
+
+def verify_object(world, object_id: str, T_world_object: np.ndarray, depth: np.ndarray,
+                  color: Optional[np.ndarray], K: Intrinsics, T_world_camera: np.ndarray,
+                  tolerance: float = 0.03, config: DetectionConfig = DetectionConfig()
+                  ) -> Optional[Hypothesis]:
+    """The best hypothesis of ``object_id`` within ``tolerance`` (m, x/y) of a hypothesised
+    pose in a new view, every map object competing for the same points (so the red cup does
+    not verify as the blue one); None when there is none."""
+    surface = None
+    for obj in world.large_objects():
+        for s in getattr(obj, "surfaces", []):
+            T = world.T_world(obj.id) @ s.pose.matrix()
+            local = np.linalg.inv(T) @ np.append(np.asarray(T_world_object)[:3, 3], 1.0)
+            if abs(local[0]) < s.size_x / 2 + 0.05 and abs(local[1]) < s.size_y / 2 + 0.05 \
+                    and abs(local[2]) < 0.05:
+                surface = f"{obj.id}/{s.id}"
+    det = detect_objects(world, depth, color, K, T_world_camera, surface=surface, config=config)
+    p = np.asarray(T_world_object)[:2, 3]
+    near = [h for h in det.hypotheses if h.object_id == object_id
+            and np.linalg.norm(h.position[:2] - p) < tolerance]
+    return near[0] if near else None
