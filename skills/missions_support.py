@@ -55,7 +55,7 @@ class Tell(Skill):
     Template fields: ``{object}``, ``{place}``, ``{part}`` (labels of node ids, search places
     or doors), ``{count}`` (a number, or a list's length), ``{places}`` (a list's labels
     joined: "the kitchen table, the side table and the cupboard"), ``{detail}`` (text, or a
-    list joined with "; ")."""
+    list joined with "; "), ``{s}`` ("s" unless count is 1: "{count} knob{s}")."""
 
     NAME = "Tell"
     DESCRIPTION = "say a sentence built from map labels"
@@ -82,6 +82,7 @@ class Tell(Skill):
                       place=_label(self.world, self.input("place")),
                       part=_label(self.world, self.input("part")),
                       count=0 if count is None else count,
+                      s="" if count == 1 else "s",
                       places=_join(["the " + _label(self.world, p) for p in places]),
                       detail=detail or "")
         text = str(self.input("text")).format(**fields)
@@ -255,4 +256,55 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "DescribeCorrection"]
+           "Remember", "DescribeCorrection", "LookAt"]
+
+
+def look_target(world, target: Any, focus: str = "centre"):
+    """The world point (metres) to aim the camera at for ``target``: a node id or search place
+    (the centre of its world bounds; with ``focus="knobs"`` the mean of its knobs; with
+    ``focus="top"`` the centre of its top face), a point (x, y, z) or a pose mapping.
+    None when there is nothing to aim at."""
+    if isinstance(target, dict):
+        for k in ("look_at", "target"):
+            if target.get(k) is not None:
+                return np.asarray(target[k], dtype=float)[:3]
+        target = target.get("place") or target.get("part") or target.get("id")
+    if isinstance(target, str):
+        if target not in world:
+            return None
+        if focus == "knobs" and world.knobs(target):
+            return np.mean([world.T_world(k.id)[:3, 3] for k in world.knobs(target)], axis=0)
+        lo, hi = world.bounds_world(target)
+        c = (lo + hi) / 2
+        if focus == "top":
+            c[2] = hi[2]
+        return c
+    if isinstance(target, (list, tuple)) and len(target) == 3:
+        return np.asarray(target, dtype=float)
+    return None
+
+
+class LookAt(Skill):
+    """Turn the head so the camera looks at a node (or a point): ``robot.look_at``. Succeeds
+    without moving when there is nothing to aim at (a search place without a target)."""
+
+    NAME = "LookAt"
+    DESCRIPTION = "point the camera at a node or a point"
+    INPUTS = (Port("target", "any", description="node id, search place, or point (x, y, z)"),
+              Port("focus", "string", required=False, default="centre",
+                   description="centre, top, or knobs"))
+    OUTPUTS = ()
+
+    def update(self) -> S:
+        point = look_target(self.world, self.input("target"), str(self.input("focus")))
+        if point is None:
+            self.feedback_message = "nothing to look at; head left as it is"
+            return S.SUCCESS
+        action = self.robot.look_at(point)
+        # Head moves are instant requests in the adapter protocol (a DoneAction).
+        status = action.status() if hasattr(action, "status") else "succeeded"
+        if status == "failed":
+            self.feedback_message = f"could not look at {point.round(2).tolist()}: {action.reason}"
+            return S.FAILURE
+        self.feedback_message = f"looking at {point.round(2).tolist()}"
+        return S.SUCCESS

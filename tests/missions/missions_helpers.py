@@ -12,15 +12,8 @@ MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 
 # The ports the missions rely on; a real skill replaces its stand-in as soon as it lands.
 ASSUMED = {
-    "DetectObject": ((Port("object_id", "node_id"),), (Port("pose", "pose", required=False),)),
-    "VerifyObject": ((Port("object_id", "node_id"), Port("pose", "pose")),
-                     (Port("pose", "pose", required=False),)),
-    "PlanNextBestView": ((Port("object_id", "node_id"),), (Port("pose", "pose", required=False),)),
     "ProposeSearchPositions": ((Port("room", "string", required=False, default=None),),
                                (Port("places", "list", required=False),)),
-    "ReadKnobs": ((Port("object", "node_id"),), (Port("states", "dict", required=False),)),
-    "TurnKnob": ((Port("knob", "node_id"), Port("state", "string", required=False, default="off")),
-                 ()),
 }
 
 
