@@ -1,0 +1,87 @@
+"""Putting the pieces together: an Executive with approval gates, the CommandService, the
+FastAPI app, and uvicorn (in this thread, or in a background thread for tests and
+benchmarks).
+
+    service = make_service(world, robot, ["missions"])
+    with ServerThread(create_app(service)) as srv:     # 127.0.0.1, an ephemeral port
+        httpx.get(srv.url + "/api/vocabulary")
+"""
+from __future__ import annotations
+
+import ipaddress
+import socket
+import threading
+from typing import Any
+
+import uvicorn
+
+from executive.autonomy import Approvals, gated_factory
+from executive.command.service import CommandService
+from executive.executive import Executive
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def make_service(world: Any, robot: Any, missions: list[str], *, skills: dict | None = None,
+                 make_skill: Any = None, clock: Any = None, tick_hz: float = 10.0,
+                 runs_dir: str | None = "runs", granted: int = 3,
+                 approval_timeout: float = 120.0, equal_priority: str = "queue",
+                 setup_kwargs: dict | None = None) -> CommandService:
+    """An Executive (tick thread running) whose skills above ``granted`` ask for approval,
+    and the CommandService over it. ``make_skill``: the inner skill factory (e.g. an
+    executive.testing.Substitution); ``skills``: the registry (default: the skills package)."""
+    approvals = Approvals(granted=granted, timeout=approval_timeout)
+    kwargs = dict(setup_kwargs or {})
+    kwargs["approvals"] = approvals
+    ex = Executive(world=world, robot=robot, clock=clock, tick_hz=tick_hz, runs_dir=runs_dir,
+                   skills=skills, equal_priority=equal_priority,
+                   make_skill=gated_factory(make_skill), setup_kwargs=kwargs)
+    return CommandService(ex, world, missions, approvals=approvals)
+
+
+class ServerThread:
+    """uvicorn serving ``app`` on ``host`` in a daemon thread (port 0: an ephemeral port).
+    ``url`` once started; ``stop()`` (or leaving the ``with``) shuts it down."""
+
+    def __init__(self, app: Any, host: str = "127.0.0.1", port: int = 0,
+                 log_level: str = "warning"):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind((host, port))
+        self.host, self.port = self.sock.getsockname()[:2]
+        self.url = f"http://{self.host}:{self.port}"
+        config = uvicorn.Config(app, log_level=log_level, access_log=False,
+                                timeout_graceful_shutdown=1, lifespan="on")
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
+                                       name="hearth-api", daemon=True)
+
+    def start(self, timeout: float = 30.0) -> "ServerThread":
+        self.thread.start()
+        ready = threading.Event()
+        # uvicorn has no start callback; poll its flag (start-up, not a timed assertion).
+        for _ in range(int(timeout / 0.01)):
+            if self.server.started or not self.thread.is_alive():
+                break
+            ready.wait(0.01)
+        if not self.server.started:
+            raise RuntimeError("the API server did not start")
+        return self
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(10)
+        self.sock.close()
+
+    def __enter__(self) -> "ServerThread":
+        return self.start()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()

@@ -1,0 +1,354 @@
+"""The command service: the executive, the vocabulary, the approvals and the event hub
+behind one thread-safe object. The HTTP API (api.py) is a thin layer over it; a dialogue
+system in the same process may use it directly.
+
+No command lost or run twice: every accepted submission gets a run id at once (the
+executive queues or preempts by priority); a client that retries with the same
+idempotency key gets the same run back (and 409 if the key is reused for something else).
+"""
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import json
+import threading
+import time
+from collections import OrderedDict, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from executive.autonomy import Approvals
+from executive.command.commands import Interpretation, interpret
+from executive.command.vocabulary import Vocabulary, load_catalogue
+from executive.errors import MissionError
+from executive.missionfile import plain
+
+TERMINAL = ("succeeded", "failed", "cancelled", "preempted")
+#: executive event kinds not forwarded (``tick``: one per tick on a wall clock; ``map``: the
+#: hub hears the map directly, also while no mission runs)
+_DROPPED = {"tick", "map"}
+
+
+class NotFound(LookupError):
+    """An unknown mission, run, parameter or approval request (HTTP 404)."""
+
+
+class Conflict(RuntimeError):
+    """The request clashes with the state (HTTP 409): an idempotency key reused for another
+    request, a run that has already ended, an approval already decided."""
+
+
+class EventHub:
+    """Numbered events (``seq`` from 1) in a ring buffer. ``publish`` from any thread is
+    O(1) (the tick thread calls it for every event); asyncio readers wake on new events."""
+
+    def __init__(self, keep: int = 50_000):
+        self._lock = threading.Lock()
+        self._buf: deque[tuple[int, str, str | None, str]] = deque(maxlen=keep)
+        self.last_seq = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._event: asyncio.Event | None = None
+        self._wake_pending = False
+
+    def attach_loop(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = loop
+        self._event = asyncio.Event()
+
+    def publish(self, kind: str, data: dict[str, Any], run: str | None = None) -> int:
+        text = json.dumps(data, default=repr)
+        with self._lock:
+            self.last_seq += 1
+            seq = self.last_seq
+            self._buf.append((seq, kind, run, text))
+            wake = self._loop is not None and not self._wake_pending
+            if wake:
+                self._wake_pending = True
+        if wake:
+            try:
+                self._loop.call_soon_threadsafe(self._wake)
+            except RuntimeError:   # the loop has closed (server shutting down)
+                pass
+        return seq
+
+    def _wake(self) -> None:
+        with self._lock:
+            self._wake_pending = False
+        old, self._event = self._event, asyncio.Event()
+        old.set()
+
+    def waiter(self) -> asyncio.Event:
+        """The event to await for news (take it before reading with ``since``)."""
+        return self._event
+
+    def since(self, seq: int, limit: int = 1000) -> tuple[list[tuple[int, str, str | None, str]], bool]:
+        """Events after ``seq`` (at most ``limit``) and whether some were already dropped."""
+        with self._lock:
+            if not self._buf or seq >= self.last_seq:
+                return [], False
+            first = self._buf[0][0]
+            start = max(seq + 1 - first, 0)
+            gap = seq + 1 < first
+            n = len(self._buf)
+            items = [self._buf[i] for i in range(start, min(n, start + limit))]
+        return items, gap
+
+
+@dataclass
+class RunRecord:
+    """A submitted mission as the API shows it."""
+    handle: Any
+    mission: str
+    priority: int
+    params: dict[str, Any]
+    submitted: float
+    source: str
+    idempotency_key: str | None = None
+
+    @property
+    def id(self) -> str:
+        return self.handle.id
+
+    def to_json(self) -> dict[str, Any]:
+        h = self.handle
+        r = h.result
+        return {"id": h.id, "mission": self.mission, "status": h.status,
+                "priority": self.priority, "params": plain(self.params),
+                "submitted": self.submitted, "source": self.source,
+                "result": None if r is None else {"outcome": r.outcome, "reason": r.reason,
+                                                  "outputs": plain(r.outputs), "ticks": r.ticks,
+                                                  "duration": r.duration}}
+
+
+class CommandService:
+    """See the module docstring. ``mission_paths``: mission files or directories (only these
+    missions can be asked for, by name: the network never names files)."""
+
+    def __init__(self, executive: Any, world: Any, mission_paths: list[str],
+                 approvals: Approvals | None = None, keep_runs: int = 2000):
+        self.executive = executive
+        self.world = world
+        self.approvals = approvals or Approvals()
+        self.hub = EventHub()
+        catalogue, self.catalogue_problems = load_catalogue(mission_paths, executive.load)
+        self.vocabulary = Vocabulary(world, catalogue, on_change=self._vocabulary_changed)
+        self._lock = threading.RLock()
+        self._runs: OrderedDict[str, RunRecord] = OrderedDict()
+        self._keep_runs = keep_runs
+        self._idem: OrderedDict[str, tuple[str, str]] = OrderedDict()   # key -> (fingerprint, run)
+        self._live: dict[str, tuple[dict[str, str], dict[str, str]]] = {}
+        self._map_changes: deque[dict[str, Any]] = deque(maxlen=100)
+        self._unsubs = [executive.subscribe(self._on_event),
+                        self.approvals.subscribe(self._on_approval)]
+        if world is not None and callable(getattr(world, "subscribe", None)):
+            self._unsubs.append(world.subscribe(self._on_map))
+        self.started = time.time()
+
+    def close(self) -> None:
+        for u in self._unsubs:
+            u()
+        self._unsubs = []
+        self.vocabulary.close()
+
+    # -- events ------------------------------------------------------------------------
+    def _on_event(self, ev: Any) -> None:
+        # The tick thread, under the executive's lock: keep it short.
+        if ev.kind in _DROPPED:
+            return
+        if ev.path is not None and ev.kind in ("status", "feedback"):
+            # No service lock here (the executive's lock is held: lock order); a run may
+            # report before submit() has filed its record, so its nodes live apart.
+            live = self._live.get(ev.run)
+            if live is None:
+                live = self._live.setdefault(ev.run, ({}, {}))
+            if ev.kind == "status":
+                live[0][ev.path] = ev.data.get("status", "")
+            else:
+                live[1][ev.path] = ev.data.get("message", "")
+        self.hub.publish(ev.kind, ev.to_json(), run=ev.run)
+
+    def _on_approval(self, kind: str, data: dict) -> None:
+        self.hub.publish(kind, {"e": kind, **data}, run=data.get("run"))
+
+    def _on_map(self, change: Any) -> None:
+        data = {"e": "map", "node": change.node, "field": change.field,
+                "old": plain(change.old), "new": plain(change.new), "source": change.source,
+                "time": change.time}
+        self._map_changes.append(data)
+        self.hub.publish("map", data)
+
+    def _vocabulary_changed(self, revision: int) -> None:
+        self.hub.publish("vocabulary", {"e": "vocabulary", "revision": revision})
+
+    # -- missions ------------------------------------------------------------------------
+    def missions(self) -> list[dict[str, Any]]:
+        return [e.to_json() for e in self.vocabulary.catalogue.values()]
+
+    def _entry(self, name: str):
+        entry = self.vocabulary.catalogue.get(name)
+        if entry is None:
+            known = ", ".join(sorted(self.vocabulary.catalogue)) or "none"
+            raise NotFound(f"no mission named {name!r} (known: {known})")
+        return entry
+
+    def _claim(self, key: str | None, fingerprint: str) -> RunRecord | None:
+        """The run already made for this idempotency key, or None (lock held)."""
+        if key is None:
+            return None
+        seen = self._idem.get(key)
+        if seen is None:
+            return None
+        if seen[0] != fingerprint:
+            raise Conflict(f"idempotency key {key!r} was used for a different request")
+        return self._runs.get(seen[1])
+
+    def submit(self, mission: str, params: dict[str, Any] | None = None, priority: int = 0,
+               idempotency_key: str | None = None, source: str = "api") -> tuple[RunRecord, bool]:
+        """Queue ``mission`` (a catalogue name). Returns (record, created); created is False
+        when the idempotency key had already made this run. MissionError: bad parameters."""
+        params = dict(params or {})
+        entry = self._entry(mission)
+        fp = hashlib.sha256(json.dumps([mission, params, priority], sort_keys=True,
+                                       default=repr).encode()).hexdigest()
+        with self._lock:
+            old = self._claim(idempotency_key, fp)
+            if old is not None:
+                return old, False
+            handle = self.executive.submit(entry.mission, priority=priority, **params)
+            rec = RunRecord(handle=handle, mission=mission, priority=priority,
+                            params=dict(handle.params), submitted=time.time(), source=source,
+                            idempotency_key=idempotency_key)
+            self._runs[handle.id] = rec
+            while len(self._runs) > self._keep_runs:
+                oldest_id, oldest = next(iter(self._runs.items()))
+                if not oldest.handle.done:
+                    break
+                self._runs.pop(oldest_id)
+                self._live.pop(oldest_id, None)
+            if idempotency_key is not None:
+                self._idem[idempotency_key] = (fp, handle.id)
+                while len(self._idem) > 10 * self._keep_runs:
+                    self._idem.popitem(last=False)
+        self.hub.publish("submitted", {"e": "submitted", "run": handle.id, "mission": mission,
+                                       "priority": priority, "params": plain(rec.params),
+                                       "source": source}, run=handle.id)
+        return rec, True
+
+    def command(self, text: str, priority: int = 0, idempotency_key: str | None = None
+                ) -> tuple[Interpretation, RunRecord | None, bool]:
+        """Interpret an utterance; start its mission when it is understood."""
+        entries = self.vocabulary.catalogue
+        it = interpret(text, self.vocabulary.templates, self.world,
+                       {n: e.mission for n, e in entries.items()})
+        if it.outcome != "run":
+            return it, None, False
+        rec, created = self.submit(it.mission, it.params, priority, idempotency_key,
+                                   source=f"command: {text}")
+        return it, rec, created
+
+    # -- runs ------------------------------------------------------------------------------
+    def run(self, run_id: str) -> RunRecord:
+        with self._lock:
+            rec = self._runs.get(run_id)
+        if rec is None:
+            raise NotFound(f"no run {run_id!r}")
+        return rec
+
+    def runs(self, limit: int = 50) -> list[RunRecord]:
+        with self._lock:
+            recs = list(self._runs.values())
+        return recs[-limit:][::-1]
+
+    def cancel(self, run_id: str, reason: str = "cancelled by a client") -> RunRecord:
+        rec = self.run(run_id)
+        if not rec.handle.cancel(reason):
+            raise Conflict(f"run {run_id} has already ended ({rec.handle.status})")
+        return rec
+
+    def tree(self, run_id: str) -> dict[str, Any]:
+        """The run's tree: nodes with their last reported status and feedback."""
+        rec = self.run(run_id)
+        live = self._live.get(run_id, ({}, {}))
+        statuses, feedback = dict(live[0]), dict(live[1])
+
+        def node(spec: Any) -> dict[str, Any]:
+            return {"path": spec.path, "name": spec.name, "kind": spec.kind,
+                    "label": spec.label, "status": statuses.get(spec.path, "INVALID"),
+                    "feedback": feedback.get(spec.path, ""),
+                    "children": [node(c) for c in spec.children]}
+        return {"run": rec.id, "mission": rec.mission, "status": rec.handle.status,
+                "root": node(rec.handle.mission.root)}
+
+    def current(self) -> RunRecord | None:
+        h = self.executive.current
+        if h is None:
+            return None
+        with self._lock:
+            return self._runs.get(h.id)
+
+    # -- parameters ------------------------------------------------------------------------
+    def runtime_parameters(self) -> dict[str, list]:
+        """name -> the missions declaring it as a runtime parameter."""
+        out: dict[str, list] = {}
+        for e in self.vocabulary.catalogue.values():
+            for p in e.mission.parameters.values():
+                if p.runtime:
+                    out.setdefault(p.name, []).append(p)
+        return out
+
+    def parameters(self) -> dict[str, Any]:
+        current = self.executive.parameters
+        out = {}
+        for name, specs in self.runtime_parameters().items():
+            spec = specs[0]
+            out[name] = {"value": plain(current.get(name, spec.default)), "type": spec.type,
+                         "enum": plain(spec.enum), "description": spec.description}
+        return out
+
+    def set_parameter(self, name: str, value: Any) -> Any:
+        specs = self.runtime_parameters().get(name)
+        if specs is None:
+            known = ", ".join(sorted(self.runtime_parameters())) or "none"
+            raise NotFound(f"no mission declares a runtime parameter {name!r} (known: {known})")
+        for spec in specs:
+            spec.check(value)          # MissionError(param=name)
+        self.executive.set_parameter(name, value)
+        self.hub.publish("param", {"e": "param", "name": name, "value": plain(value)})
+        return value
+
+    # -- approvals ---------------------------------------------------------------------------
+    def decide(self, request_id: str, approve: bool, by: str = "operator", reason: str = ""):
+        try:
+            return self.approvals.decide(request_id, approve, by=by, reason=reason)
+        except KeyError:
+            raise NotFound(f"no approval request {request_id!r}") from None
+        except ValueError as err:
+            raise Conflict(str(err)) from None
+
+    # -- map ---------------------------------------------------------------------------------
+    def map_view(self) -> dict[str, Any]:
+        w = self.world
+        if w is None:
+            return {"rooms": [], "recent_changes": list(self._map_changes)}
+        rooms = []
+        with w.lock:
+            for r in w.rooms:
+                objs = []
+                for o in r.objects:
+                    p = w.world_pose(o.id)
+                    entry = {"id": o.id, "label": w.label(o.id), "type": o.type,
+                             "x": round(p.x, 3), "y": round(p.y, 3), "yaw": round(p.yaw, 4),
+                             "parts": [], "knobs": [], "contents": []}
+                    for node in w.descendants(o.id):
+                        if node.kind == "Part":
+                            entry["parts"].append({"id": node.id, "label": w.label(node.id),
+                                                   "state": node.joint.state})
+                        elif node.kind == "Knob":
+                            entry["knobs"].append({"id": node.id, "state": node.state})
+                        elif node.kind == "SmallObject":
+                            entry["contents"].append({"id": node.id, "label": w.label(node.id),
+                                                      "where": w.describe_location(node.id)})
+                    objs.append(entry)
+                rooms.append({"id": r.id, "name": r.name or r.id,
+                              "bounds": list(r.bounds) if r.bounds else None, "objects": objs})
+        return {"rooms": rooms, "recent_changes": list(self._map_changes)[::-1]}
+
