@@ -1,0 +1,82 @@
+"""`hearth serve`: the command API and the live monitor page (docs/command-layer.md).
+
+Binds to 127.0.0.1 by default. Listening on any other address needs a token
+(``--token`` or the HEARTH_TOKEN environment variable); clients send it as
+``Authorization: Bearer TOKEN``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from executive.cliutil import DEFAULT_WORLD, make_world_and_robot
+
+DEFAULT_MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+
+
+def register(sub) -> None:
+    p = sub.add_parser("serve", help="serve the command API and the monitor page",
+                       description="Start the executive on a simulated (or replayed) robot and "
+                                   "serve the command API (OpenAPI at /docs) and the live "
+                                   "monitor page at /. Localhost only unless a token is given.")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1; others need --token)")
+    p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free)")
+    p.add_argument("--token", default=os.environ.get("HEARTH_TOKEN"),
+                   help="require this bearer token (default: $HEARTH_TOKEN)")
+    p.add_argument("--missions", action="append", default=None, metavar="PATH",
+                   help="mission file or directory that can be asked for (repeatable; "
+                        "default: missions/)")
+    p.add_argument("--world", default=str(DEFAULT_WORLD), help="world file (the belief map)")
+    p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
+    p.add_argument("--recording", default=None, metavar="DIR", help="recording to replay")
+    p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
+    p.add_argument("--runs-dir", default="runs", help="where execution logs go")
+    p.add_argument("--autonomy", type=int, default=3, choices=range(4),
+                   help="granted autonomy level: skills above it wait for an operator's "
+                        "approval (0 observe, 1 move, 2 act on the home, 3 handle objects; "
+                        "default 3: never ask)")
+    p.add_argument("--approval-timeout", type=float, default=120.0,
+                   help="seconds to wait for an approval before the skill fails")
+    p.set_defaults(func=_serve)
+
+
+def check_bind(host: str, token: str | None) -> str | None:
+    """Why ``host`` may not be used without a token (None: fine)."""
+    from executive.command.server import is_loopback
+    if not is_loopback(host) and not token:
+        return (f"hearth serve: listening on {host} needs a token (--token or HEARTH_TOKEN); "
+                f"without one only loopback addresses (127.0.0.1, ::1, localhost) are allowed")
+    return None
+
+
+def _serve(args: argparse.Namespace) -> int:
+    problem = check_bind(args.host, args.token)
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
+    import uvicorn
+
+    from executive.command.api import create_app
+    from executive.command.server import make_service
+    from robot.clock import WallClock
+
+    clock = WallClock()
+    world, robot = make_world_and_robot(args, clock)
+    service = make_service(world, robot, args.missions or [str(DEFAULT_MISSIONS)], clock=clock,
+                           tick_hz=args.tick_hz, runs_dir=args.runs_dir, granted=args.autonomy,
+                           approval_timeout=args.approval_timeout)
+    for line in service.catalogue_problems:
+        print(f"hearth serve: skipped {line}", file=sys.stderr)
+    names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
+    print(f"hearth serve: missions {names}; http://{args.host}:{args.port}/ "
+          f"(API docs at /docs)", file=sys.stderr)
+    try:
+        uvicorn.run(create_app(service, token=args.token), host=args.host, port=args.port,
+                    log_level="warning")
+    finally:
+        service.executive.shutdown()
+        service.close()
+    return 0
