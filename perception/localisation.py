@@ -129,8 +129,6 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     # from the front is all door); ``quality["parts_used"]`` says so.
     bodies = ref.select(list(ids) + [r.id for r in world.rooms])
     parts_used = len(bodies) < cfg.min_body_points
-    if not parts_used:
-        ref = bodies
     if len(ref) < cfg.icp.min_points:
         raise RegistrationFailed(f"the landmarks {ids} would cover only {len(ref)} points")
     t1 = time.perf_counter()
@@ -138,18 +136,15 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     lo, hi = ref.points.min(0), ref.points.max(0)
     src = obs.points[crop_box(obs.points, lo, hi, cfg.margin)]
     t2 = time.perf_counter()
-    # Coarse grid about the base: the believed-pose error is a rotation about the robot.
     base = np.asarray(T_world_base, dtype=float)[:3, 3]
-    coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
-    xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
-    yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
-    cands = np.stack([_planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
-    scores = coarse(cands)
-    T0 = cands[int(np.argmax(scores))]
-    t3 = time.perf_counter()
-    fine = DepthAgreement(ref.points, depth, K, T_world_camera)
-    res = register_planar(src, ref.points, ref.normals, T_init=T0, cfg=cfg.icp, scorer=fine,
-                          search_range=0.06, search_step=0.005)
+    try:
+        res, T0 = _register(bodies if not parts_used else ref, src, depth, K, T_world_camera,
+                            base, cfg)
+    except RegistrationFailed:
+        if parts_used:
+            raise
+        parts_used = True
+        res, T0 = _register(ref, src, depth, K, T_world_camera, base, cfg)
     t4 = time.perf_counter()
     C = res.T
     T_new = C @ np.asarray(T_world_base, dtype=float)
@@ -164,7 +159,21 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                    parts_used=parts_used)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
-                            "coarse": 1000 * (t3 - t2), "icp": 1000 * (t4 - t3)})
+                            "registration": 1000 * (t4 - t2)})
+
+
+def _register(ref, src, depth, K, T_world_camera, base, cfg):
+    """Coarse grid about the base (the believed-pose error is a rotation about the robot),
+    then planar ICP from the best cell."""
+    coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
+    xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
+    yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
+    cands = np.stack([_planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
+    T0 = cands[int(np.argmax(coarse(cands)))]
+    fine = DepthAgreement(ref.points, depth, K, T_world_camera)
+    res = register_planar(src, ref.points, ref.normals, T_init=T0, cfg=cfg.icp, scorer=fine,
+                          search_range=0.06, search_step=0.005)
+    return res, T0
 
 
 def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
