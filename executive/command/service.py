@@ -129,6 +129,12 @@ class CommandService:
         self.world = world
         self.approvals = approvals or Approvals()
         self.hub = EventHub()
+        self._map_changes: deque[dict[str, Any]] = deque(maxlen=100)
+        self._unsubs = []
+        if world is not None and callable(getattr(world, "subscribe", None)):
+            # Before the vocabulary's subscription: a change is streamed before the new
+            # vocabulary revision it causes.
+            self._unsubs.append(world.subscribe(self._on_map))
         catalogue, self.catalogue_problems = load_catalogue(mission_paths, executive.load)
         self.vocabulary = Vocabulary(world, catalogue, on_change=self._vocabulary_changed)
         self._lock = threading.RLock()
@@ -136,11 +142,8 @@ class CommandService:
         self._keep_runs = keep_runs
         self._idem: OrderedDict[str, tuple[str, str]] = OrderedDict()   # key -> (fingerprint, run)
         self._live: dict[str, tuple[dict[str, str], dict[str, str]]] = {}
-        self._map_changes: deque[dict[str, Any]] = deque(maxlen=100)
-        self._unsubs = [executive.subscribe(self._on_event),
-                        self.approvals.subscribe(self._on_approval)]
-        if world is not None and callable(getattr(world, "subscribe", None)):
-            self._unsubs.append(world.subscribe(self._on_map))
+        self._unsubs += [executive.subscribe(self._on_event),
+                         self.approvals.subscribe(self._on_approval)]
         self.started = time.time()
 
     def close(self) -> None:
