@@ -82,6 +82,7 @@ def model_from_world(world, object_id: str, spacing: float = 0.005) -> ObjectMod
     if not meshes:
         raise PerceptionError(f"{object_id} has no model")
     pts, nrm, col = [], [], []
+    o3d.utility.random.seed(0)  # the same model samples every time
     for lm in meshes:
         m = lm.mesh
         m.compute_triangle_normals()
