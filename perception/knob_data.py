@@ -34,6 +34,11 @@ from perception.knobs import (
 from perception.render import Scene
 
 
+#: A window whose centre is this far (canvas px, a third of a knob radius) from the knob's is
+#: a negative for the detector.
+NEGATIVE_PX = 5.5
+
+
 @dataclass(frozen=True)
 class KnobDataConfig:
     """How views are drawn. Distances in m, angles in degrees; ``pose_sigma_m`` /
@@ -213,10 +218,10 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
                      positives: int = 3, negatives: int = 6, angle_patches: int = 2):
     """Detector patches and labels, angle patches and angles (rad) from views.
 
-    Positives: windows centred within half a HOG block stride (3 px) on the knob at scales
-    within half a pyramid step; negatives: windows of the searched canvas whose centre is at
-    least 9 px (about half a knob radius) from the knob, or anywhere when it is missing.
-    Angle windows: centred within 2 px (the detector's refined error), same scale range."""
+    Positives: windows centred within 2 px on the knob at scales within half a pyramid
+    step; negatives: windows of the searched canvas whose centre is at least ``NEGATIVE_PX``
+    (a third of a knob radius) from the knob, or anywhere when it is missing. Angle windows:
+    centred within 4 px (what the detector gets wrong in hard views), same scale range."""
     rng = np.random.default_rng(seed)
     det_p, det_y, ang_p, ang_y = [], [], [], []
     st = DETECTOR_HOG["stride"][0]
@@ -229,7 +234,7 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
             for k in range(positives + angle_patches):
                 s = rng.uniform(0.93, 1.08)
                 rho = cfg.px_per_radius * s / pr.radius
-                j = (3.0 if k < positives else 2.0) / rho
+                j = (2.0 if k < positives else 4.0) / rho
                 patch = face_patch(gray, v.K, v.T_world_camera, pr,
                                    (cx + rng.uniform(-j, j), cy + rng.uniform(-j, j)), s, cfg)
                 if k < positives:
@@ -248,7 +253,7 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
         for y0 in range(0, size - WINDOW + 1, st):
             for x0 in range(0, size - WINDOW + 1, st):
                 wx, wy = x0 + BORDER + (WINDOW - 1) / 2, y0 + BORDER + (WINDOW - 1) / 2
-                if not v.present or math.hypot(wx - tx, wy - ty) > 9.0:
+                if not v.present or math.hypot(wx - tx, wy - ty) > NEGATIVE_PX:
                     cand.append((x0, y0))
         for idx in rng.permutation(len(cand))[:negatives]:
             x0, y0 = cand[idx]
@@ -256,6 +261,35 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
             det_y.append(0)
     return (np.array(det_p, dtype=np.uint8).reshape(-1, PATCH, PATCH), np.array(det_y, dtype=int),
             np.array(ang_p, dtype=np.uint8).reshape(-1, PATCH, PATCH), np.array(ang_y, dtype=float))
+
+
+def hard_negatives(views: list[KnobView], detector, cfg: KnobConfig = KnobConfig(),
+                   margin: float = -0.5, limit: int = 20000) -> np.ndarray:
+    """Windows the detector scores above ``margin`` although no knob is centred in them
+    (the centre is more than ``NEGATIVE_PX`` from the knob, or the knob is missing): one
+    round of hard-negative mining over the training views (Felzenszwalb et al.)."""
+    st = DETECTOR_HOG["stride"][0]
+    size = WINDOW + 2 * cfg.search_px
+    full = size + 2 * BORDER
+    out = []
+    for v in views:
+        gray = to_gray(v.image)
+        pr = v.believed
+        cx, cy = true_center_m(v)
+        for s in cfg.scales:
+            rho = cfg.px_per_radius * s / pr.radius
+            canvas = rectify(gray, plane_homography(v.K, v.T_world_camera, pr.T_world_face(), rho, full), full)
+            score = detector.scan(canvas[BORDER:BORDER + size, BORDER:BORDER + size])
+            c0 = (full - 1) / 2
+            tx, ty = c0 + cx * rho, c0 - cy * rho
+            for i, j in zip(*np.nonzero(score > margin)):
+                x0, y0 = j * st, i * st
+                wx, wy = x0 + BORDER + (WINDOW - 1) / 2, y0 + BORDER + (WINDOW - 1) / 2
+                if not v.present or math.hypot(wx - tx, wy - ty) > NEGATIVE_PX:
+                    out.append(canvas[y0:y0 + PATCH, x0:x0 + PATCH])
+        if len(out) >= limit:
+            break
+    return np.array(out[:limit], dtype=np.uint8).reshape(-1, PATCH, PATCH)
 
 
 def scene_negatives(world, n_views: int, seed: int, cfg: KnobConfig = KnobConfig(),

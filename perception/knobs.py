@@ -55,7 +55,9 @@ class KnobConfig:
     factors); ``threshold``: SVM score a window needs; ``nms_iou``: overlap at which NMS drops
     the weaker window; ``angle_method``: forest, svr or fused (see ``KnobReader``);
     ``min_confidence``: below it the state is "unknown"; ``max_off_axis_deg``: a knob seen
-    more obliquely is not read."""
+    more obliquely is not read; ``angle_shifts_px``: the angle models read five windows, at
+    the detected centre and shifted this far left, right, up and down, and average (0: one
+    window), which makes them tolerant of a detection a few pixels off."""
     px_per_radius: float = 16.0
     search_px: int = 18
     scales: tuple[float, ...] = (0.87, 1.0, 1.15)
@@ -63,8 +65,9 @@ class KnobConfig:
     nms_iou: float = 0.3
     angle_method: str = "fused"
     fuse_gate_deg: float = 15.0
-    min_confidence: float = 0.5
+    min_confidence: float = 0.4
     max_off_axis_deg: float = 70.0
+    angle_shifts_px: float = 2.0
 
 
 # -- the knobs the map knows --------------------------------------------------------------------
@@ -481,14 +484,20 @@ class KnobReader:
                 readings.append(KnobReading(prior.knob_id, False, reason="no knob found in its region"))
                 continue
             readings.append(KnobReading(prior.knob_id, True, detection=det))
-            patches.append(face_patch(gray, K, T_world_camera, prior, det.center_m, det.scale, cfg))
+            d = cfg.angle_shifts_px * prior.radius / (cfg.px_per_radius * det.scale)
+            shifts = [(0.0, 0.0)] + ([(d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)] if d > 0 else [])
+            for sx, sy in shifts:
+                c = (det.center_m[0] + sx, det.center_m[1] + sy)
+                patches.append(face_patch(gray, K, T_world_camera, prior, c, det.scale, cfg))
             found.append((len(readings) - 1, prior))
         if not found:
             return readings
+        n_views = len(patches) // len(found)
         X = hog_features(np.stack(patches), ANGLE_HOG)
-        proba = self.forest.predict_proba(features=X)
+        proba = self.forest.predict_proba(features=X).reshape(len(found), n_views, N_CLASSES).mean(1)
         a_rf = proba_to_angle(proba)
-        a_svr = self.svr.predict(features=X)
+        s_svr = self.svr.predict(features=X).reshape(len(found), n_views)
+        a_svr = np.arctan2(np.sin(s_svr).sum(1), np.cos(s_svr).sum(1))
         gate = math.radians(cfg.fuse_gate_deg)
         for n, (idx, prior) in enumerate(found):
             r = readings[idx]

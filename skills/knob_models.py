@@ -19,20 +19,23 @@ from typing import Callable, Optional
 import numpy as np
 
 from perception.errors import PerceptionError
-from perception.knob_data import KnobDataConfig, KnobScenes, render_views, scene_negatives, training_patches
+from perception.knob_data import (
+    KnobDataConfig, KnobScenes, hard_negatives, render_views, scene_negatives, training_patches,
+)
 from perception.knobs import KnobAngleForest, KnobAngleSVR, KnobConfig, KnobDetector, KnobReader
 from skills import models_store
 
 MODEL_NAME = "knobs"
 #: Bump when the training data or the features change in a way the configuration misses.
-CODE_VERSION = 1
+CODE_VERSION = 2
 
 
 @dataclass(frozen=True)
 class TrainingConfig:
     """``views``: rendered knob views; ``angle_patches`` / ``positives`` / ``negatives``:
     windows cut from each; ``scene_views``: views of other surfaces for negatives (4 windows
-    each); ``seed``: training seeds are ``seed`` .. ``seed + 2`` (benchmarks use others)."""
+    each); ``hard_negatives``: at most this many windows the first detector wrongly scores
+    high are added for a second fit (0: none); ``seed``: training seeds are ``seed`` .. ``seed + 2`` (benchmarks use others)."""
     views: int = 2000
     angle_patches: int = 4
     positives: int = 3
@@ -40,6 +43,7 @@ class TrainingConfig:
     scene_views: int = 400
     seed: int = 1
     detector_C: float = 0.01
+    hard_negatives: int = 8000
     forest_trees: int = 100
     svr_C_grid: tuple[float, ...] = (0.03, 0.3)
     data: KnobDataConfig = field(default_factory=KnobDataConfig)
@@ -47,7 +51,7 @@ class TrainingConfig:
     def tiny(self) -> "TrainingConfig":
         """A small configuration for tests (seconds, not minutes)."""
         return replace(self, views=260, angle_patches=3, scene_views=40, forest_trees=30,
-                       svr_C_grid=(0.1,))
+                       svr_C_grid=(0.1,), hard_negatives=1000)
 
 
 def knob_signature(world) -> list[dict]:
@@ -95,6 +99,12 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     det_y = np.concatenate([det_y, np.zeros(len(neg), dtype=int)])
     say(f"fitting detector (HOG + linear SVM, {len(det_y)} windows)", 0, 3)
     detector = KnobDetector(C=cfg.detector_C).fit(det_p, det_y)
+    if cfg.hard_negatives:
+        hard = hard_negatives(views, detector, knob, limit=cfg.hard_negatives)
+        say(f"refitting detector with {len(hard)} hard negatives", 0, 3)
+        det_p = np.concatenate([det_p, hard])
+        det_y = np.concatenate([det_y, np.zeros(len(hard), dtype=int)])
+        detector = KnobDetector(C=cfg.detector_C).fit(det_p, det_y)
     say(f"fitting angle forest ({cfg.forest_trees} trees, {len(ang_y)} windows)", 1, 3)
     forest = KnobAngleForest(n_estimators=cfg.forest_trees, random_state=cfg.seed).fit(ang_p, ang_y)
     say("fitting angle SVR (cos, sin)", 2, 3)
