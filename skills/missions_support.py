@@ -256,7 +256,7 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "DescribeCorrection", "LookAt"]
+           "Remember", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId"]
 
 
 def look_target(world, target: Any, focus: str = "centre"):
@@ -307,4 +307,69 @@ class LookAt(Skill):
             self.feedback_message = f"could not look at {point.round(2).tolist()}: {action.reason}"
             return S.FAILURE
         self.feedback_message = f"looking at {point.round(2).tolist()}"
+        return S.SUCCESS
+
+
+class ProposedPlaces(Skill):
+    """Search places (the dicts PlanSearch writes) from ProposeSearchPositions' base poses:
+    each pose gets the table top it faces as the point to look at, and the map's large
+    object nearest that table as the place (its new parent if the object turns up there)."""
+
+    NAME = "ProposedPlaces"
+    DESCRIPTION = "turn proposed search positions into search places"
+    INPUTS = (Port("positions", "list", description="base poses (world)"),
+              Port("tables", "list", required=False, default=None,
+                   description="table tops {x, y, height, half_extents}"))
+    OUTPUTS = (Port("places", "list", required=False), Port("count", "integer", required=False))
+
+    def _nearest_place(self, x: float, y: float) -> str | None:
+        best = None
+        for obj in self.world.large_objects():
+            if not (obj.surfaces or obj.children):
+                continue
+            lo, hi = self.world.bounds_world(obj.id)
+            gap = np.maximum(0.0, np.maximum(lo[:2] - [x, y], [x, y] - hi[:2]))
+            d = float(np.linalg.norm(gap))
+            if best is None or d < best[0]:
+                best = (d, obj.id)
+        return best[1] if best else None
+
+    def update(self) -> S:
+        tables = self.input("tables") or []
+        out = []
+        for pose in self.input("positions") or []:
+            p = as_pose(pose)
+            ahead = np.array([p.x + 0.6 * math.cos(p.yaw), p.y + 0.6 * math.sin(p.yaw), 0.75])
+            if tables:
+                t = min(tables, key=lambda t: math.hypot(t["x"] - ahead[0], t["y"] - ahead[1]))
+                ahead = np.array([t["x"], t["y"], t.get("height", 0.75)])
+            place = self._nearest_place(float(ahead[0]), float(ahead[1]))
+            if place is None:
+                continue
+            out.append({"place": place, "x": p.x, "y": p.y, "yaw": p.yaw,
+                        "look_at": [round(float(v), 3) for v in ahead], "proposed": True})
+        self.set_output("places", out)
+        self.set_output("count", len(out))
+        self.feedback_message = (f"{len(out)} new places: " + ", ".join(o["place"] for o in out)
+                                 if out else "no new place to search")
+        return S.SUCCESS if out else S.FAILURE
+
+
+class PlaceId(Skill):
+    """The map id of a search place (a node id, or a dict with ``place``), for skills that
+    take a node id (RegisterArticulated)."""
+
+    NAME = "PlaceId"
+    DESCRIPTION = "the node id of a search place"
+    INPUTS = (Port("place", "any"),)
+    OUTPUTS = (Port("id", "node_id", required=False),)
+
+    def update(self) -> S:
+        place = self.input("place")
+        pid = place.get("place") if isinstance(place, dict) else place
+        if not isinstance(pid, str) or pid not in self.world:
+            self.feedback_message = f"not a place in the map: {place!r}"
+            return S.FAILURE
+        self.set_output("id", pid)
+        self.feedback_message = pid
         return S.SUCCESS

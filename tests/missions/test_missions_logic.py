@@ -102,7 +102,7 @@ def test_fetch_finds_the_moved_cup_and_says_where_it_was(world):
     result, sub = run("fetch_object.yaml", world, ROBOT_SCRIPTS + [
         Script("DetectObject", outcomes=["failure", "success"], outputs={"pose": seen}),
         Script("PlanNextBestView", outcomes=["failure"]),
-        Script("ProposeSearchPositions", outputs={"places": []})], robot=robot, object="blue cup")
+        Script("ProposeSearchPositions", outcomes=["failure"])], robot=robot, object="blue cup")
     assert result.outcome == "succeeded", result.reason
     assert world.parent("blue_cup").id == "side_table"
     assert "the blue cup was on the side table in the kitchen" in robot.said
@@ -128,7 +128,7 @@ def test_fetch_of_an_absent_object_says_how_many_places_were_searched(world):
     result, _ = run("fetch_object.yaml", world, ROBOT_SCRIPTS + [
         Script("DetectObject", outcomes=["failure"]),
         Script("PlanNextBestView", outcomes=["failure"]),
-        Script("ProposeSearchPositions", outputs={"places": []})],
+        Script("ProposeSearchPositions", outcomes=["failure"])],
         robot=robot, object="blue cup", max_places=3)
     assert result.outcome == "failed"
     assert "no blue cup at the 3 places searched" in result.reason
@@ -137,12 +137,14 @@ def test_fetch_of_an_absent_object_says_how_many_places_were_searched(world):
 
 def test_fetch_falls_back_to_proposed_search_positions(world):
     seen = on_top_of(world, "bathroom_counter")
-    proposed = [{"place": "bathroom_counter", "x": 3.0, "y": 0.0, "yaw": 0.0}]
+    c = world.T_world("bathroom_counter")[:3, 3]
+    proposed = {"positions": [{"x": float(c[0]), "y": float(c[1]) + 0.8, "yaw": -1.57}],
+                "tables": [{"x": float(c[0]), "y": float(c[1]), "height": 0.9}]}
     result, sub = run("fetch_object.yaml", world, ROBOT_SCRIPTS + [
         Script("*/new_places/*/DetectObject", outputs={"pose": seen}),
         Script("DetectObject", outcomes=["failure"]),
         Script("PlanNextBestView", outcomes=["failure"]),
-        Script("ProposeSearchPositions", outputs={"places": proposed})],
+        Script("ProposeSearchPositions", outputs=proposed)],
         object="blue cup", max_places=2)
     assert result.outcome == "succeeded", result.reason
     assert world.parent("blue_cup").id == "bathroom_counter"
@@ -153,7 +155,7 @@ def test_a_door_that_does_not_open_is_named_in_the_reason(world):
         Script("OpenArticulated", outcomes=["failure"]),
         Script("DetectObject", outcomes=["failure"]),
         Script("PlanNextBestView", outcomes=["failure"]),
-        Script("ProposeSearchPositions", outputs={"places": []})] + ROBOT_SCRIPTS,
+        Script("ProposeSearchPositions", outcomes=["failure"])] + ROBOT_SCRIPTS,
         object="glass jar", max_places=1)
     assert result.outcome == "failed"
     assert "no clear jar at the 1 place searched" in result.reason
