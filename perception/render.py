@@ -69,7 +69,7 @@ class Scene:
             colors.append(lm.color)
         self._colors = np.asarray(colors, dtype=np.float32).reshape(-1, 3)
         # geometry id -> our index (ids are consecutive from 0 in practice; keep a map anyway)
-        self._index = np.full(max(geom_ids, default=-1) + 2, -1, dtype=np.int64)
+        self._index = np.full(max(geom_ids, default=-1) + 2, -1, dtype=np.int32)
         for i, gid in enumerate(geom_ids):
             self._index[gid] = i
 
@@ -88,31 +88,59 @@ class Scene:
         # Directions have z = 1 in the camera frame, so t_hit is depth along the optical axis.
         depth = ans["t_hit"].numpy()
         gid = ans["geometry_ids"].numpy()
-        hit = np.isfinite(depth) & (depth <= max_range) & (depth > 0)
-        depth = np.where(hit, depth, np.float32(0)).astype(np.float32, copy=False)
-        index = self._index
-        labels = np.where(hit, index[np.minimum(gid, index.shape[0] - 1).astype(np.int64)],
-                          -1).astype(np.int32)
-        # Normals in the camera frame (n_camera = R_cw n_world), turned to face the camera.
         n_world = ans["primitive_normals"].numpy()
-        normals_camera = n_world @ R_wc
-        cos = np.einsum("hwk,hwk->hw", normals_camera, unit_camera)
-        flip = np.where(cos > 0, np.float32(-1), np.float32(1))
-        normals_camera *= flip[..., None]
-        normals_camera[~hit] = 0
-        incidence = np.abs(cos)
-        incidence[~hit] = 0
+        labels = np.empty((H, W), dtype=np.int32)
+        normals_camera = np.empty((H, W, 3), dtype=np.float32)
+        incidence = np.empty((H, W), dtype=np.float32)
+        color = np.empty((H, W, 3), dtype=np.uint8)
         light_camera = (R_wc.T @ LIGHT_WORLD.astype(np.float32)).astype(np.float32)
-        lit = np.clip(normals_camera @ light_camera, 0, 1)
-        shade = 0.85 * (AMBIENT + (1 - AMBIENT) * lit) + 0.15 * incidence
-        # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
         palette = np.vstack([self._colors, np.zeros((1, 3), np.float32)]) * np.float32(255.0)
-        color = palette[labels] * shade[..., None]
-        color = np.clip(color, 0, 255, out=color).astype(np.uint8)
+
+        def shade_rows(rows: slice) -> None:
+            d = depth[rows]
+            hit = (d <= max_range) & (d > 0)        # NaN and inf (no hit) compare False
+            miss = ~hit
+            d[miss] = 0
+            lab = np.take(self._index, gid[rows], mode="clip")   # no hit: the trailing -1
+            lab[miss] = -1
+            labels[rows] = lab
+            # Normals in the camera frame (n_camera = R_cw n_world), turned to face the camera.
+            nc = n_world[rows] @ R_wc
+            cos = np.einsum("hwk,hwk->hw", nc, unit_camera[rows])
+            nc *= np.where(cos > 0, np.float32(-1), np.float32(1))[..., None]
+            nc[miss] = 0
+            inc = np.abs(cos)
+            inc[miss] = 0
+            normals_camera[rows] = nc
+            incidence[rows] = inc
+            lit = np.clip(nc @ light_camera, 0, 1)
+            # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
+            shade = (np.float32(0.85 * (1 - AMBIENT)) * lit + np.float32(0.85 * AMBIENT)
+                     + np.float32(0.15) * inc)
+            c = palette[lab] * shade[..., None]            # label -1: the trailing black
+            np.clip(c, 0, 255, out=c)
+            color[rows] = c
+
+        # Row bands in threads: numpy releases the GIL on these array operations, so the
+        # per-pixel shading runs on every core like the ray casting does.
+        bands = [slice(i * H // _BANDS, (i + 1) * H // _BANDS) for i in range(_BANDS)]
+        list(_pool().map(shade_rows, bands))
         return Rendering(depth=depth, color=color, labels=labels,
                          nodes=self.nodes, owners=self.owners, names=self.names,
                          materials=self.materials, normals_camera=normals_camera,
-                         incidence=incidence.astype(np.float32, copy=False))
+                         incidence=incidence)
+
+
+_BANDS = 2
+_POOL = None
+
+
+def _pool():
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+        _POOL = ThreadPoolExecutor(max_workers=_BANDS, thread_name_prefix="render")
+    return _POOL
 
 
 _RAYS_CACHE: dict = {}

@@ -95,40 +95,46 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
 
 
 def _noisy_depth(rendering, rng: np.random.Generator, m: KinectNoise) -> np.ndarray:
+    # float32 throughout: this runs on every simulated frame.
     z0 = np.asarray(rendering.depth, dtype=np.float32)
     H, W = z0.shape
-    valid = z0 > 0
-    z = _lateral(z0, valid, rng, m)
+    z = _lateral(z0, rng, m)
     valid = z > 0
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
     cos = np.clip(np.asarray(rendering.incidence, dtype=np.float32), 1e-3, 1.0)
-    theta = np.arccos(cos)
-    sigma = m.axial_std(z, theta).astype(np.float32)
+    theta = np.minimum(np.arccos(cos), np.float32(math.radians(89.0)))
+    zc = np.maximum(z, np.float32(1e-3))
+    ang = theta / (np.float32(math.pi / 2) - theta)
+    var = (np.float32(m.axial_a) + np.float32(m.axial_b) * (z - np.float32(m.axial_c)) ** 2
+           + np.float32(m.axial_angle) / np.sqrt(zc) * ang * ang) ** 2
     if m.quantise:
-        q = m.quantisation_step(z).astype(np.float32)
-        sigma = np.sqrt(np.maximum(sigma * sigma - q * q / 12.0, 0.25 * sigma * sigma))
-    noisy = z + sigma * rng.standard_normal((H, W), dtype=np.float32)
+        q2 = (zc * zc * np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))) ** 2
+        var = np.maximum(var - q2 / np.float32(12.0), np.float32(0.25) * var)
+    noisy = z + np.sqrt(var) * rng.standard_normal((H, W), dtype=np.float32)
     if m.quantise:
         fb = np.float32(m.focal_ir_px * m.baseline_m / m.disparity_step_px)
         steps = np.rint(fb / np.maximum(noisy, np.float32(1e-3)))
-        noisy = fb / np.maximum(steps, 1)
+        noisy = fb / np.maximum(steps, np.float32(1))
     # Dropouts.
-    u = rng.random((H, W), dtype=np.float32)
     drop = ~valid | (noisy < m.min_range) | (noisy > m.max_range)
     g0, g1 = math.cos(math.radians(m.grazing_start_deg)), math.cos(math.radians(m.grazing_full_deg))
-    p = np.clip((g0 - cos) / max(g0 - g1, 1e-6), 0.0, 1.0)
-    mats = np.array([MATERIAL_CODES.get(x, 0) for x in rendering.materials] + [0], dtype=np.int8)
-    code = mats[np.where(rendering.labels >= 0, rendering.labels, len(mats) - 1)]
-    p_mat = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], dtype=np.float32)
-    # Shiny surfaces reflect the pattern away except when seen nearly head-on.
-    shiny_gain = np.where(code == 2, np.clip((1.0 - cos) / 0.1, 0.3, 1.0), 1.0)
-    p = np.maximum(p, p_mat[code] * shiny_gain)
-    drop |= u < p
-    return np.where(drop, np.float32(0), noisy).astype(np.float32)
+    p = np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0)
+    codes = [MATERIAL_CODES.get(x, 0) for x in rendering.materials]
+    if any(codes):
+        mats = np.array(codes + [0], dtype=np.int8)
+        code = mats[rendering.labels]          # label -1 picks the trailing "matte"
+        p_mat = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], np.float32)
+        pm = p_mat[code]
+        # Shiny surfaces reflect the pattern away except when seen nearly head-on.
+        shiny = code == 2
+        pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
+        p = np.maximum(p, pm)
+    drop |= rng.random((H, W), dtype=np.float32) < p
+    noisy[drop] = 0
+    return noisy
 
 
-def _lateral(z: np.ndarray, valid: np.ndarray, rng: np.random.Generator,
-             m: KinectNoise) -> np.ndarray:
+def _lateral(z: np.ndarray, rng: np.random.Generator, m: KinectNoise) -> np.ndarray:
     """Edge pixels read a neighbour picked with a Gaussian pixel offset (Nguyen: sigma_L ~
     0.8 px). Smooth surfaces are unchanged by a sub-pixel shift, so only pixels next to a
     depth jump are touched, which keeps this cheap."""
@@ -157,6 +163,8 @@ def _noisy_color(color: np.ndarray, rng: np.random.Generator, m: KinectNoise) ->
     if m.color_std <= 0:
         return color.copy()
     H, W = color.shape[:2]
-    n = (rng.standard_normal((H, W), dtype=np.float32) * np.float32(m.color_std))
-    out = color.astype(np.float32) + n[..., None]
+    n = np.rint(rng.standard_normal((H, W), dtype=np.float32)
+                * np.float32(m.color_std)).astype(np.int16)
+    out = color.astype(np.int16)
+    out += n[..., None]
     return np.clip(out, 0, 255, out=out).astype(np.uint8)

@@ -1,0 +1,123 @@
+"""Simulated robot: time to render one noisy 640x480 RGB-D frame of the demo kitchen (ray
+casting + colour + Kinect noise), its parts, scene rebuild, recording and replay per frame,
+and the noise model's measured depth std against its formula."""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _median_ms(fn, n: int, cpu: list | None = None) -> float:
+    """Median wall time (ms) of ``fn``; ``cpu`` receives the median process CPU time (ms,
+    all threads), which a busy shared machine inflates much less than wall time."""
+    ts, cs = [], []
+    for _ in range(n):
+        c = time.process_time()
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+        cs.append(time.process_time() - c)
+    if cpu is not None:
+        cpu.append(round(float(np.median(cs)) * 1000.0, 2))
+    return round(float(np.median(ts)) * 1000.0, 2)
+
+
+def _kitchen_views(world):
+    """Camera poses at kitchen parking positions, looking at their objects."""
+    from robot.sim import camera_pose, pan_tilt_to
+    views = []
+    for oid in ("oven", "kitchen_table", "cupboard", "fridge", "drawer_unit", "side_table"):
+        base = world.parking_positions(oid)[0][1]
+        target = world.bounds_world(oid).mean(axis=0)
+        views.append(camera_pose(base, *pan_tilt_to(base, target)))
+    return views
+
+
+def _plane_std(z: float, rng) -> float:
+    import open3d as o3d
+    from perception.camera import Intrinsics
+    from perception.render import Scene
+    from robot.noise import add_kinect_noise
+    from worldmodel.geometry import LabelledMesh
+    m = o3d.geometry.TriangleMesh.create_box(8.0, 8.0, 0.01)
+    m.translate((-4.0, -4.0, z))
+    r = Scene([LabelledMesh("wall", "wall", m, (0.8, 0.8, 0.8))]).render(Intrinsics.kinect(),
+                                                                        np.eye(4))
+    d = add_kinect_noise(r, rng).depth
+    return float(np.std(d[d > 0] - z))
+
+
+def run(args) -> dict:
+    from perception.camera import Intrinsics
+    from robot.adapter import wait
+    from robot.clock import SimClock
+    from robot.noise import KinectNoise, add_kinect_noise
+    from robot.recording import RecordingRobot, ReplayRobot
+    from robot.sim import render_view, world_scene
+    from robot.simulated import SimulatedRobot
+    from worldmodel.io import load_world
+
+    quick = getattr(args, "quick", False)
+    n = 5 if quick else 15
+    rng = np.random.default_rng(getattr(args, "seed", 0) or 0)
+    world = load_world(ROOT / "data" / "demo_home" / "world.xml")
+    K = Intrinsics.kinect()
+    views = _kitchen_views(world)
+    scene = world_scene(world)
+    for T in views:                                   # warm caches (rays per camera)
+        render_view(world, K, T, rng, scene=scene)
+    i = iter(range(10 ** 9))
+
+    def one():
+        render_view(world, K, views[next(i) % len(views)], rng, scene=scene)
+
+    out: dict = {}
+    cpu: list = []
+    out["render_640x480_ms"] = _median_ms(one, n * len(views) // 3, cpu)
+    out["render_640x480_cpu_ms"] = cpu[0]
+    out["load_average_1min"] = round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None
+    clean = [scene.render(K, T) for T in views]
+    out["raycast_and_shade_ms"] = _median_ms(lambda: scene.render(K, views[next(i) % len(views)]),
+                                             n * 2)
+    out["noise_ms"] = _median_ms(lambda: add_kinect_noise(clean[next(i) % len(clean)], rng), n * 2)
+    out["scene_build_ms"] = _median_ms(lambda: world_scene(world), n)
+    out["render_320x240_ms"] = _median_ms(
+        lambda: render_view(world, K.scaled(0.5), views[next(i) % len(views)], rng, scene=scene),
+        n * 2)
+    model = KinectNoise()
+    for z in (1.0, 2.0, 3.0):
+        out[f"depth_std_{z:.0f}m_mm"] = round(_plane_std(z, rng) * 1000, 3)
+        out[f"depth_std_{z:.0f}m_model_mm"] = round(float(model.axial_std(z)) * 1000, 3)
+    # A simulated robot: capture (with the scene cached), and with a door moving (rebuild).
+    clock = SimClock()
+    sim = SimulatedRobot(world.copy(), clock, start_pose=world.parking_positions("oven")[0][1],
+                         seed=1)
+    sim.look_at(world.T_world("oven")[:3, 3] + [0, 0, 0.5])
+    sim.capture()
+    out["sim_capture_ms"] = _median_ms(sim.capture, n)
+
+    def moved_capture():
+        sim.truth.set_joint_state("oven_door", float(rng.uniform(0, 1.0)))
+        sim.capture()
+    out["sim_capture_after_truth_change_ms"] = _median_ms(moved_capture, n)
+    # Record and replay.
+    with tempfile.TemporaryDirectory() as d:
+        rec = RecordingRobot(SimulatedRobot(world.copy(), clock, seed=2,
+                                            start_pose=world.parking_positions("oven")[0][1]),
+                             d)
+        frame = rec.inner.capture()
+        out["record_frame_ms"] = _median_ms(lambda: rec.writer.add(frame), n)
+        rp = ReplayRobot(d, clock=clock)
+        wait(rp.navigate_to(world.parking_positions("oven")[0][1]), clock)
+        out["replay_capture_ms"] = _median_ms(rp.capture, n)
+    out["views"] = len(views)
+    out["target_render_640x480_ms"] = 40.0
+    out["note"] = ("medians on this machine; render = ray casting + shading + Kinect noise "
+                   "with the scene prebuilt; cpu_ms = process CPU time of all threads")
+    return out
