@@ -46,20 +46,36 @@ def make_service(world: Any, robot: Any, missions: list[str], *, skills: dict | 
     return CommandService(ex, world, missions, approvals=approvals)
 
 
+def bind_socket(host: str, port: int) -> socket.socket:
+    """A listening TCP socket with TCP_NODELAY, which accepted connections inherit: without
+    it the event loop's small writes wait for delayed ACKs and every request on a kept-alive
+    connection takes ~40 ms on loopback (measured; 0.3 ms with it)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    sock.bind((host, port))
+    sock.listen(2048)
+    return sock
+
+
+def make_server(app: Any, log_level: str = "warning") -> uvicorn.Server:
+    config = uvicorn.Config(app, log_level=log_level, access_log=False,
+                            timeout_graceful_shutdown=1, lifespan="on", backlog=2048)
+    return uvicorn.Server(config)
+
+
 class ServerThread:
     """uvicorn serving ``app`` on ``host`` in a daemon thread (port 0: an ephemeral port).
     ``url`` once started; ``stop()`` (or leaving the ``with``) shuts it down."""
 
     def __init__(self, app: Any, host: str = "127.0.0.1", port: int = 0,
                  log_level: str = "warning"):
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.sock.bind((host, port))
+        self.sock = bind_socket(host, port)
         self.host, self.port = self.sock.getsockname()[:2]
-        self.url = f"http://{self.host}:{self.port}"
-        config = uvicorn.Config(app, log_level=log_level, access_log=False,
-                                timeout_graceful_shutdown=1, lifespan="on")
-        self.server = uvicorn.Server(config)
+        self.url = f"http://{self.host}:{self.port}" if ":" not in self.host else \
+            f"http://[{self.host}]:{self.port}"
+        self.server = make_server(app, log_level)
         self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
                                        name="hearth-api", daemon=True)
 

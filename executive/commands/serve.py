@@ -57,10 +57,8 @@ def _serve(args: argparse.Namespace) -> int:
     if problem:
         print(problem, file=sys.stderr)
         return 2
-    import uvicorn
-
     from executive.command.api import create_app
-    from executive.command.server import make_service
+    from executive.command.server import bind_socket, make_server, make_service
     from robot.clock import WallClock
 
     clock = WallClock()
@@ -71,11 +69,12 @@ def _serve(args: argparse.Namespace) -> int:
     for line in service.catalogue_problems:
         print(f"hearth serve: skipped {line}", file=sys.stderr)
     names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
-    print(f"hearth serve: missions {names}; http://{args.host}:{args.port}/ "
-          f"(API docs at /docs)", file=sys.stderr)
     try:
-        uvicorn.run(create_app(service, token=args.token), host=args.host, port=args.port,
-                    log_level="warning")
+        sock = bind_socket(args.host, args.port)
+        host, port = sock.getsockname()[:2]
+        print(f"hearth serve: missions {names}; http://{host}:{port}/ (API docs at /docs)",
+              file=sys.stderr, flush=True)
+        make_server(create_app(service, token=args.token)).run(sockets=[sock])
     finally:
         service.executive.shutdown()
         service.close()
