@@ -65,7 +65,7 @@ class KnobConfig:
     nms_iou: float = 0.3
     angle_method: str = "fused"
     fuse_gate_deg: float = 15.0
-    min_confidence: float = 0.4
+    min_confidence: float = 0.3
     max_off_axis_deg: float = 70.0
     angle_shifts_px: float = 2.0
 

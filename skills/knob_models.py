@@ -74,9 +74,20 @@ def _noise():
         return None
 
 
+#: The KnobConfig fields the training depends on; the others (thresholds, the angle method)
+#: are read-time settings and can change without retraining.
+TRAINED_FIELDS = ("px_per_radius", "search_px", "scales")
+
+
 def configuration(world, cfg: TrainingConfig, knob: KnobConfig) -> dict:
-    return {"code_version": CODE_VERSION, "training": asdict(cfg), "reader": asdict(knob),
+    reader = {k: v for k, v in asdict(knob).items() if k in TRAINED_FIELDS}
+    return {"code_version": CODE_VERSION, "training": asdict(cfg), "reader": reader,
             "knobs": knob_signature(world), "robot_noise": _noise() is not None}
+
+
+def _with_config(reader: KnobReader, knob: KnobConfig) -> KnobReader:
+    return reader if reader.config == knob else KnobReader(reader.detector, reader.forest,
+                                                           reader.svr, knob)
 
 
 Progress = Callable[[str, int, int], None]
@@ -127,16 +138,16 @@ class ModelInfo:
 def load_or_train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = KnobConfig(),
                   directory: Optional[Path] = None, retrain: bool = True, force: bool = False,
                   progress: Optional[Progress] = None) -> tuple[KnobReader, ModelInfo]:
-    """The knob reader for ``world``: from memory, from disk, or trained now and stored.
-    With ``retrain=False`` a missing or stale model is a PerceptionError instead."""
+    """The knob reader for ``world``: from memory, from disk, or trained now and stored; it
+    reads with ``knob``'s read-time settings. With ``retrain=False`` a missing or stale model is a PerceptionError instead."""
     config = configuration(world, cfg, knob)
     key = (str(models_store.path_of(MODEL_NAME, directory)), models_store.fingerprint(config))
     if key in _CACHE and not force:
-        return _CACHE[key], ModelInfo(Path(key[0]), "memory")
+        return _with_config(_CACHE[key], knob), ModelInfo(Path(key[0]), "memory")
     loaded = models_store.load(MODEL_NAME, config, directory)
     if loaded.ok and not force:
         _CACHE[key] = loaded.model
-        return loaded.model, ModelInfo(loaded.path, "disk")
+        return _with_config(loaded.model, knob), ModelInfo(loaded.path, "disk")
     if not retrain and not force:
         raise PerceptionError(f"knob models {loaded.reason} ({loaded.path}); "
                               "run `hearth train knobs`")

@@ -139,3 +139,17 @@ def test_an_angle_within_half_a_step_snaps_to_its_state(i, frac):
     state, conf = snap_to_state(PRIOR.state_angles[i] + frac * step, PRIOR)
     assert state == f"s{i}"
     assert conf == pytest.approx(1 - abs(frac) / 0.5, abs=1e-6)
+
+
+def test_read_time_settings_do_not_make_the_model_stale(world, reader, model_dir):
+    from perception.knobs import KnobConfig
+    r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(min_confidence=0.9),
+                            directory=model_dir, retrain=False)
+    assert info.source in ("memory", "disk")
+    assert r.config.min_confidence == 0.9
+
+
+def test_hearth_train_check_reports_a_missing_model(tmp_path, capsys):
+    from executive.cli import main
+    assert main(["train", "knobs", "--check", "--model-dir", str(tmp_path)]) == 1
+    assert "missing" in capsys.readouterr().out
