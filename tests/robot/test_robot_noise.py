@@ -97,3 +97,22 @@ def test_render_view_of_the_demo_oven_shows_its_knobs(demo_world):
     assert frame.depth.dtype == np.float32
     assert frame.mask(["oven_knob_2"]).sum() > 100
     assert np.array_equal(frame.T_world_camera, T)
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(x=st.floats(-5, 5), y=st.floats(-5, 5), yaw=st.floats(-3.1, 3.1),
+       dist=st.floats(0.5, 4.0), bearing=st.floats(-2.9, 2.9), z=st.floats(0.0, 1.6))
+def test_pan_tilt_to_puts_any_reachable_point_on_the_optical_axis(x, y, yaw, dist, bearing, z):
+    base = (x, y, yaw)
+    target = np.array([x + dist * math.cos(yaw + bearing), y + dist * math.sin(yaw + bearing), z])
+    pan, tilt = pan_tilt_to(base, target)
+    T = camera_pose(base, pan, tilt)
+    ray = target - T[:3, 3]
+    if np.linalg.norm(ray) < 1e-6:
+        return
+    # Within the head's limits the aim is exact (the limits clip only extreme targets).
+    if math.radians(-45) < tilt < math.radians(75) and abs(pan) < math.radians(170):
+        assert ray @ T[:3, 2] / np.linalg.norm(ray) == pytest.approx(1.0, abs=1e-9)
