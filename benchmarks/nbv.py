@@ -109,6 +109,7 @@ def _median(xs, nd=1):
 
 def run(args) -> dict:
     from perception.nbv import plan_next_best_view
+    from perception.errors import PerceptionError
     from perception.objects import detect_objects
     n = args.scenarios or (8 if args.quick else 60)
     rng = np.random.default_rng(args.seed)
@@ -134,8 +135,12 @@ def run(args) -> dict:
         T2 = views[0].T_world_camera
         d2, c2, r2 = observe(truth, T2, rng, K)
         vis2 = visible_fractions(truth, r2, T2, K, [target])[target]
-        det2 = detect_objects(belief, d2, c2, K, T2)
-        rec2 += recognised(det1, truth, target) or recognised(det2, truth, target)
+        try:
+            det2 = detect_objects(belief, d2, c2, K, T2)
+            seen2 = recognised(det2, truth, target)
+        except PerceptionError:  # e.g. no surface in view: not recognised
+            seen2 = False
+        rec2 += recognised(det1, truth, target) or seen2
         avoided += vis2 >= 0.9
         below_half += vis2 >= 0.5
         vis1s.append(vis1)

@@ -195,14 +195,17 @@ def f1(tp, fp, fn):
 
 
 def run(args) -> dict:
+    from types import SimpleNamespace
+
+    from perception.errors import PerceptionError
     from perception.objects import detect_objects
     n = args.scenarios or (12 if args.quick else 80)
     rng = np.random.default_rng(args.seed)
     belief = demo_world()
     base = demo_world()
     K = Intrinsics.kinect()
-    detect_objects(belief, *observe(base, camera_around_table(base, rng), rng)[:2], K,
-                   camera_around_table(base, rng))  # warm-up: model sampling, caches
+    T0 = camera_around_table(base, rng)
+    detect_objects(belief, *observe(base, T0, rng)[:2], K, T0)  # warm-up: models, caches
     TP = FP = FN = SW = 0
     errs, ms, cpu, per_obj, occl = [], [], [], {o: [0, 0, 0] for o in OBJECTS}, []
     per_scene_f1 = []
@@ -212,7 +215,10 @@ def run(args) -> dict:
         vis = visible_fractions(truth, r, T_wc, K, OBJECTS)
         occl.extend(1 - v for v in vis.values() if v > 0)
         t0, c0 = time.perf_counter(), time.process_time()
-        det = detect_objects(belief, depth, color, K, T_wc)
+        try:
+            det = detect_objects(belief, depth, color, K, T_wc)
+        except PerceptionError:  # no surface found: every object missed
+            det = SimpleNamespace(accepted=[])
         ms.append((time.perf_counter() - t0) * 1000)
         cpu.append((time.process_time() - c0) * 1000)
         tp, fp, fn, e, sw = score(det, truth, vis)
@@ -221,7 +227,6 @@ def run(args) -> dict:
         errs.extend(e)
         for oid in OBJECTS:
             sub = {oid: vis[oid]}
-            from types import SimpleNamespace
             d1 = SimpleNamespace(accepted=[h for h in det.accepted if h.object_id == oid])
             a, b, c, _, _ = score(d1, truth, sub)
             per_obj[oid] = [per_obj[oid][0] + a, per_obj[oid][1] + b, per_obj[oid][2] + c]

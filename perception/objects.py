@@ -201,20 +201,34 @@ class Detection:
 # -- the pipeline -------------------------------------------------------------------------------
 
 def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
-                      max_range: float = 4.0) -> list[tuple[str, np.ndarray, float, float]]:
-    """Surfaces of the map's large objects whose centre is in view:
-    (``object/surface``, ``T_world_surface``, size_x, size_y), nearest first."""
+                      depth: Optional[np.ndarray] = None, max_range: float = 4.0
+                      ) -> list[tuple[str, np.ndarray, float, float]]:
+    """Surfaces of the map's large objects of which some part is in view:
+    (``object/surface``, ``T_world_surface``, size_x, size_y), the most seen first. With
+    ``depth``, a surface point counts as seen only where the measured depth agrees with it
+    (a shelf behind a cupboard door projects into the image but is not seen)."""
     out = []
     T_cw = np.linalg.inv(T_world_camera)
+    g = np.linspace(-0.45, 0.45, 7)
+    gx, gy = np.meshgrid(g, g)
     for obj in world.large_objects():
         for s in getattr(obj, "surfaces", []):
             T = world.T_world(obj.id) @ s.pose.matrix()
-            pc = T_cw[:3, :3] @ T[:3, 3] + T_cw[:3, 3]
-            uv, front = project(pc[None], K)
-            if front[0] and 0 <= uv[0, 0] < K.width and 0 <= uv[0, 1] < K.height \
-                    and pc[2] < max_range:
-                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y, float(pc[2])))
-    out.sort(key=lambda t: t[4])
+            local = np.c_[gx.ravel() * s.size_x, gy.ravel() * s.size_y, np.zeros(gx.size)]
+            pw = local @ T[:3, :3].T + T[:3, 3]
+            pc = pw @ T_cw[:3, :3].T + T_cw[:3, 3]
+            uv, front = project(pc, K)
+            seen = front & (uv[:, 0] >= 0) & (uv[:, 0] < K.width - 0.5) & (uv[:, 1] >= 0) & \
+                (uv[:, 1] < K.height - 0.5) & (pc[:, 2] < max_range)
+            if depth is not None and seen.any():
+                px = np.round(uv[seen]).astype(int)
+                measured = np.asarray(depth)[px[:, 1], px[:, 0]]
+                seen[np.flatnonzero(seen)] = np.abs(measured - pc[seen, 2]) < 0.03
+            if seen.any():
+                off_axis = float(np.min(np.hypot(uv[seen, 0] - K.cx, uv[seen, 1] - K.cy)))
+                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y, -int(seen.sum()),
+                            off_axis))
+    out.sort(key=lambda t: (t[4], t[5]))
     return [t[:4] for t in out]
 
 
@@ -360,7 +374,7 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     (default: the nearest surface in view). Raises PerceptionError when no surface is in view.
     """
     T_world_camera = np.asarray(T_world_camera, dtype=float)
-    surfaces = expected_surfaces(world, T_world_camera, K)
+    surfaces = expected_surfaces(world, T_world_camera, K, depth)
     if surface is not None:
         surfaces = [s for s in surfaces if s[0] == surface] or [
             _surface_by_name(world, surface)]
