@@ -308,15 +308,13 @@ async def _stream(service: CommandService, cursor: int, run: str | None, close_o
     yield f": hearth events after {cursor}\n\n"
     while True:
         waiter = hub.waiter()
-        items, gap = hub.since(cursor)
+        items, gap = hub.since(cursor, run=run)
         if gap:
             yield f"event: gap\ndata: {{\"e\": \"gap\", \"after\": {cursor}}}\n\n"
         chunk = []
         ended = False
         for seq, kind, ev_run, text in items:
             cursor = seq
-            if run is not None and ev_run is not None and ev_run != run:
-                continue
             chunk.append(f"id: {seq}\nevent: {kind}\ndata: {text}\n\n")
             if (close_on_end and run is not None and ev_run == run and kind == "run"
                     and any(f'"state": "{s}"' in text for s in TERMINAL)):
@@ -324,10 +322,9 @@ async def _stream(service: CommandService, cursor: int, run: str | None, close_o
                 break
         if chunk:
             yield "".join(chunk)
-        if close_on_end and run is not None and not items:
-            rec = service.run(run)
-            if rec.handle.done and cursor >= hub.last_seq:
-                ended = True
+        if close_on_end and run is not None and not items and not ended:
+            if service.run(run).handle.done:
+                ended = True    # its last event was read (or had already been dropped)
         if ended:
             yield f"event: end\ndata: {json.dumps(service.run(run).to_json(), default=repr)}\n\n"
             return

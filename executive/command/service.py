@@ -45,6 +45,12 @@ class EventHub:
     def __init__(self, keep: int = 50_000):
         self._lock = threading.Lock()
         self._buf: deque[tuple[int, str, str | None, str]] = deque(maxlen=keep)
+        # A stream that follows one run reads that run's events and the run-less ones (map,
+        # vocabulary, autonomy) without scanning everybody else's (50 clients each
+        # following their own run would otherwise rescan every event).
+        self._by_run: OrderedDict[str, deque] = OrderedDict()
+        self._global: deque = deque(maxlen=2000)
+        self._keep_runs = 5000
         self.last_seq = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._event: asyncio.Event | None = None
@@ -59,7 +65,17 @@ class EventHub:
         with self._lock:
             self.last_seq += 1
             seq = self.last_seq
-            self._buf.append((seq, kind, run, text))
+            item = (seq, kind, run, text)
+            self._buf.append(item)
+            if run is None:
+                self._global.append(item)
+            else:
+                per = self._by_run.get(run)
+                if per is None:
+                    per = self._by_run[run] = deque(maxlen=10_000)
+                    if len(self._by_run) > self._keep_runs:
+                        self._by_run.popitem(last=False)
+                per.append(item)
             wake = self._loop is not None and not self._wake_pending
             if wake:
                 self._wake_pending = True
@@ -80,11 +96,20 @@ class EventHub:
         """The event to await for news (take it before reading with ``since``)."""
         return self._event
 
-    def since(self, seq: int, limit: int = 1000) -> tuple[list[tuple[int, str, str | None, str]], bool]:
-        """Events after ``seq`` (at most ``limit``) and whether some were already dropped."""
+    def since(self, seq: int, limit: int = 1000, run: str | None = None
+              ) -> tuple[list[tuple[int, str, str | None, str]], bool]:
+        """Events after ``seq`` (at most ``limit``) and whether some were already dropped.
+        With ``run``: only that run's events and the run-less ones."""
         with self._lock:
             if not self._buf or seq >= self.last_seq:
                 return [], False
+            if run is not None:
+                per = self._by_run.get(run, ())
+                mine = [e for e in per if e[0] > seq]
+                other = [e for e in self._global if e[0] > seq]
+                items = sorted(mine + other)[:limit] if other else mine[:limit]
+                gap = bool(per) and per[0][0] > seq + 1 and len(per) == per.maxlen
+                return items, gap
             first = self._buf[0][0]
             start = max(seq + 1 - first, 0)
             gap = seq + 1 < first
