@@ -89,19 +89,45 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
     if model is None:
         return rendering
     rng = np.random.default_rng() if rng is None else rng
-    depth = _noisy_depth(rendering, rng, model)
-    color = _noisy_color(rendering.color, rng, model)
+    z = _lateral(np.asarray(rendering.depth, dtype=np.float32), rng, model)
+    H = z.shape[0]
+    depth = np.empty_like(z)
+    color = np.empty_like(rendering.color)
+    # Two row bands, each with its own child generator (deterministic for a seeded rng), in
+    # threads: numpy releases the GIL on these array operations, so both cores work.
+    children = [np.random.default_rng(int(s)) for s in rng.integers(0, 2 ** 63, size=_BANDS)]
+    bands = [slice(i * H // _BANDS, (i + 1) * H // _BANDS) for i in range(_BANDS)]
+
+    def band(i: int) -> None:
+        rows, r = bands[i], children[i]
+        depth[rows] = _noisy_depth(rendering, z, rows, r, model)
+        color[rows] = _noisy_color(rendering.color[rows], r, model)
+
+    list(_pool().map(band, range(_BANDS)))
     return dataclasses.replace(rendering, depth=depth, color=color)
 
 
-def _noisy_depth(rendering, rng: np.random.Generator, m: KinectNoise) -> np.ndarray:
-    # float32 throughout: this runs on every simulated frame.
-    z0 = np.asarray(rendering.depth, dtype=np.float32)
-    H, W = z0.shape
-    z = _lateral(z0, rng, m)
+_BANDS = 2
+_POOL = None
+
+
+def _pool():
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+        _POOL = ThreadPoolExecutor(max_workers=_BANDS, thread_name_prefix="kinect-noise")
+    return _POOL
+
+
+def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, rng: np.random.Generator,
+                 m: KinectNoise) -> np.ndarray:
+    """Axial noise, quantisation and dropouts for the rows ``rows`` of the (laterally
+    jittered) depth ``z_all``. float32 throughout: this runs on every simulated frame."""
+    z = z_all[rows]
+    H, W = z.shape
     valid = z > 0
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
-    cos = np.clip(np.asarray(rendering.incidence, dtype=np.float32), 1e-3, 1.0)
+    cos = np.clip(np.asarray(rendering.incidence[rows], dtype=np.float32), 1e-3, 1.0)
     theta = np.minimum(np.arccos(cos), np.float32(math.radians(89.0)))
     zc = np.maximum(z, np.float32(1e-3))
     ang = theta / (np.float32(math.pi / 2) - theta)
@@ -122,7 +148,7 @@ def _noisy_depth(rendering, rng: np.random.Generator, m: KinectNoise) -> np.ndar
     codes = [MATERIAL_CODES.get(x, 0) for x in rendering.materials]
     if any(codes):
         mats = np.array(codes + [0], dtype=np.int8)
-        code = mats[rendering.labels]          # label -1 picks the trailing "matte"
+        code = mats[rendering.labels[rows]]    # label -1 picks the trailing "matte"
         p_mat = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], np.float32)
         pm = p_mat[code]
         # Shiny surfaces reflect the pattern away except when seen nearly head-on.
