@@ -63,11 +63,9 @@ def _percentile(values: list[float], q: float) -> float:
     return values[k]
 
 
-async def _client(url: str, rounds: int, idx: int, latencies: list[float],
+async def _client(c, rounds: int, idx: int, latencies: list[float],
                   counts: list[int], run_ids: list[str]) -> None:
-    import httpx
-    limits = httpx.Limits(max_connections=2)
-    async with httpx.AsyncClient(base_url=url, timeout=60.0, limits=limits) as c:
+    async with c:
         for k in range(rounds):
             t0 = time.perf_counter()
             r = await c.post("/api/runs", json={"mission": "bench_chores",
@@ -103,9 +101,15 @@ async def _load(url: str, clients: int, rounds: int, limit: float) -> dict:
     monitor_count = [0]
     stop = asyncio.Event()
     mon = asyncio.create_task(_monitor(url, stop, monitor_count))
+    import httpx
+    # Made before the clock starts: making an httpx client loads CA certificates (~30 ms of
+    # CPU each, under the GIL the server shares), which would be counted as submit latency.
+    limits = httpx.Limits(max_connections=2)
+    made = [httpx.AsyncClient(base_url=url, timeout=60.0, limits=limits)
+            for _ in range(clients)]
     t0 = time.perf_counter()
-    tasks = [asyncio.create_task(_client(url, rounds, i, latencies, counts, run_ids))
-             for i in range(clients)]
+    tasks = [asyncio.create_task(_client(c, rounds, i, latencies, counts, run_ids))
+             for i, c in enumerate(made)]
     done, pending = await asyncio.wait(tasks, timeout=limit)
     wall = time.perf_counter() - t0
     for t in pending:
