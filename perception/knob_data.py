@@ -194,7 +194,9 @@ def render_views(world, n: int, seed: int, data: KnobDataConfig = KnobDataConfig
             continue
         r = scenes.scene(owner, angles, () if present else (kid,)).render(K, T_wc)
         if noise is not None:
-            r = noise(r, rng) or r
+            # its own generator, so that a noise model drawing more or fewer numbers leaves
+            # the views (poses, angles, lighting) of a seed unchanged
+            r = noise(r, np.random.default_rng([seed, len(out)])) or r
         out.append(KnobView(photometric(r.color, rng, data), K, T_wc, believed, truth,
                             angles[kid], bool(present), dist, off, states.get(kid, "")))
         if progress and len(out) % 50 == 0:

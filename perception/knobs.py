@@ -369,7 +369,8 @@ def nms(boxes: list, scores: list, score_threshold: float, iou: float) -> list[i
     """Indices kept by OpenCV's non-maximum suppression, best first."""
     if not boxes:
         return []
-    keep = cv2.dnn.NMSBoxes(boxes, [float(s) for s in scores], score_threshold, iou)
+    # NMSBoxes wants a non-negative threshold: shift the scores (the order is what counts)
+    keep = cv2.dnn.NMSBoxes(boxes, [float(s) - score_threshold for s in scores], 0.0, iou)
     keep = [int(i) for i in np.asarray(keep).ravel()]
     return sorted(keep, key=lambda i: -scores[i])
 
