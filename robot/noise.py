@@ -109,13 +109,17 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
 
 _BANDS = 2
 _POOL = None
+_POOL_PID = None
 
 
 def _pool():
-    global _POOL
-    if _POOL is None:
+    """A small thread pool, made again in a forked child (threads do not survive a fork)."""
+    global _POOL, _POOL_PID
+    import os
+    if _POOL is None or _POOL_PID != os.getpid():
         from concurrent.futures import ThreadPoolExecutor
         _POOL = ThreadPoolExecutor(max_workers=_BANDS, thread_name_prefix="kinect-noise")
+        _POOL_PID = os.getpid()
     return _POOL
 
 
