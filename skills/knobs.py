@@ -38,8 +38,15 @@ class ReadKnobs(Skill):
                Port("unknown", "list", required=False))
 
     def setup(self, **kwargs) -> None:
+        """Loads the knob models (trains them on first use: minutes, once per machine)."""
         super().setup(**kwargs)
         self.reader = kwargs.get("knob_reader")
+        if self.reader is None and self.world is not None:
+            from skills.knob_models import load_or_train
+            try:
+                self.reader, _ = load_or_train(self.world)
+            except PerceptionError:
+                self.reader = None   # update() tries again and reports why
 
     def _reader(self):
         if self.reader is None:
