@@ -14,6 +14,7 @@ and detects again.
 view. ``occlusion_avoided``: the target at most 10 % hidden in the second view (the occlusion
 measured by rendering the target alone); ``occlusion_below_half`` the same at 50 %.
 ``random_view_*``: the same for a random collision-free candidate (a baseline).
+``plan_failures``: scenes where no collision-free view was found (counted as failures).
 ``plan_ms_median``: wall time of plan_next_best_view (machine shared; see load average).
 Reference (McGreavy et al.): recognised within two views in 82.5 % of trials, occlusion
 avoided in 85 %, given as ratios (ours / theirs).
@@ -117,19 +118,29 @@ def run(args) -> dict:
     K = Intrinsics.kinect()
     rec2 = avoided = below_half = rnd_avoided = rnd_below = 0
     vis1s, vis2s, ms, cpu, tried, occluded_first = [], [], [], [], 0, 0
+    plan_failures: list[str] = []
     while len(ms) < n and tried < 20 * n:
         tried += 1
         truth, T1, target = occluded_scene(rng, base)
         belief = believed(base, truth, rng)
         depth, color, r = observe(truth, T1, rng, K)
         vis1 = visible_fractions(truth, r, T1, K, [target])[target]
-        det1 = detect_objects(belief, depth, color, K, T1)
+        try:
+            det1 = detect_objects(belief, depth, color, K, T1)
+        except PerceptionError:
+            continue  # the first camera missed the table altogether: not an NBV scene
         if vis1 >= 0.5 and recognised(det1, truth, target):
             continue  # the first view is neither ambiguous nor occluded
         occluded_first += vis1 < 0.5
         hs = hypotheses_for(det1, belief, target)
         t0, c0 = time.perf_counter(), time.process_time()
-        views = plan_next_best_view(belief, hs, depth, K, T1, current_base=T1[:2, 3])
+        try:
+            views = plan_next_best_view(belief, hs, depth, K, T1, current_base=T1[:2, 3])
+        except PerceptionError as err:  # no free view: a failed scene
+            ms.append((time.perf_counter() - t0) * 1000)
+            cpu.append((time.process_time() - c0) * 1000)
+            plan_failures.append(f"{target}: {err}")
+            continue
         ms.append((time.perf_counter() - t0) * 1000)
         cpu.append((time.process_time() - c0) * 1000)
         T2 = views[0].T_world_camera
@@ -159,6 +170,7 @@ def run(args) -> dict:
         load = None
     return dict(
         scenes=m, scenes_tried=tried, seed=args.seed, first_view_occluded=occluded_first,
+        plan_failures=len(plan_failures),
         recognised_within_two_views=rw2, occlusion_avoided=oa,
         occlusion_below_half=round(below_half / m, 4) if m else None,
         random_view_occlusion_avoided=round(rnd_avoided / m, 4) if m else None,

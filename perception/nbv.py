@@ -31,7 +31,7 @@ import open3d as o3d
 
 from perception.camera import Intrinsics, depth_to_points, look_at, project
 from perception.errors import PerceptionError
-from perception.objects import ObjectModel, color_agreement, model_library
+from perception.objects import color_agreement, model_library
 
 
 @dataclass(frozen=True)

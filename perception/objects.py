@@ -22,7 +22,6 @@ from __future__ import annotations
 import colorsys
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Optional, Sequence
 
 import numpy as np

@@ -3,18 +3,15 @@
 open3d's plane RANSAC is not deterministic even with a seed: assertions are tolerances."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from benchmarks.objects import (OBJECTS, box_object, camera_around_table, cluttered_scene,
-                                observe, visible_fractions)
+from benchmarks.objects import OBJECTS, box_object, cluttered_scene, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
 from perception.objects import color_agreement, detect_objects, model_library
-from worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 

@@ -10,7 +10,7 @@ from benchmarks.nbv import occluded_scene
 from benchmarks.objects import box_object, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
-from perception.nbv import (NBVConfig, ObjectHypothesis, footprints, from_map, occupancy_voxels,
+from perception.nbv import (NBVConfig, footprints, from_map, occupancy_voxels,
                             plan_next_best_view, _box_distance)
 
 K = Intrinsics.kinect()
