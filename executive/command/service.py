@@ -93,7 +93,10 @@ class EventHub:
         old.set()
 
     def waiter(self) -> asyncio.Event:
-        """The event to await for news (take it before reading with ``since``)."""
+        """The event to await for news (take it before reading with ``since``); call from
+        the event loop (attaches it if the app's lifespan did not)."""
+        if self._event is None:
+            self.attach_loop(asyncio.get_running_loop())
         return self._event
 
     def since(self, seq: int, limit: int = 1000, run: str | None = None

@@ -70,7 +70,12 @@ def _serve(args: argparse.Namespace) -> int:
         print(f"hearth serve: skipped {line}", file=sys.stderr)
     names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
     try:
-        sock = bind_socket(args.host, args.port)
+        try:
+            sock = bind_socket(args.host, args.port)
+        except OSError as err:
+            print(f"hearth serve: cannot listen on {args.host}:{args.port}: {err.strerror}",
+                  file=sys.stderr)
+            return 2
         host, port = sock.getsockname()[:2]
         print(f"hearth serve: missions {names}; http://{host}:{port}/ (API docs at /docs)",
               file=sys.stderr, flush=True)

@@ -166,4 +166,10 @@ def test_monitor_page_shows_a_node_change_state(make_server, chromium):
     assert page.wait_for(node, "SUCCESS") == "SUCCESS"
     assert page.wait_for('document.getElementById("run-status").textContent', "succeeded") == "succeeded"
     assert srv.client.get(f"/api/runs/{run_id}").json()["status"] == "succeeded"
+    # A run started after the page loaded replaces the tree as it starts.
+    second = srv.client.post("/api/runs", json={"mission": "fetch_test",
+                                                "params": {"object": "bowl"}}).json()["run"]["id"]
+    assert page.wait_for('document.getElementById("run-id").textContent', second) == second
+    tell = 'document.querySelector(\'li.node[data-path="/fetch_test/tell"]\')?.getAttribute("data-status")'
+    assert page.wait_for(tell, "SUCCESS") == "SUCCESS"
     page.close()
