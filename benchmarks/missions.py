@@ -7,6 +7,9 @@ absent / knob stuck ending with "no ... at the N places searched" / "I cannot ..
 ``sim_time_s_mean``, ``wall_time_s_mean``; for fetch ``positions_visited_mean_learned`` and
 ``positions_visited_mean_fixed`` (after 20 warm-up searches); for localisation the residual
 error. Wall times are inflated when other work shares the CPU.
+
+``HEARTH_BENCH_VERBOSE=1`` prints one line per case on stderr as it finishes. (The options of
+``add_arguments`` apply where the bench command passes them on.)
 """
 from __future__ import annotations
 
@@ -31,7 +34,7 @@ def run(args) -> dict:
                      "fetch_object,turn_off_oven,refine_localisation").split(",") if m.strip())
     cases = suite_cases(n, seed=args.seed, missions=missions,
                         warmup=getattr(args, "warmup", 20))
-    verbose = getattr(args, "verbose", False)
+    verbose = getattr(args, "verbose", False) or bool(os.environ.get("HEARTH_BENCH_VERBOSE"))
 
     def progress(r):
         if verbose:

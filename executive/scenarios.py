@@ -185,31 +185,41 @@ def categorise(outcome: str, reason: str) -> str:
     return "other"
 
 
-def run_case(case: Case, on_event: Optional[Callable] = None, robot_wrapper=None,
-             world=None) -> CaseResult:
-    """Run one case on the simulated robot (simulated clock); ``robot_wrapper(sim)`` may wrap
-    the robot (a RecordingRobot)."""
+def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
+             record_to: Optional[str] = None, replay_from: Optional[str] = None) -> CaseResult:
+    """Run one case on the simulated robot (simulated clock). ``record_to``: write every
+    capture and action to a recording directory (robot.recording.RecordingRobot);
+    ``replay_from``: run on a recording instead of the simulator (robot.recording.ReplayRobot),
+    with the same belief map."""
     from executive.executive import Executive
     from robot.clock import SimClock
+    from robot.recording import RecordingRobot, ReplayRobot
     from robot.simulated import SimulatedRobot
 
     sc, params = make_case_scenario(case, world)
     clock = SimClock()
-    sim = SimulatedRobot(sc.truth, clock=clock, start_pose=sc.start_pose,
-                         localisation_error=sc.localisation_error, stuck_knobs=sc.stuck_knobs,
-                         locked=sc.locked, seed=case.seed)
-    robot = robot_wrapper(sim) if robot_wrapper else sim
+    sim = None
+    if replay_from is not None:
+        robot = ReplayRobot(replay_from, clock=clock)
+    else:
+        sim = SimulatedRobot(sc.truth, clock=clock, start_pose=sc.start_pose,
+                             localisation_error=sc.localisation_error,
+                             stuck_knobs=sc.stuck_knobs, locked=sc.locked, seed=case.seed)
+        robot = sim
+        if record_to is not None:
+            robot = RecordingRobot(sim, record_to, info=dict(mission=case.mission,
+                                                             seed=case.seed, params=params))
     belief = sc.belief
     changes: list[str] = []
     belief.subscribe(lambda ch: changes.append(f"{ch.node} {ch.field}: {ch.old} -> {ch.new}")
                      if ch.field not in ("search",) else None)
     said: list[str] = []
-    orig_say = sim.say
+    inner_say = robot.say
 
     def say(text):
         said.append(text)
-        return orig_say(text)
-    sim.say = say
+        return inner_say(text)
+    robot.say = say
     ex = Executive(world=belief, robot=robot, clock=clock, tick_hz=10.0,
                    runs_dir=case.runs_dir, background=False)
     if on_event is not None:
@@ -219,6 +229,8 @@ def run_case(case: Case, on_event: Optional[Callable] = None, robot_wrapper=None
     ex.run_until_idle(200_000)
     wall = time.perf_counter() - t0
     res = handle.result
+    if record_to is not None:
+        robot.writer.flush()
     cat = categorise(res.outcome, res.reason)
     correct = (cat == "succeeded") if case.achievable else (
         cat == ("not_found" if case.mission in ("fetch_object", "search_object") else "cannot"))
@@ -226,7 +238,7 @@ def run_case(case: Case, on_event: Optional[Callable] = None, robot_wrapper=None
     if case.mission in ("fetch_object", "search_object"):
         visited = len(res.outputs.get("searched") or [])
     residual = None
-    if case.mission == "refine_localisation":
+    if case.mission == "refine_localisation" and sim is not None:
         err = sim.localisation_error()
         residual = round(math.hypot(err.x, err.y) * 100, 2)
         if cat == "succeeded" and residual > 2.0:

@@ -256,7 +256,7 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId"]
+           "Remember", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
 
 
 def look_target(world, target: Any, focus: str = "centre"):
@@ -264,6 +264,8 @@ def look_target(world, target: Any, focus: str = "centre"):
     (the centre of its world bounds; with ``focus="knobs"`` the mean of its knobs; with
     ``focus="top"`` the centre of its top face), a point (x, y, z) or a pose mapping.
     None when there is nothing to aim at."""
+    if isinstance(target, dict) and "place" not in target and "z" in target:
+        return np.array([float(target["x"]), float(target["y"]), float(target["z"])])
     if isinstance(target, dict):
         for k in ("look_at", "target"):
             if target.get(k) is not None:
@@ -281,6 +283,8 @@ def look_target(world, target: Any, focus: str = "centre"):
         return c
     if isinstance(target, (list, tuple)) and len(target) == 3:
         return np.asarray(target, dtype=float)
+    if all(hasattr(target, a) for a in ("x", "y", "z")):      # a Pose
+        return np.array([target.x, target.y, target.z], dtype=float)
     return None
 
 
@@ -372,4 +376,36 @@ class PlaceId(Skill):
             return S.FAILURE
         self.set_output("id", pid)
         self.feedback_message = pid
+        return S.SUCCESS
+
+
+class LookAtLandmark(Skill):
+    """Point the camera at the ``index``-th nearest landmark (a static large object, map
+    order by distance from the believed base pose), so a localisation fix that found too
+    little overlap can be tried on another one."""
+
+    NAME = "LookAtLandmark"
+    DESCRIPTION = "point the camera at a nearby landmark"
+    INPUTS = (Port("index", "integer", required=False, default=0),
+              Port("max_distance", "number", required=False, default=3.5))
+    OUTPUTS = (Port("landmark", "node_id", required=False),)
+
+    def update(self) -> S:
+        from skills.map import robot_pose
+        base = robot_pose(self.robot)
+        near = []
+        for obj in self.world.landmarks():
+            c = self.world.T_world(obj.id)[:2, 3]
+            d = math.hypot(c[0] - base.x, c[1] - base.y)
+            if d <= float(self.input("max_distance")):
+                near.append((d, obj.id))
+        near.sort()
+        i = int(self.input("index"))
+        if i >= len(near):
+            self.feedback_message = f"no landmark number {i + 1} within reach of the camera"
+            return S.FAILURE
+        oid = near[i][1]
+        self.robot.look_at(look_target(self.world, oid))
+        self.set_output("landmark", oid)
+        self.feedback_message = f"looking at the {self.world.label(oid)}"
         return S.SUCCESS

@@ -241,8 +241,19 @@ def test_refine_localisation_reports_the_correction(world):
 
 def test_refine_localisation_without_a_fix_says_to_try_elsewhere(world):
     result, sub = run("refine_localisation.yaml", world, [
-        Script("RefineLocalisation", outcomes=["failure"], outputs={"quality": {"fitness": 0.1}})]
-        + ROBOT_SCRIPTS)
+        Script("RefineLocalisation", outcomes=["failure"], outputs={"quality": {"fitness": 0.1}}),
+        Script("LookAtLandmark")] + ROBOT_SCRIPTS)
     assert result.outcome == "failed"
     assert "I could not correct my position here" in result.reason
-    assert sub.made["/refine_localisation/fix/retry/RefineLocalisation"].activations == 2
+    assert sub.made["/refine_localisation/fix/RefineLocalisation"].activations == 1
+    assert sub.made["/refine_localisation/fix/other_landmarks/sequence/refine_on_another"].activations == 3
+
+
+def test_a_missed_grasp_is_retried_after_relocalising_and_looking_again(world):
+    seen = on_top_of(world, "kitchen_table")
+    result, sub = run("fetch_object.yaml", world, [
+        Script("/fetch_object/pick_up/Grasp", outcomes=["failure"]),
+        Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
+        + ROBOT_SCRIPTS, object="blue cup")
+    assert result.outcome == "succeeded", result.reason
+    assert sub.made["/fetch_object/pick_up/relocalise_and_grasp/grasp_again"].activations == 1
