@@ -14,13 +14,12 @@ import json
 import threading
 import time
 from collections import OrderedDict, deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from executive.autonomy import Approvals
 from executive.command.commands import Interpretation, interpret
 from executive.command.vocabulary import Vocabulary, load_catalogue
-from executive.errors import MissionError
 from executive.missionfile import plain
 
 TERMINAL = ("succeeded", "failed", "cancelled", "preempted")

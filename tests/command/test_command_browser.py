@@ -17,7 +17,6 @@ import struct
 import subprocess
 import threading
 import urllib.request
-from pathlib import Path
 
 import pytest
 
