@@ -1,7 +1,8 @@
 """`hearth bench NAME --json`: run a benchmark from ``benchmarks/NAME.py``.
 
 A benchmark module defines ``run(args) -> dict`` and optionally ``add_arguments(parser)``
-and a module docstring (shown in the help). It prints one JSON object.
+(its own options, given after the name: ``hearth bench api --clients 10``) and a module
+docstring. It prints one JSON object.
 """
 from __future__ import annotations
 
@@ -19,17 +20,42 @@ def available() -> list[str]:
                   if not m.name.startswith("_"))
 
 
+def _common(p: argparse.ArgumentParser, default=None) -> None:
+    def d(value):
+        return argparse.SUPPRESS if default is argparse.SUPPRESS else value
+    p.add_argument("--json", action="store_true", default=d(False),
+                   help="print compact JSON on one line (default: indented)")
+    p.add_argument("--seed", type=int, default=d(0), help="base random seed")
+    p.add_argument("--quick", action="store_true", default=d(False),
+                   help="fewer repetitions (smoke run)")
+    p.add_argument("--scenarios", type=int, default=d(None), help="scenarios per figure, where used")
+    p.add_argument("--jobs", type=int, default=d(1), help="parallel worker processes, where used")
+
+
 def register(sub) -> None:
     p = sub.add_parser("bench", help="run a speed/accuracy benchmark and print JSON",
                        description="Run a benchmark; prints one JSON object. "
-                                   f"Benchmarks: {', '.join(available())}, all.")
+                                   f"Benchmarks: {', '.join(available())}, all. "
+                                   "A benchmark's own options follow its name "
+                                   "(`hearth bench NAME --help-bench` lists them).")
     p.add_argument("name", help="benchmark name, or 'all'")
-    p.add_argument("--json", action="store_true", help="print JSON only (the default output)")
-    p.add_argument("--seed", type=int, default=0, help="base random seed")
-    p.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
-    p.add_argument("--scenarios", type=int, default=None, help="scenarios per figure, where used")
-    p.add_argument("--jobs", type=int, default=1, help="parallel worker processes, where used")
+    _common(p)
+    p.add_argument("extra", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     p.set_defaults(func=_run)
+
+
+def _own_options(name: str, module, extra: list[str], args: argparse.Namespace) -> None:
+    """Parse what follows the name: the common options again, and the benchmark's own."""
+    own = argparse.ArgumentParser(prog=f"hearth bench {name}", add_help=False)
+    own.add_argument("--help-bench", action="help", help="show this benchmark's options")
+    _common(own, default=argparse.SUPPRESS)
+    if hasattr(module, "add_arguments"):
+        module.add_arguments(own)
+    given = {a.split("=")[0] for a in extra if a.startswith("--")}
+    for key, value in vars(own.parse_args(extra)).items():
+        flag = f"--{key.replace('_', '-')}"
+        if flag in given or getattr(args, key, None) is None:
+            setattr(args, key, value)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -41,6 +67,7 @@ def _run(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 2
         module = importlib.import_module(f"benchmarks.{name}")
+        _own_options(name, module, list(args.extra or []), args)
         out[name] = module.run(args)
     result = out[names[0]] if len(names) == 1 else out
     print(json.dumps(result, indent=None if args.json else 2, sort_keys=True))
