@@ -83,7 +83,7 @@ class Scene:
         # into the world; this is much cheaper than open3d's float64 create_rays_pinhole.
         rays = np.empty((H, W, 6), dtype=np.float32)
         rays[..., :3] = T[:3, 3]
-        np.matmul(dirs_camera, R_wc.T, out=rays[..., 3:])
+        _rotate(dirs_camera, R_wc.T, out=rays[..., 3:])
         ans = self._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         # Directions have z = 1 in the camera frame, so t_hit is depth along the optical axis.
         depth = ans["t_hit"].numpy()
@@ -105,7 +105,7 @@ class Scene:
             lab[miss] = -1
             labels[rows] = lab
             # Normals in the camera frame (n_camera = R_cw n_world), turned to face the camera.
-            nc = n_world[rows] @ R_wc
+            nc = _rotate(n_world[rows], R_wc)
             cos = np.einsum("hwk,hwk->hw", nc, unit_camera[rows])
             nc *= np.where(cos > 0, np.float32(-1), np.float32(1))[..., None]
             nc[miss] = 0
@@ -113,7 +113,10 @@ class Scene:
             inc[miss] = 0
             normals_camera[rows] = nc
             incidence[rows] = inc
-            lit = np.clip(nc @ light_camera, 0, 1)
+            lit = nc[..., 0] * light_camera[0]
+            lit += nc[..., 1] * light_camera[1]
+            lit += nc[..., 2] * light_camera[2]
+            np.clip(lit, 0, 1, out=lit)
             # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
             shade = (np.float32(0.85 * (1 - AMBIENT)) * lit + np.float32(0.85 * AMBIENT)
                      + np.float32(0.15) * inc)
@@ -129,6 +132,20 @@ class Scene:
                          nodes=self.nodes, owners=self.owners, names=self.names,
                          materials=self.materials, normals_camera=normals_camera,
                          incidence=incidence)
+
+
+def _rotate(v: np.ndarray, M: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``v @ M`` for (..., 3) float32 vectors and a 3x3 ``M``, written as element-wise
+    products on purpose: a BLAS matmul from several threads at once (the shading bands) can
+    stall badly when BLAS's own threads compete for a busy machine's cores."""
+    if out is None:
+        out = np.empty(v.shape, dtype=np.float32)
+    for j in range(3):
+        col = out[..., j]
+        np.multiply(v[..., 0], M[0, j], out=col)
+        col += v[..., 1] * M[1, j]
+        col += v[..., 2] * M[2, j]
+    return out
 
 
 _BANDS = 2
