@@ -90,18 +90,22 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
         return rendering
     rng = np.random.default_rng() if rng is None else rng
     z = _lateral(np.asarray(rendering.depth, dtype=np.float32), rng, model)
-    H = z.shape[0]
+    H, W = z.shape
+    # The random draws come first, from the one generator, in a fixed order (the same
+    # realisation for a given seed however the work is split); then two row bands in
+    # threads: numpy releases the GIL on these array operations, so both cores work.
+    gauss = rng.standard_normal((H, W), dtype=np.float32)
+    uniform = rng.random((H, W), dtype=np.float32)
+    cnoise = rng.standard_normal((H, W), dtype=np.float32) if model.color_std > 0 else None
     depth = np.empty_like(z)
     color = np.empty_like(rendering.color)
-    # Two row bands, each with its own child generator (deterministic for a seeded rng), in
-    # threads: numpy releases the GIL on these array operations, so both cores work.
-    children = [np.random.default_rng(int(s)) for s in rng.integers(0, 2 ** 63, size=_BANDS)]
     bands = [slice(i * H // _BANDS, (i + 1) * H // _BANDS) for i in range(_BANDS)]
 
     def band(i: int) -> None:
-        rows, r = bands[i], children[i]
-        depth[rows] = _noisy_depth(rendering, z, rows, r, model)
-        color[rows] = _noisy_color(rendering.color[rows], r, model)
+        rows = bands[i]
+        depth[rows] = _noisy_depth(rendering, z, rows, gauss[rows], uniform[rows], model)
+        color[rows] = _noisy_color(rendering.color[rows],
+                                   None if cnoise is None else cnoise[rows], model)
 
     list(_pool().map(band, range(_BANDS)))
     return dataclasses.replace(rendering, depth=depth, color=color)
@@ -123,12 +127,11 @@ def _pool():
     return _POOL
 
 
-def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, rng: np.random.Generator,
-                 m: KinectNoise) -> np.ndarray:
+def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, gauss: np.ndarray,
+                 uniform: np.ndarray, m: KinectNoise) -> np.ndarray:
     """Axial noise, quantisation and dropouts for the rows ``rows`` of the (laterally
     jittered) depth ``z_all``. float32 throughout: this runs on every simulated frame."""
     z = z_all[rows]
-    H, W = z.shape
     valid = z > 0
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
     cos = np.clip(np.asarray(rendering.incidence[rows], dtype=np.float32), 1e-3, 1.0)
@@ -140,7 +143,7 @@ def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, rng: np.random.Gener
     if m.quantise:
         q2 = (zc * zc * np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))) ** 2
         var = np.maximum(var - q2 / np.float32(12.0), np.float32(0.25) * var)
-    noisy = z + np.sqrt(var) * rng.standard_normal((H, W), dtype=np.float32)
+    noisy = z + np.sqrt(var) * gauss
     if m.quantise:
         fb = np.float32(m.focal_ir_px * m.baseline_m / m.disparity_step_px)
         steps = np.rint(fb / np.maximum(noisy, np.float32(1e-3)))
@@ -159,7 +162,7 @@ def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, rng: np.random.Gener
         shiny = code == 2
         pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
         p = np.maximum(p, pm)
-    drop |= rng.random((H, W), dtype=np.float32) < p
+    drop |= uniform < p
     noisy[drop] = 0
     return noisy
 
@@ -189,12 +192,10 @@ def _lateral(z: np.ndarray, rng: np.random.Generator, m: KinectNoise) -> np.ndar
     return out
 
 
-def _noisy_color(color: np.ndarray, rng: np.random.Generator, m: KinectNoise) -> np.ndarray:
-    if m.color_std <= 0:
+def _noisy_color(color: np.ndarray, gauss, m: KinectNoise) -> np.ndarray:
+    if gauss is None or m.color_std <= 0:
         return color.copy()
-    H, W = color.shape[:2]
-    n = np.rint(rng.standard_normal((H, W), dtype=np.float32)
-                * np.float32(m.color_std)).astype(np.int16)
+    n = np.rint(gauss * np.float32(m.color_std)).astype(np.int16)
     out = color.astype(np.int16)
     out += n[..., None]
     return np.clip(out, 0, 255, out=out).astype(np.uint8)
