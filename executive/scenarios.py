@@ -53,6 +53,7 @@ class Case:
     learned: bool = True
     warmup: int = 0
     runs_dir: Optional[str] = None
+    params: dict = field(default_factory=dict)     # extra mission parameters
 
 
 @dataclass
@@ -160,6 +161,7 @@ def make_case_scenario(case: Case, world=None):
             sc.stuck_knobs = [str(rng.choice([k.id for k in on]))]
     elif case.mission == "refine_localisation":
         params = {"at": LANDMARKS[case.seed % len(LANDMARKS)]}
+    params.update(case.params)
     return sc, params
 
 

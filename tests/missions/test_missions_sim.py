@@ -15,10 +15,12 @@ def test_fetch_finds_the_moved_cup_grasps_it_and_says_where_it_was():
 
 
 def test_fetch_of_an_absent_cup_ends_not_found_with_the_places_counted():
-    r = run_case(Case("fetch_object", seed=3, achievable=False, warmup=0))
+    # Two known places and no segmentation fallback keep it short; the bench runs it all.
+    r = run_case(Case("fetch_object", seed=3, achievable=False, warmup=0,
+                      params={"max_places": 2, "propose_new": False}))
     assert r.outcome == "failed"
     assert r.category == "not_found", r.reason
-    assert f"no blue cup at the {r.positions_visited} places searched" in r.reason
+    assert r.reason == "no blue cup at the 2 places searched"
 
 
 def test_turn_off_oven_turns_off_the_knobs_that_are_on():
@@ -47,5 +49,5 @@ def test_a_recorded_run_replays_to_the_same_outcome(case, tmp_path):
     recorded = run_case(case, record_to=str(tmp_path / "rec"))
     replayed = run_case(case, replay_from=str(tmp_path / "rec"))
     assert recorded.outcome == "succeeded", recorded.reason
-    assert (replayed.outcome, replayed.reason) == (recorded.outcome, recorded.reason)
+    assert (replayed.outcome, replayed.reason) == (recorded.outcome, recorded.reason), replayed.reason
     assert replayed.said == recorded.said
