@@ -8,8 +8,8 @@ absent / knob stuck ending with "no ... at the N places searched" / "I cannot ..
 ``positions_visited_mean_fixed`` (after 20 warm-up searches); for localisation the residual
 error. Wall times are inflated when other work shares the CPU.
 
-``HEARTH_BENCH_VERBOSE=1`` prints one line per case on stderr as it finishes. (The options of
-``add_arguments`` apply where the bench command passes them on.)
+``--verbose`` (or ``HEARTH_BENCH_VERBOSE=1``) prints one line per case on stderr as it
+finishes; ``--missions`` picks missions; ``--warmup`` sets the warm-up searches.
 """
 from __future__ import annotations
 
