@@ -60,7 +60,7 @@ FEATURE_NAMES = ("pointness", "surfaceness", "linearness", "centroid_height", "m
 class SegmentationConfig:
     """Parameters of the over-segmentation and the MRF. Pixel sizes are for 640 pixels width
     and scale with the image."""
-    cell_px: int = 20                 # grid cell edge (pixels)
+    cell_px: int = 28                 # grid cell edge (pixels)
     smooth_px: int = 7                # depth box filter before normals
     normal_step_px: int = 3           # neighbour offset for normals
     up_cos: float = 0.8               # |n_z| above this: horizontal surface (up/down bins)
@@ -335,12 +335,14 @@ def segment(depth: np.ndarray, color: np.ndarray, K: Intrinsics, T_world_camera:
     return Segmentation(labels=pix, patch_labels=lab, patch_proba=proba, patches=patches)
 
 
-def accuracy(pred: np.ndarray, truth: np.ndarray) -> dict:
-    """Per-pixel accuracy where the truth knows a class other than unknown: ``global`` (all
-    such pixels), ``per_class`` recall by class name, ``class_average`` their mean, and
-    ``counts`` (pixels per class) so that several frames can be pooled."""
+def accuracy(pred: np.ndarray, truth: np.ndarray, scored: np.ndarray | None = None) -> dict:
+    """Per-pixel accuracy where the truth knows a class other than unknown and ``scored``
+    holds (default: where ``pred`` has a label, i.e. the sensor gave a depth reading; pass
+    ``truth >= 0`` to count pixels without depth as wrong): ``global_`` (all such pixels),
+    ``per_class`` recall by class name, ``class_average`` their mean, and ``right`` /
+    ``total`` pixel counts per class so that several frames can be pooled."""
     unk = LABELS.index("unknown")
-    m = (truth >= 0) & (truth != unk)
+    m = (truth >= 0) & (truth != unk) & (pred >= 0 if scored is None else scored)
     t, p = truth[m].astype(np.int64), pred[m].astype(np.int64)
     total = np.bincount(t, minlength=len(LABELS))
     right = np.bincount(t[p == t], minlength=len(LABELS))

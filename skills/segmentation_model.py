@@ -50,6 +50,7 @@ class TrainingConfig:
     min_samples_leaf: int = 2
     width: int = 640
     height: int = 480
+    look_up: float = 0.2      # share of training views aimed higher (more ceiling)
 
 
 # -- ground truth ----------------------------------------------------------------------------
@@ -189,9 +190,10 @@ def random_world(rng: np.random.Generator):
     return World(Apartment(id="random", rooms=[room]))
 
 
-def random_view(world, rng: np.random.Generator) -> np.ndarray:
+def random_view(world, rng: np.random.Generator, look_up: float = 0.0) -> np.ndarray:
     """``T_world_camera`` of a robot head camera (1.1-1.5 m up) standing in the room, looking
-    at a random large object (or a random point) from 1-3.5 m."""
+    at a random large object (or a random point) from 1.2-3.5 m; with probability ``look_up``
+    at a point 1.2-2.2 m high instead (training sees more of the rarely seen ceiling)."""
     room = world.rooms[0]
     x0, y0, x1, y1 = room.bounds
     objs = world.large_objects()
@@ -202,6 +204,8 @@ def random_view(world, rng: np.random.Generator) -> np.ndarray:
             tz = rng.uniform(0.2, 0.9)
         else:
             tx, ty, tz = rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(0.0, 1.2)
+        if look_up > 0 and rng.random() < look_up:
+            tz = rng.uniform(1.2, 2.2)
         r, a = rng.uniform(1.2, 3.5), rng.uniform(-np.pi, np.pi)
         ex, ey = tx + r * math.cos(a), ty + r * math.sin(a)
         if x0 + 0.3 < ex < x1 - 0.3 and y0 + 0.3 < ey < y1 - 0.3:
@@ -210,14 +214,15 @@ def random_view(world, rng: np.random.Generator) -> np.ndarray:
     return look_at(((x0 + x1) / 2, (y0 + y1) / 2, 1.3), (x1, (y0 + y1) / 2, 0.5))
 
 
-def render_random(seed: int, K: Intrinsics | None = None):
-    """(world, rendering with noise, ground truth (H, W), T_world_camera) of one random view."""
+def render_random(seed: int, K: Intrinsics | None = None, look_up: float = 0.0):
+    """(world, rendering with noise, ground truth (H, W), T_world_camera) of one random view
+    (``look_up``: see ``random_view``)."""
     from perception.render import Scene
     from worldmodel.geometry import scene_meshes
     rng = np.random.default_rng(seed)
     K = K or Intrinsics.kinect()
     world = random_world(rng)
-    T = random_view(world, rng)
+    T = random_view(world, rng, look_up)
     r = Scene(scene_meshes(world)).render(K, T)
     gt = ground_truth(world, r)
     return world, noisy(r, rng), gt, T
@@ -232,7 +237,7 @@ def training_set(cfg: TrainingConfig, seg: SegmentationConfig):
     K = Intrinsics.kinect(cfg.width, cfg.height)
     X, y, w = [], [], []
     for f in range(cfg.frames):
-        _, r, gt, T = render_random(cfg.seed * 1000 + f, K)
+        _, r, gt, T = render_random(cfg.seed * 1000 + f, K, cfg.look_up)
         patches = extract_patches(r.depth, r.color, K, T, seg)
         X.append(patches.features)
         y.append(patches.majority(gt))
