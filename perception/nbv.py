@@ -123,6 +123,19 @@ def _box_distance(p_xy: np.ndarray, T: np.ndarray, box: np.ndarray) -> np.ndarra
     return np.hypot(dx, dy)
 
 
+def _room_at(world, p_world: np.ndarray):
+    """The room whose bounds hold a world point (a hypothesis of an object that the map keeps
+    in another room still stands where it was seen)."""
+    for room in world.rooms:
+        if room.bounds is None:
+            continue
+        x0, y0, x1, y1 = room.bounds
+        q = np.linalg.inv(room.pose.matrix()) @ np.append(p_world[:3], 1.0)
+        if x0 <= q[0] <= x1 and y0 <= q[1] <= y1:
+            return room
+    return None
+
+
 # -- occupancy ----------------------------------------------------------------------------------
 
 def occupancy_voxels(points_world: np.ndarray, camera_world: np.ndarray, voxel: float,
@@ -206,7 +219,7 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
     obstacles = P[~free & (P[:, 2] > config.obstacle_z[0]) & (P[:, 2] < config.obstacle_z[1])]
 
     # Candidates on the rings, filtered by collision.
-    room = world.room_of(hypotheses[0].object_id)
+    room = _room_at(world, centre) or world.room_of(hypotheses[0].object_id)
     cands = []
     for ri, r in enumerate(config.radii):
         for k in range(config.n_angles):

@@ -203,11 +203,21 @@ def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
                       depth: Optional[np.ndarray] = None, max_range: float = 4.0
                       ) -> list[tuple[str, np.ndarray, float, float]]:
     """Surfaces of the map's large objects of which some part is in view:
-    (``object/surface``, ``T_world_surface``, size_x, size_y), the most seen first. With
+    (``object/surface``, ``T_world_surface``, size_x, size_y): first the one the camera aims at
+    (the median depth of the central pixels lies on or above it), then the most seen near the
+    image centre. With
     ``depth``, a surface point counts as seen only where the measured depth agrees with it
     (a shelf behind a cupboard door projects into the image but is not seen)."""
     out = []
     T_cw = np.linalg.inv(T_world_camera)
+    aim = None  # what the camera looks at: the median depth of the central pixels
+    if depth is not None:
+        h, w = np.asarray(depth).shape
+        win = np.asarray(depth)[h // 2 - 20:h // 2 + 20, w // 2 - 20:w // 2 + 20]
+        win = win[np.isfinite(win) & (win > 0)]
+        if win.size:
+            aim = T_world_camera[:3, :3] @ np.array([0.0, 0.0, float(np.median(win))]) \
+                + T_world_camera[:3, 3]
     g = np.linspace(-0.45, 0.45, 7)
     gx, gy = np.meshgrid(g, g)
     for obj in world.large_objects():
@@ -224,10 +234,16 @@ def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
                 measured = np.asarray(depth)[px[:, 1], px[:, 0]]
                 seen[np.flatnonzero(seen)] = np.abs(measured - pc[seen, 2]) < 0.03
             if seen.any():
-                off_axis = float(np.min(np.hypot(uv[seen, 0] - K.cx, uv[seen, 1] - K.cy)))
-                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y, -int(seen.sum()),
-                            off_axis))
-    out.sort(key=lambda t: (t[4], t[5]))
+                # The camera looks at what matters: seen points near the image centre count most.
+                r = np.hypot(uv[seen, 0] - K.cx, uv[seen, 1] - K.cy) / (0.4 * K.width)
+                aimed = False
+                if aim is not None:
+                    a = T[:3, :3].T @ (aim - T[:3, 3])
+                    aimed = abs(a[0]) < s.size_x / 2 + 0.1 and abs(a[1]) < s.size_y / 2 + 0.1 \
+                        and -0.05 < a[2] < 0.5
+                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y,
+                            (not aimed, -float(np.exp(-r ** 2).sum()))))
+    out.sort(key=lambda t: t[4])
     return [t[:4] for t in out]
 
 
