@@ -49,7 +49,7 @@ class ProposeSearchPositions(Skill):
 
     def update(self) -> py_trees.common.Status:
         from perception.search_positions import OccupancyGrid, SearchConfig, propose_search_positions
-        from perception.segmentation import segment
+        from perception.segmentation import LABELS, segment
         from worldmodel.geometry import node_mesh
         try:
             if self.model is None:
@@ -68,8 +68,8 @@ class ProposeSearchPositions(Skill):
             occ = OccupancyGrid.empty(room.bounds)
             occ.mark_footprints([np.asarray(node_mesh(self.world, o.id).vertices)[:, :2]
                                  for o in room.objects])
-            obstacles = seg.patches.points_world[(seg.labels >= 0) & np.isin(
-                seg.labels, [1, 3, 4, 5, 6])]   # wall, table, chair, cabinet, object
+            solid = [LABELS.index(n) for n in ("wall", "table", "chair", "cabinet", "object")]
+            obstacles = seg.patches.points_world[np.isin(seg.labels, solid)]
             occ.mark_points(obstacles)
             cfg = SearchConfig(safety_distance_m=float(self.input("safety_distance")))
             found = propose_search_positions(seg.points("table"), room.bounds, occ, robot_xy, cfg)

@@ -182,8 +182,8 @@ def random_world(rng: np.random.Generator):
             dw = W / ndoor
             vis.append(box(0.02, dw - 0.006, H - 0.1, D / 2 + 0.012, -W / 2 + dw * (k + 0.5), H / 2 + 0.03,
                            color=col, name="face"))
-            vis.append(box(0.03, 0.015, 0.14, D / 2 + 0.04, -W / 2 + dw * (k + 0.5) + 0.3 * dw * (1 if k else -1) * (1 if ndoor > 1 else 1),
-                           H * 0.6, color=(0.7, 0.7, 0.72)))
+            handle_y = -W / 2 + dw * (k + 0.5) + 0.3 * dw * (1 if k else -1)
+            vis.append(box(0.03, 0.015, 0.14, D / 2 + 0.04, handle_y, H * 0.6, color=(0.7, 0.7, 0.72)))
         typ = str(rng.choice(["cupboard", "drawers", "fridge", "cabinet"]))
         objects.append(LargeArticulatedObject(id=f"cab_{i}", type=typ, pose=pose, model=Model(vis)))
     room = Room("room", "room", bounds=bounds, objects=objects)
