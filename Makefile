@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.hearth-installed
 
-.PHONY: demo test install bench clean
+.PHONY: demo test install models bench clean
 
 $(STAMP): pyproject.toml scripts/sysdeps.sh
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
@@ -17,14 +17,20 @@ $(STAMP): pyproject.toml scripts/sysdeps.sh
 
 install: $(STAMP)
 
-demo: $(STAMP)
+# The knob reader and the segmentation forest are trained once per machine from renderings of
+# the demo home (a few minutes) and cached in $$HEARTH_MODEL_DIR (default ~/.cache/hearth);
+# when they are current this takes a second or two.
+models: $(STAMP)
+	$(VENV)/bin/hearth train all
+
+demo: models
 	$(VENV)/bin/hearth demo
 
-test: $(STAMP)
+test: models
 	$(PY) -m pytest -q
 
 bench: $(STAMP)
 	$(VENV)/bin/hearth bench all --json
 
 clean:
-	rm -rf $(VENV) build *.egg-info runs
+	rm -rf $(VENV) build *.egg-info runs out

@@ -1,4 +1,4 @@
-"""`hearth train knobs --world W`: train (or check) the perception models ahead of first use.
+"""`hearth train knobs|segmentation|all`: train (or check) the perception models ahead of first use.
 
 Prints progress lines on stderr and one summary line on stdout. ``--check`` only says whether
 the stored model is current (exit 1 when it is missing or stale); ``--force`` retrains a
@@ -14,11 +14,11 @@ from pathlib import Path
 
 from executive.cliutil import DEFAULT_WORLD
 
-MODELS = ("knobs",)
+MODELS = ("knobs", "segmentation", "all")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("train", help="train perception models (knobs)",
+    p = sub.add_parser("train", help="train perception models (knobs, segmentation)",
                        description="Train a perception model for a world and store it.")
     p.add_argument("model", choices=MODELS, help="which model")
     p.add_argument("--world", default=str(DEFAULT_WORLD),
@@ -43,6 +43,36 @@ def _progress():
 
 
 def _run(args: argparse.Namespace) -> int:
+    status = 0
+    if args.model in ("knobs", "all"):
+        status = max(status, _knobs(args))
+    if args.model in ("segmentation", "all"):
+        status = max(status, _segmentation(args))
+    return status
+
+
+def _segmentation(args: argparse.Namespace) -> int:
+    from skills import segmentation_model as sm
+
+    path = (Path(args.model_dir) if args.model_dir else sm.model_dir()) / sm.MODEL_FILE
+    cfg = sm.TrainingConfig()
+    if args.check:
+        ok = sm.load(path, cfg, sm.SegmentationConfig()) is not None
+        print(f"segmentation model: {'current' if ok else 'missing or stale'} ({path})")
+        return 0 if ok else 1
+    if args.force and path.exists():
+        path.unlink()
+    if sm.load(path, cfg, sm.SegmentationConfig()) is not None:
+        print(f"segmentation model current ({path})")
+        return 0
+    print("training the segmentation forest on rendered rooms (a few minutes, once)...",
+          file=sys.stderr, flush=True)
+    sm.load_or_train(cfg, path=path, log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(f"segmentation model trained -> {path}")
+    return 0
+
+
+def _knobs(args: argparse.Namespace) -> int:
     from skills import models_store
     from skills.knob_models import MODEL_NAME, TrainingConfig, configuration, load_or_train
     from perception.knobs import KnobConfig
