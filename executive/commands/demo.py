@@ -116,12 +116,16 @@ def _run(args) -> int:
         p = robot.true_pose()
         if not path or math.hypot(p.x - path[-1][0], p.y - path[-1][1]) > 0.02:
             path.append((p.x, p.y))
-        if e.kind == "write" and e.data.get("port") == "pose" and e.path.endswith("NavigateTo"):
-            v = e.data.get("value")
-            if isinstance(v, dict) and "x" in v:
-                visited.append((float(v["x"]), float(v["y"]), float(v.get("yaw", 0.0))))
-            elif hasattr(v, "x") and hasattr(v, "yaw"):
-                visited.append((float(v.x), float(v.y), float(v.yaw)))
+
+    navigate = robot.navigate_to
+
+    def navigate_to(pose):
+        # Every goal the robot is sent to (believed frame), for the picture.
+        from robot.adapter import as_base_pose
+        g = as_base_pose(pose)
+        visited.append((g.x, g.y, g.yaw))
+        return navigate(pose)
+    robot.navigate_to = navigate_to
 
     ex = Executive(world=belief, robot=robot, clock=clock, tick_hz=10.0,
                    runs_dir=str(out / "runs"), background=False)
@@ -178,7 +182,7 @@ def _run(args) -> int:
         print(f"  search statistics for {obj} (found/searched): "
               + ", ".join(f"{p} {v}" for p, v in places.items()))
     img = draw(belief, Overlay(path=path, visited=visited, found=found,
-                               title="Hearth demo: robot path (blue), parking positions visited "
+                               title="Hearth demo: robot path (blue), poses driven to "
                                      "(orange), objects found (green)"))
     png = save_png(out / "topdown.png", img)
     print(f"\nExecution logs: {out / 'runs'}/ ({', '.join(Path(r['log']).name for r in rows if r['log'])})")
