@@ -33,7 +33,8 @@ class ResolveObject(Skill):
     INPUTS = (Port("object", "string", description="words or an id"),)
     OUTPUTS = (Port("object_id", "node_id", required=False),
                Port("parent_id", "node_id", required=False),
-               Port("room", "string", required=False),
+               Port("room", "node_id", required=False, description="the room's id"),
+               Port("room_name", "string", required=False),
                Port("label", "string", required=False))
 
     def update(self) -> S:
@@ -56,7 +57,9 @@ class ResolveObject(Skill):
         parent = self.world.parent(node.id)
         self.set_output("object_id", node.id)
         self.set_output("parent_id", parent.id if parent is not None else None)
-        self.set_output("room", self.world.room_of(node.id).name)
+        room = self.world.room_of(node.id)
+        self.set_output("room", room.id)
+        self.set_output("room_name", room.name)
         self.set_output("label", self.world.label(node.id))
         self.feedback_message = f"{node.id} is believed {self.world.describe_location(node.id)}"
         return S.SUCCESS
