@@ -12,6 +12,7 @@ from typing import Sequence
 import numpy as np
 import open3d as o3d
 
+from perception.bands import pool, row_bands
 from perception.camera import Intrinsics
 
 #: Light direction in the world frame (from above, slightly from the side), for shading.
@@ -126,8 +127,8 @@ class Scene:
 
         # Row bands in threads: numpy releases the GIL on these array operations, so the
         # per-pixel shading runs on every core like the ray casting does.
-        bands = [slice(i * H // _BANDS, (i + 1) * H // _BANDS) for i in range(_BANDS)]
-        list(_pool().map(shade_rows, bands))
+        bands = row_bands(H)
+        list(pool().map(shade_rows, bands))
         return Rendering(depth=depth, color=color, labels=labels,
                          nodes=self.nodes, owners=self.owners, names=self.names,
                          materials=self.materials, normals_camera=normals_camera,
@@ -146,22 +147,6 @@ def _rotate(v: np.ndarray, M: np.ndarray, out: np.ndarray | None = None) -> np.n
         col += v[..., 1] * M[1, j]
         col += v[..., 2] * M[2, j]
     return out
-
-
-_BANDS = 2
-_POOL = None
-_POOL_PID = None
-
-
-def _pool():
-    """A small thread pool, made again in a forked child (threads do not survive a fork)."""
-    global _POOL, _POOL_PID
-    import os
-    if _POOL is None or _POOL_PID != os.getpid():
-        from concurrent.futures import ThreadPoolExecutor
-        _POOL = ThreadPoolExecutor(max_workers=_BANDS, thread_name_prefix="render")
-        _POOL_PID = os.getpid()
-    return _POOL
 
 
 _RAYS_CACHE: dict = {}

@@ -41,6 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from perception.bands import BANDS, pool, row_bands
+
 MATERIAL_CODES = {"matte": 0, "dark": 1, "shiny": 2, "glass": 3}
 
 
@@ -99,7 +101,7 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
     cnoise = rng.standard_normal((H, W), dtype=np.float32) if model.color_std > 0 else None
     depth = np.empty_like(z)
     color = np.empty_like(rendering.color)
-    bands = [slice(i * H // _BANDS, (i + 1) * H // _BANDS) for i in range(_BANDS)]
+    bands = row_bands(H)
 
     def band(i: int) -> None:
         rows = bands[i]
@@ -107,24 +109,8 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
         color[rows] = _noisy_color(rendering.color[rows],
                                    None if cnoise is None else cnoise[rows], model)
 
-    list(_pool().map(band, range(_BANDS)))
+    list(pool().map(band, range(BANDS)))
     return dataclasses.replace(rendering, depth=depth, color=color)
-
-
-_BANDS = 2
-_POOL = None
-_POOL_PID = None
-
-
-def _pool():
-    """A small thread pool, made again in a forked child (threads do not survive a fork)."""
-    global _POOL, _POOL_PID
-    import os
-    if _POOL is None or _POOL_PID != os.getpid():
-        from concurrent.futures import ThreadPoolExecutor
-        _POOL = ThreadPoolExecutor(max_workers=_BANDS, thread_name_prefix="kinect-noise")
-        _POOL_PID = os.getpid()
-    return _POOL
 
 
 def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, gauss: np.ndarray,
