@@ -60,7 +60,7 @@ def mission_yaml(seed: int) -> str:
     durations = iter(_durations(seed))
     lines = ["name: bench", "tree:", "  repeat:", "    parallel:"]
     for g in range(GROUPS):
-        lines += [f"      - parallel:", f"          - sequence:"]
+        lines += ["      - parallel:", "          - sequence:"]
         for half in range(2):
             if half:
                 lines.append("          - sequence:")

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from worldmodel.demo_home import build, cup, small, box
+from worldmodel.demo_home import build, small, box
 from worldmodel.io import load_world, to_xml
 
 COLORS = ["red", "blue", "green", "yellow", "white", "black", "orange", "purple"]

@@ -8,7 +8,7 @@ import py_trees
 
 from skills.base import Port, Skill
 from skills.values import as_pose
-from worldmodel.nodes import LargeArticulatedObject, Part, SmallObject
+from worldmodel.nodes import LargeArticulatedObject, SmallObject
 from worldmodel.pose import Pose
 from worldmodel.search import SearchWeights, search_order
 

@@ -29,7 +29,7 @@ from perception.camera import Intrinsics, look_at
 from perception.segmentation import (
     LABELS, PatchClassifier, SegmentationConfig, extract_patches,
 )
-from worldmodel.nodes import Apartment, LargeArticulatedObject, LargeObject, Model, Room, Visual
+from worldmodel.nodes import Apartment, LargeArticulatedObject, LargeObject, Model, Room
 from worldmodel.pose import Pose
 
 MODEL_FILE = "segmentation_forest.joblib"

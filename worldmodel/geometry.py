@@ -16,8 +16,7 @@ import numpy as np
 import open3d as o3d
 
 from worldmodel.nodes import (
-    Handle, Knob, LargeArticulatedObject, LargeObject, Model, Part, Room, SmallObject, Switch,
-    Visual,
+    Handle, Knob, LargeArticulatedObject, LargeObject, Model, Part, Room, SmallObject, Visual,
 )
 from worldmodel.pose import Pose, rotation_about_axis, translation_along_axis
 

@@ -11,7 +11,7 @@ import re
 import tempfile
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Optional
 
 from lxml import etree
 

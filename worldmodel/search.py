@@ -21,7 +21,7 @@ is worth searching first when it is one whole unit of probability likelier), k2 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 from worldmodel.nodes import LargeObject, SmallObject

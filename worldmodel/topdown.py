@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from worldmodel.geometry import object_meshes
-from worldmodel.nodes import LargeArticulatedObject, SmallObject
+from worldmodel.nodes import LargeArticulatedObject
 
 
 @dataclass

@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
-from lxml import etree
 
 from worldmodel.errors import WorldError
 from worldmodel.io import _parse_tree

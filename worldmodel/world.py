@@ -17,8 +17,8 @@ import numpy as np
 
 from worldmodel.errors import UnknownNode, WorldError
 from worldmodel.nodes import (
-    Apartment, Handle, HistoryEntry, Knob, LargeArticulatedObject, LargeObject, ParkingPosition,
-    Part, Room, SearchStat, SmallObject, Surface, Switch,
+    Apartment, HistoryEntry, Knob, LargeObject, ParkingPosition,
+    Part, Room, SearchStat, SmallObject,
 )
 from worldmodel.pose import Pose, rotation_about_axis, transform_points, translation_along_axis
 from worldmodel.validate import LIMIT_EPS, iter_nodes

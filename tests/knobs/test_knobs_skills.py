@@ -1,7 +1,6 @@
 """ReadKnobs and TurnKnob ticked against a robot that serves rendered frames of the oven."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

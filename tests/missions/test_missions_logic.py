@@ -3,7 +3,6 @@
 reason, what was said, what changed in the map)."""
 from __future__ import annotations
 
-import numpy as np
 import py_trees
 import pytest
 

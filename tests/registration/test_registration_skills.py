@@ -9,7 +9,7 @@ import py_trees
 import pytest
 
 from benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
-from perception.camera import Intrinsics, look_at
+from perception.camera import Intrinsics
 from skills.base import Bindings, Key, Literal
 from skills.registration import (
     EstimateHandle, RefineLocalisation, RegisterArticulated, RegisterLargeObject,

@@ -2,7 +2,6 @@
 pushed across the demo home's kitchen table, and the TrackObject skill."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

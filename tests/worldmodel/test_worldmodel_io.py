@@ -1,7 +1,6 @@
 """Loading, validating and saving world files."""
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys

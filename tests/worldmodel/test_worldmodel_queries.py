@@ -189,7 +189,6 @@ def test_urdf_with_entities_is_refused():
 
 
 def test_every_demo_parking_position_is_free_floor_inside_its_room(demo_world):
-    from worldmodel.nodes import LargeObject
     for obj in demo_world.large_objects():
         x0, y0, x1, y1 = demo_world.room_of(obj.id).bounds
         for p, pose in demo_world.parking_positions(obj.id):
