@@ -65,3 +65,20 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any
 def make_clock(args: argparse.Namespace) -> Any:
     from robot.clock import SimClock, WallClock
     return WallClock() if getattr(args, "wall_clock", False) else SimClock()
+
+
+def run_to_end(ex: Any, mission: Mission, params: dict[str, Any], quiet: bool = False) -> Any:
+    """Submit ``mission`` to a non-background Executive, print its progress unless ``quiet``,
+    tick it to the end (Ctrl-C cancels it and lets the robot stop) and return its result."""
+    from executive.replay import format_event
+
+    if not quiet:
+        ex.subscribe(lambda e: print(format_event(e.to_json()))
+                     if e.kind in ("run", "feedback", "write", "param", "restart") else None)
+    handle = ex.submit(mission, **params)
+    try:
+        ex.run_until_idle()
+    except KeyboardInterrupt:
+        handle.cancel("interrupted")
+        ex.run_until_idle(100_000)
+    return handle.result

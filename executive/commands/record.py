@@ -5,10 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from executive.cliutil import DEFAULT_WORLD, add_run_arguments, make_clock, parse_params
+from executive.cliutil import DEFAULT_WORLD, add_run_arguments, make_clock, parse_params, run_to_end
 from executive.executive import Executive
 from executive.missionfile import load_mission
-from executive.replay import format_event
 
 
 def register(sub) -> None:
@@ -46,16 +45,7 @@ def _run(args) -> int:
                                                   seed=args.seed))
     ex = Executive(world=world, robot=rec, clock=clock, tick_hz=args.tick_hz,
                    runs_dir=args.runs_dir, background=False)
-    if not args.quiet:
-        ex.subscribe(lambda e: print(format_event(e.to_json()))
-                     if e.kind in ("run", "feedback", "write", "param", "restart") else None)
-    handle = ex.submit(mission, **params)
-    try:
-        ex.run_until_idle()
-    except KeyboardInterrupt:
-        handle.cancel("interrupted")
-        ex.run_until_idle(100_000)
-    result = handle.result
+    result = run_to_end(ex, mission, params, quiet=args.quiet)
     rec.writer.flush()
     n = len(rec.writer.manifest["captures"])
     print(f"{mission.name}: {result.outcome} ({result.reason}); recorded {n} capture"

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import sys
 
-from executive.cliutil import add_run_arguments, make_clock, make_world_and_robot, parse_params
+from executive.cliutil import (add_run_arguments, make_clock, make_world_and_robot, parse_params,
+                               run_to_end)
 from executive.executive import Executive
 from executive.missionfile import load_mission
-from executive.replay import format_event
 
 
 def register(sub) -> None:
@@ -27,16 +27,7 @@ def _run(args) -> int:
     world, robot = make_world_and_robot(args, clock)
     ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
                    runs_dir=args.runs_dir, background=False)
-    if not args.quiet:
-        ex.subscribe(lambda e: print(format_event(e.to_json()))
-                     if e.kind in ("run", "feedback", "write", "param", "restart") else None)
-    handle = ex.submit(mission, **params)
-    try:
-        ex.run_until_idle()
-    except KeyboardInterrupt:
-        handle.cancel("interrupted")
-        ex.run_until_idle(100_000)
-    result = handle.result
+    result = run_to_end(ex, mission, params, quiet=args.quiet)
     print(f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
           f"{result.duration:.2f} s; log {result.log_path}", file=sys.stderr if args.quiet else sys.stdout)
     return 0 if result.outcome == "succeeded" else 1
