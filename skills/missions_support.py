@@ -142,9 +142,8 @@ class LocateUser(Skill):
 
 
 class PlaceOfPose(Skill):
-    """The large object an observed world pose is on or in: the one whose world bounds,
-    grown by ``margin``, contain the point, the smallest first; else the nearest by bounds
-    distance within ``max_distance``. Fails when none is near."""
+    """The large object an observed world pose is on or in (``World.support_at``). Fails when
+    none is near."""
 
     NAME = "PlaceOfPose"
     DESCRIPTION = "find the furniture an observed object stands on or in"
@@ -156,23 +155,12 @@ class PlaceOfPose(Skill):
 
     def update(self) -> S:
         p = as_pose(self.input("pose"))
-        point = np.array([p.x, p.y, p.z])
-        margin = float(self.input("margin"))
-        best = None
-        for obj in self.world.large_objects():
-            if not (obj.surfaces or obj.children):
-                continue
-            lo, hi = self.world.bounds_world(obj.id)
-            gap = np.maximum(0.0, np.maximum(lo - margin - point, point - hi - margin))
-            dist = float(np.linalg.norm(gap))
-            volume = float(np.prod(hi - lo))
-            key = (dist, volume)
-            if best is None or key < best[0]:
-                best = (key, obj)
-        if best is None or best[0][0] > float(self.input("max_distance")):
+        found = self.world.support_at((p.x, p.y, p.z), float(self.input("margin")),
+                                      float(self.input("max_distance")))
+        if found is None:
             self.feedback_message = f"nothing to hold an object near {p.x:.2f}, {p.y:.2f}"
             return S.FAILURE
-        obj = best[1]
+        obj = found[0]
         relation = obj.surfaces[0].relation if obj.surfaces else "on"
         self.set_output("place", obj.id)
         self.set_output("relation", relation)

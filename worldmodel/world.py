@@ -295,6 +295,26 @@ class World:
                 out.append(node.id)
         return out
 
+    def support_at(self, point, margin: float = 0.05,
+                   max_distance: float = 0.5) -> Optional[tuple[LargeObject, float]]:
+        """The large object that can hold small objects and that a world point (metres) is
+        on or in: the one whose world bounds, grown by ``margin``, contain the point (the
+        smallest first), else the nearest by distance to its bounds within
+        ``max_distance``. Returns (object, distance) or None."""
+        point = np.asarray(point, dtype=float)[:3]
+        best = None
+        for obj in self.large_objects():
+            if not (obj.surfaces or obj.children):
+                continue
+            lo, hi = self.bounds_world(obj.id)
+            gap = np.maximum(0.0, np.maximum(lo - margin - point, point - hi - margin))
+            key = (float(np.linalg.norm(gap)), float(np.prod(hi - lo)))
+            if best is None or key < best[0]:
+                best = (key, obj)
+        if best is None or best[0][0] > max_distance:
+            return None
+        return best[1], best[0][0]
+
     def history(self, node_id: Optional[str] = None) -> list[HistoryEntry]:
         with self.lock:
             return [h for h in self.apartment.history if node_id is None or h.node == node_id]

@@ -197,3 +197,10 @@ def test_every_demo_parking_position_is_free_floor_inside_its_room(demo_world):
                 lo, hi = demo_world.bounds_world(other.id)
                 inside = lo[0] - 0.25 < pose.x < hi[0] + 0.25 and lo[1] - 0.25 < pose.y < hi[1] + 0.25
                 assert not inside, f"{p.id} stands in {other.id}"
+
+
+def test_support_at_names_the_furniture_under_a_seen_object(demo_world):
+    # A cup seen on the side table (top at 0.72 m), one in the cupboard, and one in mid-air.
+    assert demo_world.support_at((1.5, 1.3, 0.72))[0].id == "side_table"
+    assert demo_world.support_at((5.72, 1.6, 0.46))[0].id == "cupboard"
+    assert demo_world.support_at((3.0, 3.2, 1.5)) is None
