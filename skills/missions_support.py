@@ -249,9 +249,8 @@ __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnob
 
 def look_target(world, target: Any, focus: str = "centre"):
     """The world point (metres) to aim the camera at for ``target``: a node id or search place
-    (the centre of its world bounds; with ``focus="knobs"`` the mean of its knobs; with
-    ``focus="top"`` the centre of its top face), a point (x, y, z) or a pose mapping.
-    None when there is nothing to aim at."""
+    (``World.aim_point``), a point (x, y, z) or a pose mapping. None when there is nothing to
+    aim at."""
     if isinstance(target, dict) and "place" not in target and "z" in target:
         return np.array([float(target["x"]), float(target["y"]), float(target["z"])])
     if isinstance(target, dict):
@@ -260,15 +259,7 @@ def look_target(world, target: Any, focus: str = "centre"):
                 return np.asarray(target[k], dtype=float)[:3]
         target = target.get("place") or target.get("part") or target.get("id")
     if isinstance(target, str):
-        if target not in world:
-            return None
-        if focus == "knobs" and world.knobs(target):
-            return np.mean([world.T_world(k.id)[:3, 3] for k in world.knobs(target)], axis=0)
-        lo, hi = world.bounds_world(target)
-        c = (lo + hi) / 2
-        if focus == "top":
-            c[2] = hi[2]
-        return c
+        return world.aim_point(target, focus) if target in world else None
     if isinstance(target, (list, tuple)) and len(target) == 3:
         return np.asarray(target, dtype=float)
     if all(hasattr(target, a) for a in ("x", "y", "z")):      # a Pose

@@ -295,6 +295,18 @@ class World:
                 out.append(node.id)
         return out
 
+    def aim_point(self, node_id: str, focus: str = "centre") -> np.ndarray:
+        """The world point (metres) to point a camera at for a node: the centre of its world
+        bounds; with ``focus="top"`` the centre of their top face; with ``focus="knobs"`` the
+        mean of its knobs (when it has any)."""
+        if focus == "knobs" and self.knobs(node_id):
+            return np.mean([self.T_world(k.id)[:3, 3] for k in self.knobs(node_id)], axis=0)
+        lo, hi = self.bounds_world(node_id)
+        c = (lo + hi) / 2
+        if focus == "top":
+            c[2] = hi[2]
+        return c
+
     def support_at(self, point, margin: float = 0.05,
                    max_distance: float = 0.5) -> Optional[tuple[LargeObject, float]]:
         """The large object that can hold small objects and that a world point (metres) is

@@ -204,3 +204,11 @@ def test_support_at_names_the_furniture_under_a_seen_object(demo_world):
     assert demo_world.support_at((1.5, 1.3, 0.72))[0].id == "side_table"
     assert demo_world.support_at((5.72, 1.6, 0.46))[0].id == "cupboard"
     assert demo_world.support_at((3.0, 3.2, 1.5)) is None
+
+
+def test_aim_point_is_the_top_of_a_table_or_the_middle_of_the_knobs(demo_world):
+    # The top of the table's bounds with what stands on it (the sugar jar is 12 cm tall).
+    top = demo_world.aim_point("kitchen_table", "top")
+    assert top == pytest.approx([3.0, 2.2, 0.87], abs=1e-6)
+    knobs = demo_world.aim_point("oven", "knobs")
+    assert knobs[2] == pytest.approx(0.81, abs=1e-6)
