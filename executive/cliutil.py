@@ -82,3 +82,18 @@ def run_to_end(ex: Any, mission: Mission, params: dict[str, Any], quiet: bool = 
         handle.cancel("interrupted")
         ex.run_until_idle(100_000)
     return handle.result
+
+
+def make_executive(args: argparse.Namespace) -> tuple[Mission, dict[str, Any], Any]:
+    """The mission, its typed parameters and a non-background Executive on the world and
+    robot named by ``add_run_arguments`` options (what `hearth run` and `hearth step` share)."""
+    from executive.executive import Executive
+    from executive.missionfile import load_mission
+
+    mission = load_mission(args.mission)
+    params = parse_params(mission, args.param)
+    clock = make_clock(args)
+    world, robot = make_world_and_robot(args, clock)
+    ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
+                   runs_dir=args.runs_dir, background=False)
+    return mission, params, ex

@@ -3,10 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from executive.cliutil import (add_run_arguments, make_clock, make_world_and_robot, parse_params,
-                               run_to_end)
-from executive.executive import Executive
-from executive.missionfile import load_mission
+from executive.cliutil import add_run_arguments, make_executive, run_to_end
 
 
 def register(sub) -> None:
@@ -21,12 +18,7 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    mission = load_mission(args.mission)
-    params = parse_params(mission, args.param)
-    clock = make_clock(args)
-    world, robot = make_world_and_robot(args, clock)
-    ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
-                   runs_dir=args.runs_dir, background=False)
+    mission, params, ex = make_executive(args)
     result = run_to_end(ex, mission, params, quiet=args.quiet)
     print(f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
           f"{result.duration:.2f} s; log {result.log_path}", file=sys.stderr if args.quiet else sys.stdout)

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import sys
 
-from executive.cliutil import add_run_arguments, make_clock, make_world_and_robot, parse_params
+from executive.cliutil import add_run_arguments, make_executive
 from executive.executive import Executive
-from executive.missionfile import load_mission
 from executive.render import ascii_tree, blackboard_text
 from executive.replay import format_event
 
@@ -77,12 +76,7 @@ class Stepper:
 
 
 def _run(args) -> int:
-    mission = load_mission(args.mission)
-    params = parse_params(mission, args.param)
-    clock = make_clock(args)
-    world, robot = make_world_and_robot(args, clock)
-    ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
-                   runs_dir=args.runs_dir, background=False)
+    mission, params, ex = make_executive(args)
     handle = ex.submit(mission, **params)
     st = Stepper(ex, handle)
     if args.ticks is not None:
