@@ -28,8 +28,8 @@ from scipy.spatial.transform import Rotation
 
 from perception.camera import Intrinsics, look_at
 from perception.knobs import (
-    BORDER, DETECTOR_HOG, PATCH, WINDOW, KnobConfig, KnobPrior, face_patch, knob_priors, plane_homography,
-    rectify, to_gray,
+    BORDER, DETECTOR_HOG, PATCH, WINDOW, KnobConfig, KnobPrior, canvas_homography, detect_knob, face_patch,
+    knob_priors, rectify, rotate_xy, to_gray,
 )
 from perception.render import Scene
 
@@ -134,7 +134,7 @@ def _crop(K: Intrinsics, T_world_camera, prior: KnobPrior, cfg: KnobConfig, pad:
     """The cropped camera that sees the knob's search region at every pyramid scale."""
     size = WINDOW + 2 * cfg.search_px
     rho = cfg.px_per_radius * min(cfg.scales) / prior.radius
-    H = plane_homography(K, T_world_camera, prior.T_world_face(), rho, size)
+    H, _ = canvas_homography(K, T_world_camera, prior, rho, size, cfg=cfg)
     c = np.array([[0, 0, 1], [size, 0, 1], [0, size, 1], [size, size, 1]], dtype=float).T
     uv = H @ c
     uv = uv[:2] / uv[2]
@@ -232,6 +232,8 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
         gray = to_gray(v.image)
         pr = v.believed
         cx, cy = true_center_m(v)
+        psi = pr.canvas_frame(v.T_world_camera, cfg.view_aligned)[1]
+        ccx, ccy = rotate_xy((cx, cy), -psi)   # the knob centre in the canvas frame
         if v.present:
             for k in range(positives + angle_patches):
                 s = rng.uniform(0.93, 1.08)
@@ -244,13 +246,13 @@ def training_patches(views: list[KnobView], seed: int, cfg: KnobConfig = KnobCon
                     det_y.append(1)
                 else:
                     ang_p.append(patch)
-                    ang_y.append(v.angle)
+                    ang_y.append(v.angle - psi)   # the angle the canvas shows
         s = float(rng.choice(cfg.scales))
         rho = cfg.px_per_radius * s / pr.radius
         full = size + 2 * BORDER
-        canvas = rectify(gray, plane_homography(v.K, v.T_world_camera, pr.T_world_face(), rho, full), full)
+        canvas = rectify(gray, canvas_homography(v.K, v.T_world_camera, pr, rho, full, cfg=cfg)[0], full)
         c0 = (full - 1) / 2
-        tx, ty = c0 + cx * rho, c0 - cy * rho
+        tx, ty = c0 + ccx * rho, c0 - ccy * rho
         cand = []
         for y0 in range(0, size - WINDOW + 1, st):
             for x0 in range(0, size - WINDOW + 1, st):
@@ -277,10 +279,10 @@ def hard_negatives(views: list[KnobView], detector, cfg: KnobConfig = KnobConfig
     for v in views:
         gray = to_gray(v.image)
         pr = v.believed
-        cx, cy = true_center_m(v)
+        cx, cy = rotate_xy(true_center_m(v), -pr.canvas_frame(v.T_world_camera, cfg.view_aligned)[1])
         for s in cfg.scales:
             rho = cfg.px_per_radius * s / pr.radius
-            canvas = rectify(gray, plane_homography(v.K, v.T_world_camera, pr.T_world_face(), rho, full), full)
+            canvas = rectify(gray, canvas_homography(v.K, v.T_world_camera, pr, rho, full, cfg=cfg)[0], full)
             score = detector.scan(canvas[BORDER:BORDER + size, BORDER:BORDER + size])
             c0 = (full - 1) / 2
             tx, ty = c0 + cx * rho, c0 - cy * rho
@@ -347,3 +349,62 @@ def scene_negatives(world, n_views: int, seed: int, cfg: KnobConfig = KnobConfig
             s = float(rng.uniform(0.85, 1.15))
             out.append(face_patch(gray, K, T_wc, prior, (0.0, 0.0), s, cfg))
     return np.array(out, dtype=np.uint8).reshape(-1, PATCH, PATCH)
+
+
+@dataclass
+class ThresholdCalibration:
+    """``threshold``: the chosen detector threshold; ``errors``: validation errors there
+    (missed knobs plus false detections); ``positives`` / ``empty``: validation views with a
+    knob and without; ``recall`` / ``false_positive_rate`` at the threshold."""
+    threshold: float
+    errors: int
+    positives: int
+    empty: int
+    recall: float
+    false_positive_rate: float
+
+
+def calibrate_threshold(views: list[KnobView], detector, cfg: KnobConfig = KnobConfig(),
+                        floor: float = -5.0) -> ThresholdCalibration:
+    """The detector threshold with the fewest errors on validation ``views`` (drawn with
+    other seeds than the training views): for each view the best window of the knob's region
+    is found with no threshold (above ``floor``); a present knob is missed when that window is
+    under the threshold or, over it, more than half a radius from the knob (then it is also a
+    false detection); an empty region errs when its best window is over the threshold. The
+    error count is a step function of the threshold; we take the middle of its lowest step,
+    as far from both kinds of error as the validation set allows. A hinge-loss SVM's own
+    boundary (0) sits where its training windows are, not where the best of ~50 windows per
+    region falls, which is why calibrating the threshold matters."""
+    from dataclasses import replace
+    scan = replace(cfg, threshold=floor)
+    near, far, empty = [], [], []
+    for v in views:
+        det = detect_knob(to_gray(v.image), v.K, v.T_world_camera, v.believed, detector, scan)
+        s = det.score if det is not None else floor
+        if not v.present:
+            empty.append(s)
+            continue
+        cx, cy = true_center_m(v)
+        ok = det is not None and math.hypot(det.center_m[0] - cx, det.center_m[1] - cy) <= 0.5 * v.truth.radius
+        (near if ok else far).append(s)
+    near_a, far_a, empty_a = (np.sort(np.asarray(x, dtype=float)) for x in (near, far, empty))
+    cuts = np.unique(np.concatenate([near_a, far_a, empty_a, [floor]]))
+    cand = np.concatenate([[floor - 1.0], (cuts[:-1] + cuts[1:]) / 2, [cuts[-1] + 1.0]])
+
+    def errors(t):
+        # near windows under t are misses; far windows are misses, and false detections
+        # too when over t; empty regions over t are false detections
+        return (np.searchsorted(near_a, t) + len(far_a) + (len(far_a) - np.searchsorted(far_a, t))
+                + (len(empty_a) - np.searchsorted(empty_a, t)))
+
+    err = np.array([errors(t) for t in cand])
+    best = np.flatnonzero(err == err.min())
+    # the middle of the lowest step (the lowest steps are contiguous in practice; if not,
+    # the middle of the first run)
+    run = best[:np.argmax(np.diff(np.append(best, best[-1] + 2)) > 1) + 1]
+    lo, hi = cand[run[0]], cand[run[-1]]
+    t = float((lo + hi) / 2) if np.isfinite(lo + hi) else float(lo)
+    n_pos = len(near_a) + len(far_a)
+    rec = float((near_a > t).sum() / max(n_pos, 1))
+    fpr = float((empty_a > t).sum() / max(len(empty_a), 1))
+    return ThresholdCalibration(t, int(errors(t)), n_pos, len(empty_a), rec, fpr)

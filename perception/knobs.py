@@ -52,22 +52,26 @@ class KnobConfig:
     """``px_per_radius``: canvas pixels per knob radius (16: the knob's face is 32 px wide in
     a 48 px window); ``search_px``: how far (canvas px at scale 1, 18 px = 2.5 cm for a 22 mm
     knob) the knob may be from where the map puts it; ``scales``: the pyramid (canvas scale
-    factors); ``threshold``: SVM score a window needs; ``nms_iou``: overlap at which NMS drops
+    factors); ``threshold``: SVM score a window needs (None: the detector's own
+    ``threshold_``, calibrated on validation views in training, else 0); ``nms_iou``: overlap at which NMS drops
     the weaker window; ``angle_method``: forest, svr or fused (see ``KnobReader``);
     ``min_confidence``: below it the state is "unknown"; ``max_off_axis_deg``: a knob seen
     more obliquely is not read; ``angle_shifts_px``: the angle models read five windows, at
     the detected centre and shifted this far left, right, up and down, and average (0: one
-    window), which makes them tolerant of a detection a few pixels off."""
+    window), which makes them tolerant of a detection a few pixels off; ``view_aligned``: the
+    canvas is turned about the knob's axis so that the direction towards the camera is always
+    canvas-up (``KnobPrior.canvas_frame``)."""
     px_per_radius: float = 16.0
     search_px: int = 18
     scales: tuple[float, ...] = (0.87, 1.0, 1.15)
-    threshold: float = 0.0
+    threshold: Optional[float] = None
     nms_iou: float = 0.3
     angle_method: str = "fused"
     fuse_gate_deg: float = 15.0
     min_confidence: float = 0.3
     max_off_axis_deg: float = 70.0
     angle_shifts_px: float = 2.0
+    view_aligned: bool = True
 
 
 # -- the knobs the map knows --------------------------------------------------------------------
@@ -88,6 +92,26 @@ class KnobPrior:
         T = self.T_world_knob.copy()
         T[:3, 3] = T[:3, 3] + T[:3, 2] * self.depth
         return T
+
+    def canvas_frame(self, T_world_camera: np.ndarray, aligned: bool = True) -> tuple[np.ndarray, float]:
+        """The face frame turned by ``psi`` about the knob's axis so that its +y points towards
+        the camera (projected on the face plane), and ``psi`` (rad); (face frame, 0) when not
+        ``aligned``. Seen off-axis, the knob's cylindrical side shows on the face plane on the
+        side away from the camera; in this frame it always lies below the face, so the models
+        learn one appearance per relative angle instead of one per direction of view. A marker
+        at knob angle a is at a - psi in this frame."""
+        T = self.T_world_face()
+        if not aligned:
+            return T, 0.0
+        v = T_world_camera[:3, 3] - T[:3, 3]
+        ux, uy = float(T[:3, 0] @ v), float(T[:3, 1] @ v)
+        if math.hypot(ux, uy) < 1e-9:
+            return T, 0.0
+        psi = math.atan2(-ux, uy)
+        R = np.eye(4)
+        c, s = math.cos(psi), math.sin(psi)
+        R[:2, :2] = [[c, -s], [s, c]]
+        return T @ R, psi
 
 
 def knob_priors(world, object_id: Optional[str] = None,
@@ -133,13 +157,27 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
 
 
+def rotate_xy(xy, psi: float) -> tuple[float, float]:
+    """A plane point turned by ``psi`` (rad, counter-clockwise)."""
+    c, s = math.cos(psi), math.sin(psi)
+    return (c * xy[0] - s * xy[1], s * xy[0] + c * xy[1])
+
+
+def canvas_homography(K: Intrinsics, T_world_camera: np.ndarray, prior: KnobPrior, px_per_m: float,
+                      size: int, center_m=(0.0, 0.0), cfg: KnobConfig = KnobConfig()) -> tuple[np.ndarray, float]:
+    """The homography of a knob's canvas (``plane_homography`` of ``KnobPrior.canvas_frame``)
+    centred at ``center_m`` (knob face x, y in m), and the canvas's turn ``psi``."""
+    T_c, psi = prior.canvas_frame(T_world_camera, cfg.view_aligned)
+    return plane_homography(K, T_world_camera, T_c, px_per_m, size, rotate_xy(center_m, -psi)), psi
+
+
 def face_patch(gray: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray, prior: KnobPrior,
                center_m=(0.0, 0.0), scale: float = 1.0, cfg: KnobConfig = KnobConfig(),
                size: int = PATCH) -> np.ndarray:
-    """A rectified patch of the knob's face plane centred at ``center_m`` (plane x, y in m),
-    at ``scale`` times the canonical scale."""
+    """A rectified patch of the knob's face plane centred at ``center_m`` (knob face x, y in
+    m), at ``scale`` times the canonical scale, in the canvas frame (view-aligned or not)."""
     rho = cfg.px_per_radius * scale / prior.radius
-    H = plane_homography(K, T_world_camera, prior.T_world_face(), rho, size, center_m)
+    H, _ = canvas_homography(K, T_world_camera, prior, rho, size, center_m, cfg)
     return rectify(gray, H, size)
 
 
@@ -209,6 +247,13 @@ class KnobDetector(BaseEstimator, ClassifierMixin):
 
     def decision_function(self, patches) -> np.ndarray:
         return hog_features(patches, DETECTOR_HOG) @ self.coef_ + self.intercept_
+
+    def threshold_for(self, cfg: "KnobConfig") -> float:
+        """The score a window needs: the configured one, else the calibrated ``threshold_``
+        (set by ``calibrate_threshold``), else 0 (the SVM's own boundary)."""
+        if cfg.threshold is not None:
+            return float(cfg.threshold)
+        return float(getattr(self, "threshold_", 0.0))
 
     def predict(self, patches) -> np.ndarray:
         return (self.decision_function(patches) > 0).astype(int)
@@ -339,12 +384,14 @@ class KnobAngleSVR(BaseEstimator, RegressorMixin):
 @dataclass
 class KnobDetection:
     """The best window of a knob's region: centre in the face plane (m, knob x and y at angle
-    0), pyramid scale, SVM score, and the image pixel of the centre."""
+    0), pyramid scale, SVM score, the image pixel of the centre, and the turn ``psi`` (rad) of
+    the canvas it was found in (``KnobPrior.canvas_frame``)."""
     center_m: tuple[float, float]
     scale: float
     score: float
     pixel: tuple[float, float]
     candidates: int = 0
+    psi: float = 0.0
 
 
 @dataclass
@@ -380,13 +427,15 @@ def detect_knob(gray: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray, pri
     """Search the knob's region (the map's knob position +- ``search_px``) over the pyramid;
     None when no window scores above the threshold."""
     size = WINDOW + 2 * cfg.search_px
+    threshold = detector.threshold_for(cfg)
     boxes, scores, where = [], [], []
+    psi = 0.0
     for s in cfg.scales:
         rho = cfg.px_per_radius * s / prior.radius
-        H = plane_homography(K, T_world_camera, prior.T_world_face(), rho, size)
+        H, psi = canvas_homography(K, T_world_camera, prior, rho, size, cfg=cfg)
         score = detector.scan(rectify(gray, H, size))
         st = DETECTOR_HOG["stride"][0]
-        for i, j in zip(*np.nonzero(score > cfg.threshold)):
+        for i, j in zip(*np.nonzero(score > threshold)):
             # a window's box in metres on the plane, so that scales compare
             cx = (j * st + (WINDOW - 1) / 2 - (size - 1) / 2) / rho
             cy = -(i * st + (WINDOW - 1) / 2 - (size - 1) / 2) / rho
@@ -397,18 +446,19 @@ def detect_knob(gray: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray, pri
     if not boxes:
         return None
     # NMSBoxes works in any unit; scale metres up so its integer-free maths has room.
-    keep = nms([[v * 1000 for v in b] for b in boxes], scores, cfg.threshold, cfg.nms_iou)
+    keep = nms([[v * 1000 for v in b] for b in boxes], scores, threshold, cfg.nms_iou)
     s, rho, cx, cy, score, i, j = where[keep[0]]
     # Sub-window refinement: a parabola through the best score and its grid neighbours
     # (the window grid is 6 px; the angle models want the centre within ~2 px).
     st = DETECTOR_HOG["stride"][0]
     dx = _parabola(score, i, j, 0) * st / rho
     dy = -_parabola(score, i, j, 1) * st / rho
-    center = (cx + dx, cy + dy)
+    center = rotate_xy((cx + dx, cy + dy), psi)   # canvas frame -> knob face frame
     p_world = prior.T_world_face() @ np.array([center[0], center[1], 0.0, 1.0])
     pc = np.linalg.inv(T_world_camera) @ p_world
     pixel = (K.fx * pc[0] / pc[2] + K.cx, K.fy * pc[1] / pc[2] + K.cy)
-    return KnobDetection(center, s, float(score[i, j]), (float(pixel[0]), float(pixel[1])), len(keep))
+    return KnobDetection(center, s, float(score[i, j]), (float(pixel[0]), float(pixel[1])), len(keep),
+                         psi)
 
 
 def _parabola(score: np.ndarray, i: int, j: int, axis: int) -> float:
@@ -426,11 +476,13 @@ def _parabola(score: np.ndarray, i: int, j: int, axis: int) -> float:
     return 0.0 if den >= 0 else float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
 
 
-def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = None) -> tuple[str, float]:
+def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = None,
+                  psi: float = 0.0) -> tuple[str, float]:
     """The nearest discrete state to ``angle`` (rad) and a confidence: how far inside half a
     state step of that state the angle lies (1 on the state, 0 half-way to the next), averaged,
     when class probabilities are given, with the forest's probability mass within that half
-    step (a forest torn between states lowers it)."""
+    step (a forest torn between states lowers it). The classes are angles in a canvas turned
+    by ``psi`` (class c is the knob angle 10 c degrees + psi)."""
     a = np.asarray(prior.state_angles)
     d = np.abs(_wrap(a - angle))
     k = int(np.argmin(d))
@@ -441,7 +493,7 @@ def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = 
         half = np.pi
     conf = float(max(0.0, 1.0 - d[k] / half))
     if proba is not None:
-        centres = np.radians(np.arange(N_CLASSES) * 10.0)
+        centres = np.radians(np.arange(N_CLASSES) * 10.0) + psi
         near = np.abs(_wrap(centres - a[k])) <= half + 1e-9
         conf = 0.5 * conf + 0.5 * float(proba[near].sum())
     return prior.state_names[k], conf
@@ -454,7 +506,7 @@ class KnobReader:
     "svr" (cos/sin linear SVR), or "fused" (the circular mean of both when the SVR's lies
     within ``fuse_gate_deg`` of the forest's, else the forest's: the forest is robust, the
     SVR occasionally far off: where they agree, their errors partly cancel). Confidence = the detection's (a logistic of the SVM
-    score) times the state's (``snap_to_state``)."""
+    score's margin over the threshold) times the state's (``snap_to_state``)."""
 
     def __init__(self, detector: KnobDetector, forest: KnobAngleForest, svr: KnobAngleSVR,
                  config: KnobConfig = KnobConfig()):
@@ -496,9 +548,11 @@ class KnobReader:
         n_views = len(patches) // len(found)
         X = hog_features(np.stack(patches), ANGLE_HOG)
         proba = self.forest.predict_proba(features=X).reshape(len(found), n_views, N_CLASSES).mean(1)
-        a_rf = proba_to_angle(proba)
+        # the models read angles in the (turned) canvas: add its turn back
+        psi = np.array([readings[idx].detection.psi for idx, _ in found])
+        a_rf = _wrap(proba_to_angle(proba) + psi)
         s_svr = self.svr.predict(features=X).reshape(len(found), n_views)
-        a_svr = np.arctan2(np.sin(s_svr).sum(1), np.cos(s_svr).sum(1))
+        a_svr = _wrap(np.arctan2(np.sin(s_svr).sum(1), np.cos(s_svr).sum(1)) + psi)
         gate = math.radians(cfg.fuse_gate_deg)
         for n, (idx, prior) in enumerate(found):
             r = readings[idx]
@@ -506,8 +560,9 @@ class KnobReader:
                      else a_rf[n])
             r.angles = {"forest": float(a_rf[n]), "svr": float(a_svr[n]), "fused": float(fused)}
             r.angle = r.angles[method]
-            state, c_state = snap_to_state(r.angle, prior, proba[n])
-            c_det = 1.0 / (1.0 + math.exp(-2.0 * r.detection.score))
+            state, c_state = snap_to_state(r.angle, prior, proba[n], psi[n])
+            margin = r.detection.score - self.detector.threshold_for(cfg)
+            c_det = 1.0 / (1.0 + math.exp(-2.0 * margin))
             r.confidence = float(c_state * c_det)
             if r.confidence >= cfg.min_confidence:
                 r.state = state

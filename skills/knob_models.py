@@ -20,14 +20,15 @@ import numpy as np
 
 from perception.errors import PerceptionError
 from perception.knob_data import (
-    KnobDataConfig, KnobScenes, hard_negatives, render_views, scene_negatives, training_patches,
+    KnobDataConfig, KnobScenes, calibrate_threshold, hard_negatives, render_views, scene_negatives,
+    training_patches,
 )
 from perception.knobs import KnobAngleForest, KnobAngleSVR, KnobConfig, KnobDetector, KnobReader
 from skills import models_store
 
 MODEL_NAME = "knobs"
 #: Bump when the training data or the features change in a way the configuration misses.
-CODE_VERSION = 3
+CODE_VERSION = 4
 
 
 @dataclass(frozen=True)
@@ -35,7 +36,10 @@ class TrainingConfig:
     """``views``: rendered knob views; ``angle_patches`` / ``positives`` / ``negatives``:
     windows cut from each; ``scene_views``: views of other surfaces for negatives (4 windows
     each); ``hard_negatives``: at most this many windows the first detector wrongly scores
-    high are added for a second fit (0: none); ``seed``: training seeds are ``seed`` .. ``seed + 2`` (benchmarks use others)."""
+    high are added for a second fit (0: none); ``validation_views``: views (``validation_missing``
+    of them without the knob) on which the detector's threshold is calibrated
+    (``calibrate_threshold``; 0: the SVM's boundary, 0); ``seed``: training seeds are ``seed``
+    .. ``seed + 3`` (benchmarks use others)."""
     views: int = 3000
     angle_patches: int = 4
     positives: int = 3
@@ -44,6 +48,8 @@ class TrainingConfig:
     seed: int = 1
     detector_C: float = 0.01
     hard_negatives: int = 8000
+    validation_views: int = 600
+    validation_missing: float = 0.3
     forest_trees: int = 100
     svr_C_grid: tuple[float, ...] = (0.03, 0.3)
     data: KnobDataConfig = field(default_factory=KnobDataConfig)
@@ -51,7 +57,7 @@ class TrainingConfig:
     def tiny(self) -> "TrainingConfig":
         """A small configuration for tests (seconds, not minutes)."""
         return replace(self, views=260, angle_patches=3, scene_views=40, forest_trees=30,
-                       svr_C_grid=(0.1,), hard_negatives=1000)
+                       svr_C_grid=(0.1,), hard_negatives=1000, validation_views=120)
 
 
 def knob_signature(world) -> list[dict]:
@@ -76,7 +82,7 @@ def _noise():
 
 #: The KnobConfig fields the training depends on; the others (thresholds, the angle method)
 #: are read-time settings and can change without retraining.
-TRAINED_FIELDS = ("px_per_radius", "search_px", "scales")
+TRAINED_FIELDS = ("px_per_radius", "search_px", "scales", "view_aligned")
 
 
 def configuration(world, cfg: TrainingConfig, knob: KnobConfig) -> dict:
@@ -116,6 +122,15 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
         det_p = np.concatenate([det_p, hard])
         det_y = np.concatenate([det_y, np.zeros(len(hard), dtype=int)])
         detector = KnobDetector(C=cfg.detector_C).fit(det_p, det_y)
+    if cfg.validation_views:
+        val = render_views(world, cfg.validation_views, cfg.seed + 3,
+                           replace(cfg.data, missing_rate=cfg.validation_missing), knob, noise=_noise(),
+                           scenes=scenes, progress=lambda d, n: say("rendering validation views", d, n))
+        cal = calibrate_threshold(val, detector, knob)
+        detector.threshold_ = cal.threshold
+        detector.calibration_ = asdict(cal)
+        say(f"detector threshold {cal.threshold:+.3f} (validation: recall {cal.recall:.3f}, "
+            f"false detections {cal.false_positive_rate:.3f} of {cal.empty} empty regions)", 0, 3)
     say(f"fitting angle forest ({cfg.forest_trees} trees, {len(ang_y)} windows)", 1, 3)
     forest = KnobAngleForest(n_estimators=cfg.forest_trees, random_state=cfg.seed).fit(ang_p, ang_y)
     say("fitting angle SVR (cos, sin)", 2, 3)
