@@ -139,6 +139,8 @@ def run(args) -> dict:
         ms_per_knob=round(ms, 2), ms_per_knob_p95=round(float(np.percentile(times, 95) * 1000), 2),
         cpu_ms_per_knob=round(float(np.median(cpu) * 1000), 2),
         ms_per_frame_4_knobs=round(float(np.median(frame_ms)), 2),
+        detector_threshold=round(reader.detector.threshold_for(reader.config), 4),
+        detector_calibration=getattr(reader.detector, "calibration_", None),
         models=dict(source=info.source, path=str(info.path), load_or_train_s=round(train_s, 1)),
         load_avg_1m=round(os.getloadavg()[0], 2),
         reference_ramcip=dict(REFERENCE),
