@@ -191,17 +191,25 @@ class KnobsOn(Skill):
 
 
 class ExpectKnobsOff(Skill):
-    """Succeed when every knob of the appliance (or just ``knob``) is off in the map; else
-    fail naming the knobs still on."""
+    """Succeed when every knob of the appliance (or just ``knob``) is off in the map and was
+    read (none of them in ``unread``, ReadKnobs' ``unknown``: a knob the last reading could
+    not read is not known to be off, whatever the map still says); else fail naming the knobs
+    still on or unread."""
 
     NAME = "ExpectKnobsOff"
     DESCRIPTION = "check that an appliance's knobs are off"
     INPUTS = (Port("object", "node_id"),
-              Port("knob", "node_id", required=False, default=None))
+              Port("knob", "node_id", required=False, default=None),
+              Port("unread", "list", required=False, default=None,
+                   description="knobs the last reading could not read"))
     OUTPUTS = ()
 
     def update(self) -> S:
         oid, knob = self.input("object"), self.input("knob")
+        unread = [k for k in (self.input("unread") or []) if knob in (None, k)]
+        if unread:
+            self.feedback_message = ", ".join(f"{k} could not be read" for k in unread)
+            return S.FAILURE
         on = [k for k in knobs_on(self.world, oid) if knob in (None, k.id)]
         if on:
             self.feedback_message = ", ".join(f"{k.id} is still {k.state}" for k in on)

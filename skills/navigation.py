@@ -1,9 +1,17 @@
 """Driving the robot base."""
 from __future__ import annotations
 
+import math
+
 from skills.actions import RobotActionSkill
 from skills.base import Port
 from skills.values import as_pose
+
+
+#: ``parking: another``: the nearest parking position other than the one the robot is at.
+ANOTHER = "another"
+#: A robot closer than this (m) to a parking position is at it.
+AT_PARKING_M = 0.15
 
 
 class NavigateTo(RobotActionSkill):
@@ -17,14 +25,18 @@ class NavigateTo(RobotActionSkill):
     DESCRIPTION = "drive the base to a pose or to a node's parking position"
     INPUTS = (Port("target", "any", description="node id, pose, or search place"),
               Port("parking", "string", required=False, default=None,
-                   description="parking position id (default: the node's default)"))
+                   description="parking position id (default: the node's default), or "
+                               "'another': the nearest one the robot is not at (a second "
+                               "view of the same thing)"))
     OUTPUTS = (Port("pose", "pose", required=False, description="the goal pose (world, x/y/yaw)"),)
 
     def start(self):
         target = self.input("target")
         parking = self.input("parking")
         if isinstance(target, str):
-            if parking:
+            if parking == ANOTHER:
+                parking, goal = self._another(target)
+            elif parking:
                 goal = self.world.parking_pose(target, parking)
             else:
                 goal = self.world.parking_positions(target)[0][1]
@@ -37,6 +49,17 @@ class NavigateTo(RobotActionSkill):
             goal = as_pose(target)
         self._goal = goal
         return self.robot.navigate_to(goal)
+
+    def _another(self, target: str):
+        """The parking position of ``target`` nearest to the robot among those more than
+        ``AT_PARKING_M`` from where it stands (ValueError when there is none)."""
+        here = self.robot.base_pose()
+        others = [(math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
+                  for p, pose in self.world.parking_positions(target)]
+        others = sorted(o for o in others if o[0] > AT_PARKING_M)
+        if not others:
+            raise ValueError(f"{target} has no other parking position than the one the robot is at")
+        return others[0][1], others[0][2]
 
     def describe(self) -> str:
         return f"navigating {getattr(self, '_what', '')}".strip()

@@ -31,10 +31,13 @@ class Done:
 
 class FakeRobot:
     """Speech, a base pose and knobs with a truth (a stuck knob does not move)."""
-    def __init__(self, knobs=None, stuck=()):
+    def __init__(self, knobs=None, stuck=(), unreadable=()):
         self.said: list[str] = []
         self.truth_knobs = dict(knobs or {})
         self.stuck = set(stuck)
+        #: per knob reading, in order: the knobs that reading cannot read
+        self.unreadable = [set(u) for u in unreadable]
+        self.reads: list = []   # the knobs each reading was asked for (None: all)
 
     def say(self, text):
         self.said.append(text)
@@ -55,15 +58,23 @@ def _read_knobs_class(real):
     """ReadKnobs reading the fake robot's truth into the map (its real ports)."""
     class FakeReadKnobs(real):
         def update(self):
-            oid = self.input("object")
-            states = {}
+            oid, only = self.input("object"), self.input("knobs")
+            blind = self.robot.unreadable.pop(0) if self.robot.unreadable else set()
+            self.robot.reads.append(only)
+            states, unknown = {}, []
             for k in self.world.knobs(oid):
+                if only and k.id not in only:
+                    continue
+                if k.id in blind:
+                    unknown.append(k.id)
+                    continue
                 angle = self.robot.truth_knobs.get(k.id, k.angle)
                 state = min(k.states, key=lambda s: abs(s.angle - angle)).name
                 self.world.set_knob_state(k.id, state, source="ReadKnobs")
                 states[k.id] = state
             self.set_output("states", states)
-            return S.SUCCESS
+            self.set_output("unknown", unknown)
+            return S.SUCCESS if states else S.FAILURE
     # (A module outside skills/ keeps it out of skills.base.registry() in later tests.)
     return FakeReadKnobs
 
@@ -227,6 +238,62 @@ def test_a_stuck_knob_ends_with_cannot(world):
                     skills=_oven_skills())
     assert result.outcome == "failed"
     assert "I cannot turn off oven knob 3 of the oven: it did not move" in result.reason
+
+
+def _on(world, knob_id):
+    on_state = [s.name for s in world.get(knob_id).states if s.name != "off"][0]
+    return _knob_angle(world, knob_id, on_state)
+
+
+def _made(sub, suffix):
+    return next(node for path, node in sub.made.items() if path.endswith(suffix))
+
+
+def test_a_knob_unread_from_the_first_place_is_read_from_another_and_turned_off(world):
+    # the map says off (stale); the knob is on and the first view cannot read it
+    robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
+                      unreadable=[{"oven_knob_4"}])
+    result, sub = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
+                      skills=_oven_skills())
+    assert result.outcome == "succeeded", result.reason
+    assert _made(sub, "drive_aside").seen_inputs[-1]["parking"] == "another"
+    assert robot.reads[:2] == [None, ["oven_knob_4"]]   # all, then the unread one again
+    assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
+    every = {k.id for k in world.knobs("oven")}
+    robot = FakeRobot(knobs={"oven_knob_1": _on(world, "oven_knob_1")}, unreadable=[every])
+    result, sub = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
+                      skills=_oven_skills())
+    assert result.outcome == "succeeded", result.reason
+    assert _made(sub, "drive_aside_for_all").seen_inputs[-1]["parking"] == "another"
+    assert robot.reads[:2] == [None, None]
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_a_knob_unread_from_both_places_is_never_taken_for_off(world):
+    robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
+                      unreadable=[{"oven_knob_4"}, {"oven_knob_4"}])
+    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
+                    skills=_oven_skills())
+    assert result.outcome == "failed"
+    assert robot.said[-1] == ("I could not read the oven knob 4 of the oven, so I cannot tell "
+                              "whether it is off; please check it")
+    assert robot.truth_knobs["oven_knob_4"] != pytest.approx(0.0)   # not touched
+    assert "Every knob" not in " ".join(robot.said)
+
+
+def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
+    # read fine first; after each turn the reading cannot see it
+    robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
+                      unreadable=[set(), {"oven_knob_2"}, {"oven_knob_2"}])
+    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
+                    skills=_oven_skills())
+    assert result.outcome == "failed"
+    assert "I turned oven knob 2 of the oven but could not read it back; please check it" in result.reason
+    assert not any("it is off now" in x for x in robot.said)
 
 
 def test_refine_localisation_reports_the_correction(world):

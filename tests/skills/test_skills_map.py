@@ -150,6 +150,27 @@ def test_navigate_runs_until_the_action_ends_and_cancels_when_halted(demo_world)
     assert robot.next.cancelled
 
 
+def test_navigate_to_another_parking_position_leaves_the_one_the_robot_is_at(demo_world):
+    parking = {p.id: pose for p, pose in demo_world.parking_positions("oven")}
+    robot = FakeRobot()
+    robot.base_pose = lambda: parking["oven_front"]
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "another"})
+    assert tick(s) == S.RUNNING
+    goal = robot.calls[0][1]
+    # the nearest of the others (left and right are as near: either), never the front
+    assert any(abs(goal.x - parking[k].x) < 1e-9 and abs(goal.y - parking[k].y) < 1e-9
+               for k in ("oven_left", "oven_right"))
+    assert "oven_" in s.describe() and "front" not in s.describe()
+    # an object with a single parking position, and the robot on it: fail, saying why
+    robot = FakeRobot()
+    only = demo_world.parking_positions("oven")[:1]
+    demo_world.parking_positions = lambda node: only
+    robot.base_pose = lambda: only[0][1]
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "another"})
+    assert tick(s) == S.FAILURE
+    assert "no other parking position" in s.feedback_message
+
+
 def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
     robot = FakeRobot()
     robot.next = ScriptedAction(ticks=0)
