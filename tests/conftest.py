@@ -1,9 +1,17 @@
 """Shared fixtures."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Property tests draw new examples on every run (they found the near-square table in
+# search_positions); CI (.ci/run sets HYPOTHESIS_PROFILE=ci) draws the same ones every time,
+# so that its verdict is about the change, not the draw.
+settings.register_profile("ci", derandomize=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"

@@ -30,7 +30,7 @@ def table_points(cx, cy, sx, sy, h, yaw, step=0.03, legs=True):
     return np.stack([c * p[:, 0] - s * p[:, 1] + cx, s * p[:, 0] + c * p[:, 1] + cy, p[:, 2]], axis=1)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(st.floats(1.0, 2.0), st.floats(0.5, 0.9), st.floats(-math.pi, math.pi), st.floats(0.6, 1.0))
 def test_positions_sit_on_the_second_axis_at_the_safety_distance(sx, sy, yaw, h):
     pts = table_points(3.0, 2.0, sx, sy, h, yaw)
