@@ -98,6 +98,7 @@ def run(mission, world, scripts, robot=None, skills=None, **params):
 
 ROBOT_SCRIPTS = [Script("NavigateTo", duration=2.0), Script("Grasp", duration=1.0),
                  Script("HandOver", duration=1.0), Script("OpenArticulated", duration=1.0),
+                 Script("CloseArticulated", duration=1.0),
                  Script("RegisterArticulated"), Script("RefineLocalisation")]
 
 
@@ -170,6 +171,31 @@ def test_a_door_that_does_not_open_is_named_in_the_reason(world):
     assert result.outcome == "failed"
     assert "no clear jar at the 1 place searched" in result.reason
     assert "the left cupboard door did not open" in result.reason
+
+
+def _closed_doors(sub):
+    # ClosedParts gives {part, handle} items
+    return [i["part"]["part"] for p, n in sub.made.items() if p.endswith("/close_door")
+            for i in n.seen_inputs]
+
+
+def test_doors_opened_at_a_place_without_the_object_are_closed_again(world):
+    result, sub = run("fetch_object.yaml", world, ROBOT_SCRIPTS + [
+        Script("DetectObject", outcomes=["failure"]),
+        Script("PlanNextBestView", outcomes=["failure"]),
+        Script("ProposeSearchPositions", outcomes=["failure"])],
+        object="glass jar", max_places=1)
+    assert result.outcome == "failed"
+    assert sorted(_closed_doors(sub)) == ["cupboard_door_left", "cupboard_door_right"]
+
+
+def test_doors_stay_open_where_the_object_is_found(world):
+    jar = world.T_world("glass_jar")[:3, 3]
+    seen = {"x": float(jar[0]), "y": float(jar[1]), "z": float(jar[2]), "yaw": 0.0}
+    result, sub = run("fetch_object.yaml", world, ROBOT_SCRIPTS + [
+        Script("DetectObject", outputs={"pose": seen})], object="glass jar")
+    assert result.outcome == "succeeded", result.reason
+    assert _closed_doors(sub) == []
 
 
 def test_an_ambiguous_object_asks_which_one(world):
