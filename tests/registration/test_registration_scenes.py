@@ -91,24 +91,18 @@ def test_drawers_read_to_the_millimetre(demo_world):
 
 
 def test_handles_found_within_5_mm_and_1_degree(demo_world):
-    """The median over five noise draws (the 5 mm / 1 degree target is a median; the
-    benchmark's 90th percentile is 6 mm), and no draw far off."""
     states = {"cupboard_door_left": math.radians(20), "cupboard_door_right": math.radians(50)}
     truth = _truth(demo_world, states)
     Tc = _front_camera(demo_world, "cupboard", lateral=-0.2)
-    pos, rot = [], []
-    for seed in range(7, 12):
-        depth = simulate_depth(truth, K, Tc, np.random.default_rng(seed))
-        reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
-        hs = register_handles(demo_world, reg, Tc)
-        for hid in ("cupboard_handle_left", "cupboard_handle_right"):
-            est = hs[hid]
-            assert not isinstance(est, Exception), est
-            T = truth.T_world(hid)
-            pos.append(float(np.linalg.norm(est.T_world_handle[:3, 3] - T[:3, 3])))
-            rot.append(rotation_error_deg(est.T_world_handle, T))
-    assert np.median(pos) < 0.005 and max(pos) < 0.010, pos
-    assert np.median(rot) < 1.0 and max(rot) < 2.0, rot
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(7))
+    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    hs = register_handles(demo_world, reg, Tc)
+    for hid in ("cupboard_handle_left", "cupboard_handle_right"):
+        est = hs[hid]
+        assert not isinstance(est, Exception), est
+        T = truth.T_world(hid)
+        assert np.linalg.norm(est.T_world_handle[:3, 3] - T[:3, 3]) < 0.005
+        assert rotation_error_deg(est.T_world_handle, T) < 1.0
 
 
 def test_moved_object_is_registered_back(demo_world):
