@@ -19,7 +19,7 @@ data.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import cv2
@@ -375,7 +375,6 @@ def calibrate_threshold(views: list[KnobView], detector, cfg: KnobConfig = KnobC
     as far from both kinds of error as the validation set allows. A hinge-loss SVM's own
     boundary (0) sits where its training windows are, not where the best of ~50 windows per
     region falls, which is why calibrating the threshold matters."""
-    from dataclasses import replace
     scan = replace(cfg, threshold=floor)
     near, far, empty = [], [], []
     for v in views:

@@ -53,8 +53,8 @@ class KnobConfig:
     a 48 px window); ``search_px``: how far (canvas px at scale 1, 18 px = 2.5 cm for a 22 mm
     knob) the knob may be from where the map puts it; ``scales``: the pyramid (canvas scale
     factors); ``threshold``: SVM score a window needs (None: the detector's own
-    ``threshold_``, calibrated on validation views in training, else 0); ``nms_iou``: overlap at which NMS drops
-    the weaker window; ``angle_method``: forest, svr or fused (see ``KnobReader``);
+    ``threshold_``, calibrated on validation views in training, else 0); ``nms_iou``: overlap
+    at which NMS drops the weaker window; ``angle_method``: forest, svr or fused (see ``KnobReader``);
     ``min_confidence``: below it the state is "unknown"; ``max_off_axis_deg``: a knob seen
     more obliquely is not read; ``angle_shifts_px``: the angle models read five windows, at
     the detected centre and shifted this far left, right, up and down, and average (0: one

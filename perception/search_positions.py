@@ -3,12 +3,13 @@ section on search positions, Fig. 6).
 
 Points labelled table are clustered (Euclidean, scikit-learn's DBSCAN); a cluster whose top
 lies in a plausible height range is a table top. Its points projected on the floor give two
-principal axes (the sides of their minimum-area rectangle, see ``table_tops``); the robot stands on the *second* principal axis (across the table's
-short side, so it sees the long side), on both sides, at the safety distance ``d`` from the
-table's edge, facing the table centre. A position is kept only when it and the table lie
-inside the room's bounds (the robot and the table in the same room; nothing behind a wall)
-and its footprint (robot radius) is free in the occupancy grid (the map's static objects
-and what the view shows as obstacles).
+principal axes (the sides of their minimum-area rectangle, see ``table_tops``); the robot
+stands on the *second* principal axis (across the table's short side, so it sees the long
+side), on both sides, at the safety distance ``d`` from the table's edge, facing the table
+centre. A position is kept only when it and the table lie inside the room's bounds (the
+robot and the table in the same room; nothing behind a wall) and its footprint (robot
+radius) is free in the occupancy grid (the map's static objects and what the view shows as
+obstacles).
 
 Frames: world, z up, floor z = 0; lengths in metres; yaw in radians.
 """
