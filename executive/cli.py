@@ -14,7 +14,7 @@ import sys
 from executive import commands as _commands
 from executive.errors import MissionError
 from perception.errors import PerceptionError
-from robot.errors import RobotError
+from hearth.robot.errors import RobotError
 from skills.errors import SkillError
 from worldmodel.errors import WorldError
 

@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
 from executive.errors import MissionError
+from hearth import demo_world_path
 from executive.missionfile import Mission, parse_param_text
 
-DEFAULT_WORLD = Path(__file__).resolve().parents[1] / "data" / "demo_home" / "world.xml"
+DEFAULT_WORLD = demo_world_path()
 
 
 def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
@@ -53,7 +53,7 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any
         raise MissionError(f"cannot load worlds: worldmodel.io is not available ({err})") from None
     world = load_world(args.world, clock=clock)
     try:
-        import robot
+        from hearth import robot
         create_adapter = robot.create_adapter
     except (ImportError, AttributeError):
         raise MissionError("no robot adapter: robot.create_adapter() does not exist yet") from None
@@ -63,7 +63,7 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any
 
 
 def make_clock(args: argparse.Namespace) -> Any:
-    from robot.clock import SimClock, WallClock
+    from hearth.robot.clock import SimClock, WallClock
     return WallClock() if getattr(args, "wall_clock", False) else SimClock()
 
 

@@ -212,7 +212,7 @@ class Executive:
         if equal_priority not in ("queue", "preempt"):
             raise ValueError("equal_priority is 'queue' or 'preempt'")
         if clock is None:
-            from robot.clock import WallClock
+            from hearth.robot.clock import WallClock
             clock = WallClock()
         self.world = world
         self.robot = robot

@@ -81,7 +81,7 @@ class Timeout(DeepestFirst, py_trees.decorators.Timeout):
 
     def _now(self) -> float:
         if self.clock is None:
-            from robot.clock import WallClock
+            from hearth.robot.clock import WallClock
             self.clock = WallClock()
         return self.clock.now()
 

@@ -29,14 +29,13 @@ import re
 import time
 from collections import Counter
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any, Callable, Optional
 
 import numpy as np
+from hearth import demo_world_path, missions_dir
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
-MISSIONS = ROOT / "missions"
+DEMO_WORLD = demo_world_path()
+MISSIONS = missions_dir()
 
 #: Where the blue cup turns up in truth, and how often (fetch and search cases).
 CUP_PLACES = (("side_table", 0.60), ("kitchen_table", 0.25), ("bathroom_counter", 0.15))
@@ -79,7 +78,7 @@ class CaseResult:
 # Scenarios
 # ---------------------------------------------------------------------------------------
 def _config(mission: str):
-    from robot.scenario import ScenarioConfig
+    from hearth.robot.scenario import ScenarioConfig
     if mission in ("fetch_object", "search_object"):
         return ScenarioConfig(moved_objects=(0, 1), knob_on_probability=0.0, clutter=(0, 2),
                               occluders=(0, 1), stuck_knob_probability=0.0,
@@ -134,7 +133,7 @@ def warm_up(belief, object_id: str, n: int, rng) -> None:
 def make_case_scenario(case: Case, world=None):
     """The case's Scenario (belief and truth worlds, start pose, localisation error, stuck
     knobs) and the mission's parameters."""
-    from robot.scenario import make_scenario
+    from hearth.robot.scenario import make_scenario
     from worldmodel import load_world
     world = world or load_world(DEMO_WORLD)
     sc = make_scenario(world, case.seed, _config(case.mission))
@@ -194,9 +193,9 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
     ``replay_from``: run on a recording instead of the simulator (robot.recording.ReplayRobot),
     with the same belief map."""
     from executive.executive import Executive
-    from robot.clock import SimClock
-    from robot.recording import RecordingRobot, ReplayRobot
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.clock import SimClock
+    from hearth.robot.recording import RecordingRobot, ReplayRobot
+    from hearth.robot.simulated import SimulatedRobot
 
     sc, params = make_case_scenario(case, world)
     clock = SimClock()

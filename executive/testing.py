@@ -259,7 +259,7 @@ def run_case(mission_path: str | Path, case: Case, skills: dict[str, type] | Non
              world: Any = None, robot: Any = None, runs_dir: str | None = None) -> CaseReport:
     """Run ``case`` on a simulated clock and report outcome and coverage."""
     from executive.executive import Executive
-    from robot.clock import SimClock
+    from hearth.robot.clock import SimClock
 
     clock = SimClock()
     sub = Substitution(case.scripts, case.default)

@@ -74,7 +74,7 @@ def knob_signature(world) -> list[dict]:
 def _noise():
     """The simulated robot's Kinect noise model when it is there."""
     try:
-        from robot.noise import add_kinect_noise
+        from hearth.robot.noise import add_kinect_noise
         return add_kinect_noise
     except ImportError:
         return None

@@ -87,7 +87,7 @@ def noisy(rendering, rng: np.random.Generator):
     (robot.noise.add_kinect_noise) when it exists, else axial depth noise
     sigma = 1.2 mm + 1.9 mm (z - 0.4 m)^2 (Nguyen et al. 2012) and colour noise."""
     try:
-        from robot.noise import add_kinect_noise  # type: ignore
+        from hearth.robot.noise import add_kinect_noise  # type: ignore
         return add_kinect_noise(rendering, rng)
     except ImportError:
         pass

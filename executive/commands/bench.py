@@ -12,7 +12,7 @@ import json
 import pkgutil
 import sys
 
-import benchmarks
+from hearth import benchmarks
 
 
 def available() -> list[str]:
@@ -66,7 +66,7 @@ def _run(args: argparse.Namespace) -> int:
             print(f"hearth bench: unknown benchmark {name!r}; known: {', '.join(available())}",
                   file=sys.stderr)
             return 2
-        module = importlib.import_module(f"benchmarks.{name}")
+        module = importlib.import_module(f"hearth.benchmarks.{name}")
         _own_options(name, module, list(args.extra or []), args)
         out[name] = module.run(args)
     result = out[names[0]] if len(names) == 1 else out

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from worldmodel.io import load_world
+from hearth import demo_world_path, missions_dir
 
-ROOT = Path(__file__).resolve().parents[2]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
-MISSIONS = ROOT / "missions"
+DEMO_WORLD = demo_world_path()
+MISSIONS = missions_dir()
 
 #: (mission file, parameters, what it is for)
 DEMO_MISSIONS = (
@@ -91,8 +91,8 @@ class _Progress:
 
 def _run(args) -> int:
     from executive.executive import Executive
-    from robot.clock import SimClock
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.clock import SimClock
+    from hearth.robot.simulated import SimulatedRobot
     from worldmodel.topdown import Overlay, draw, save_png
 
     out = Path(args.out)
@@ -121,7 +121,7 @@ def _run(args) -> int:
 
     def navigate_to(pose):
         # Every goal the robot is sent to (believed frame), for the picture.
-        from robot.adapter import as_base_pose
+        from hearth.robot.adapter import as_base_pose
         g = as_base_pose(pose)
         visited.append((g.x, g.y, g.yaw))
         return navigate(pose)

@@ -25,8 +25,8 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    import robot
-    from robot.recording import RecordingRobot
+    from hearth import robot
+    from hearth.robot.recording import RecordingRobot
     from worldmodel.io import load_world
 
     if args.recording:

@@ -20,7 +20,7 @@ def register(sub) -> None:
 
 
 def _make(args) -> int:
-    from robot.scenario import make_scenario, save_scenario
+    from hearth.robot.scenario import make_scenario, save_scenario
     from worldmodel.io import load_world
     sc = make_scenario(load_world(args.world), args.seed)
     save_scenario(sc, args.out)

@@ -9,11 +9,11 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from pathlib import Path
 
 from executive.cliutil import DEFAULT_WORLD, make_world_and_robot
+from hearth import missions_dir
 
-DEFAULT_MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+DEFAULT_MISSIONS = missions_dir()
 
 
 def register(sub) -> None:
@@ -59,7 +59,7 @@ def _serve(args: argparse.Namespace) -> int:
         return 2
     from executive.command.api import create_app
     from executive.command.server import bind_socket, make_server, make_service
-    from robot.clock import WallClock
+    from hearth.robot.clock import WallClock
 
     clock = WallClock()
     world, robot = make_world_and_robot(args, clock)

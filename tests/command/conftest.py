@@ -11,7 +11,7 @@ import pytest
 from executive.command.api import create_app
 from executive.command.server import ServerThread, make_service
 from executive.testing import Script, ScriptedSkill, Substitution, test_skills
-from robot.clock import WallClock
+from hearth.robot.clock import WallClock
 from skills.base import Port
 
 MISSIONS = Path(__file__).parent / "missions"

@@ -8,7 +8,7 @@ from pathlib import Path
 from executive.autonomy import Approvals, gated_factory
 from executive.executive import Executive
 from executive.testing import Script, Substitution
-from robot.clock import SimClock
+from hearth.robot.clock import SimClock
 
 HERE = Path(__file__).parent
 _spec = importlib.util.spec_from_file_location("command_conftest_a", HERE / "conftest.py")

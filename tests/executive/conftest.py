@@ -5,7 +5,7 @@ import pytest
 
 from executive.executive import Executive
 from executive.testing import Script, ScriptedSkill, Substitution, test_skills
-from robot.clock import SimClock
+from hearth.robot.clock import SimClock
 
 
 @pytest.fixture

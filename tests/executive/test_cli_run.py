@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-import robot
+from hearth import robot
 from executive.cli import main
 
 

@@ -245,7 +245,7 @@ def test_cancel_while_queued_during_startup_and_twice(make_executive, mission_fi
 def test_cancel_during_startup_is_not_lost(mission_file, tmp_path):
     from executive.executive import Executive
     from executive.testing import Act
-    from robot.clock import SimClock
+    from hearth.robot.clock import SimClock
     handles = []
 
     class CancelsDuringSetup(Act):

@@ -9,7 +9,7 @@ import pytest
 from missions_helpers import MISSIONS, mission_skills
 from executive.executive import Executive
 from executive.testing import Script, Substitution
-from robot.clock import SimClock
+from hearth.robot.clock import SimClock
 from worldmodel import load_world
 from worldmodel.nodes import Knob
 from worldmodel.pose import Pose

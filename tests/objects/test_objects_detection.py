@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from benchmarks.objects import OBJECTS, box_object, cluttered_scene, observe, visible_fractions
+from hearth.benchmarks.objects import OBJECTS, box_object, cluttered_scene, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
 from perception.objects import color_agreement, detect_objects, model_library
@@ -23,7 +23,7 @@ def _south_view(world):
 
 @pytest.fixture(scope="module")
 def table_view():
-    from benchmarks.objects import demo_world
+    from hearth.benchmarks.objects import demo_world
     world = demo_world()
     T_wc = _south_view(world)
     depth, color, _ = observe(world, T_wc, np.random.default_rng(1), K)

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from benchmarks.nbv import occluded_scene
-from benchmarks.objects import box_object, observe, visible_fractions
+from hearth.benchmarks.nbv import occluded_scene
+from hearth.benchmarks.objects import box_object, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
 from perception.nbv import (NBVConfig, footprints, from_map, occupancy_voxels,

@@ -7,7 +7,7 @@ import numpy as np
 import py_trees
 import pytest
 
-from benchmarks.objects import box_object
+from hearth.benchmarks.objects import box_object
 from skills.base import Bindings, Key, Literal
 from skills.objects import DetectObject, PlanNextBestView, VerifyObject
 from worldmodel.pose import Pose
@@ -29,7 +29,7 @@ def make(cls, world, robot, inputs=None, outputs=None):
 
 
 def robot_at_table(truth):
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.simulated import SimulatedRobot
     robot = SimulatedRobot(truth, start_pose=(3.0, 1.2, math.pi / 2), seed=0)
     robot.look_at(truth.T_world("kitchen_table")[:3, 3] + (0, 0, 0.75))
     return robot

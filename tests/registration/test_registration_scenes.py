@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
+from hearth.benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
 from perception.articulated import register_articulated, register_base, register_handles
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError

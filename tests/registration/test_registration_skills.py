@@ -8,7 +8,7 @@ import numpy as np
 import py_trees
 import pytest
 
-from benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
+from hearth.benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
 from perception.camera import Intrinsics
 from skills.base import Bindings, Key, Literal
 from skills.registration import (
@@ -132,7 +132,7 @@ def test_an_object_out_of_view_fails_with_one_line(demo_world):
 
 
 def test_simulated_robot_with_a_door_ajar_is_relocalised_and_reads_the_door(demo_world):
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.simulated import SimulatedRobot
     truth = demo_world.copy()
     truth.set_joint_state("cupboard_door_left", math.radians(30))     # the map says closed
     start = demo_world.parking_pose("cupboard", "cupboard_front")

@@ -9,8 +9,8 @@ import pytest
 
 from perception.camera import Intrinsics
 from perception.render import Scene
-from robot.noise import KinectNoise, add_kinect_noise
-from robot.sim import camera_pose, pan_tilt_to, render_view
+from hearth.robot.noise import KinectNoise, add_kinect_noise
+from hearth.robot.sim import camera_pose, pan_tilt_to, render_view
 from worldmodel.geometry import LabelledMesh
 
 K = Intrinsics.kinect()

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-import robot
-from robot.adapter import wait
-from robot.clock import SimClock
-from robot.errors import RobotError
-from robot.recording import Recording, RecordingRobot, ReplayRobot
-from robot.simulated import SimulatedRobot
+from hearth import robot
+from hearth.robot.adapter import wait
+from hearth.robot.clock import SimClock
+from hearth.robot.errors import RobotError
+from hearth.robot.recording import Recording, RecordingRobot, ReplayRobot
+from hearth.robot.simulated import SimulatedRobot
 from worldmodel.pose import Pose
 
 

@@ -5,9 +5,9 @@ import json
 
 import pytest
 
-import robot
-from robot.clock import SimClock
-from robot.scenario import load_scenario, make_scenario, save_scenario
+from hearth import robot
+from hearth.robot.clock import SimClock
+from hearth.robot.scenario import load_scenario, make_scenario, save_scenario
 
 
 def _where(world):

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-import robot
-from robot.adapter import RobotAdapter, wait
-from robot.clock import SimClock
-from robot.simulated import SimulatedRobot
+from hearth import robot
+from hearth.robot.adapter import RobotAdapter, wait
+from hearth.robot.clock import SimClock
+from hearth.robot.simulated import SimulatedRobot
 from worldmodel.pose import Pose
 
 

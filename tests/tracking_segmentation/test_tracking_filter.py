@@ -44,7 +44,7 @@ def test_hsv_similarity_tells_blue_from_red_and_ignores_hue_of_greys():
 
 
 def _sequence(seed=3, frames=24):
-    from benchmarks.tracking import run_scenario
+    from hearth.benchmarks.tracking import run_scenario
     return run_scenario(seed, frames)
 
 
@@ -57,7 +57,7 @@ def test_tracker_follows_a_cup_pushed_across_the_table():
 
 
 def test_particle_count_adapts_to_how_spread_the_belief_is():
-    from benchmarks.tracking import CUP, CUP_HALF_EXTENTS, DEMO_WORLD, PushScene
+    from hearth.benchmarks.tracking import CUP, CUP_HALF_EXTENTS, DEMO_WORLD, PushScene
     from perception.camera import look_at
     from worldmodel import load_world
     world = load_world(DEMO_WORLD)
@@ -101,7 +101,7 @@ class PushingRobot:
     """Serves frames of the blue cup sliding 0.2 m/s along the table's x axis at 30 Hz."""
 
     def __init__(self, world):
-        from benchmarks.tracking import CUP, PushScene
+        from hearth.benchmarks.tracking import CUP, PushScene
         from perception.camera import look_at
         self.K = Intrinsics.kinect(320, 240)
         self.T0 = world.T_world(CUP)

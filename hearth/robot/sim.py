@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from robot.noise import KinectNoise, add_kinect_noise
+from hearth.robot.noise import KinectNoise, add_kinect_noise
 from worldmodel.pose import Pose
 
 #: Camera axes (OpenCV: x right, y down, z forward) expressed in a body frame with x forward,

@@ -23,14 +23,13 @@ import math
 import os
 import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
 from perception.camera import Intrinsics, look_at
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
+DEMO_WORLD = demo_world_path()
 TABLE = "kitchen_table"
 OBJECTS = ("red_cup", "bowl", "sugar", "blue_cup")
 REFERENCE = dict(f1_low=0.37, f1_high=1.0, ms_per_object_low=3000.0, ms_per_object_high=8000.0)
@@ -132,7 +131,7 @@ def observe(truth, T_world_camera, rng, K: Intrinsics | None = None, scene=None)
     K = K or Intrinsics.kinect()
     scene = scene or Scene(scene_meshes(truth, room_ids=[truth.room_of(TABLE).id]))
     try:
-        from robot.sim import render_view
+        from hearth.robot.sim import render_view
     except ImportError:  # pragma: no cover - before the simulated robot landed
         render_view = None
     if render_view is not None:

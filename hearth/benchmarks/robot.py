@@ -6,11 +6,10 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _median_ms(fn, n: int, cpu: list | None = None) -> float:
@@ -30,7 +29,7 @@ def _median_ms(fn, n: int, cpu: list | None = None) -> float:
 
 def _kitchen_views(world):
     """Camera poses at kitchen parking positions, looking at their objects."""
-    from robot.sim import camera_pose, pan_tilt_to
+    from hearth.robot.sim import camera_pose, pan_tilt_to
     views = []
     for oid in ("oven", "kitchen_table", "cupboard", "fridge", "drawer_unit", "side_table"):
         base = world.parking_positions(oid)[0][1]
@@ -43,7 +42,7 @@ def _plane_std(z: float, rng) -> float:
     import open3d as o3d
     from perception.camera import Intrinsics
     from perception.render import Scene
-    from robot.noise import add_kinect_noise
+    from hearth.robot.noise import add_kinect_noise
     from worldmodel.geometry import LabelledMesh
     m = o3d.geometry.TriangleMesh.create_box(8.0, 8.0, 0.01)
     m.translate((-4.0, -4.0, z))
@@ -55,18 +54,18 @@ def _plane_std(z: float, rng) -> float:
 
 def run(args) -> dict:
     from perception.camera import Intrinsics
-    from robot.adapter import wait
-    from robot.clock import SimClock
-    from robot.noise import KinectNoise, add_kinect_noise
-    from robot.recording import RecordingRobot, ReplayRobot
-    from robot.sim import render_view, world_scene
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.adapter import wait
+    from hearth.robot.clock import SimClock
+    from hearth.robot.noise import KinectNoise, add_kinect_noise
+    from hearth.robot.recording import RecordingRobot, ReplayRobot
+    from hearth.robot.sim import render_view, world_scene
+    from hearth.robot.simulated import SimulatedRobot
     from worldmodel.io import load_world
 
     quick = getattr(args, "quick", False)
     n = 5 if quick else 15
     rng = np.random.default_rng(getattr(args, "seed", 0) or 0)
-    world = load_world(ROOT / "data" / "demo_home" / "world.xml")
+    world = load_world(demo_world_path())
     K = Intrinsics.kinect()
     views = _kitchen_views(world)
     scene = world_scene(world)

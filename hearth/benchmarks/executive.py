@@ -108,7 +108,7 @@ def add_arguments(parser) -> None:  # pragma: no cover - argparse wiring
 def run(args) -> dict:
     from executive.executive import Executive
     from executive.missionfile import load_mission
-    from robot.clock import SimClock
+    from hearth.robot.clock import SimClock
 
     seed = getattr(args, "seed", 0)
     ticks = 300 if getattr(args, "quick", False) else 3000

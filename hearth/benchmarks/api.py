@@ -128,17 +128,17 @@ def run(args) -> dict:
     from executive.command.fuzz import run_fuzz
     from executive.command.server import ServerThread, make_service
     from executive.testing import Script, Substitution, test_skills
-    from robot.clock import SimClock, WallClock
+    from hearth.robot.clock import SimClock, WallClock
+    from hearth import demo_world_path
     from worldmodel.io import load_world
 
     clients = getattr(args, "clients", 50)
     rounds = getattr(args, "missions", None) or (2 if args.quick else 4)
     fuzz_n = getattr(args, "fuzz", None) or (100 if args.quick else 500)
     limit = getattr(args, "time_limit", 120.0)
-    root = Path(__file__).resolve().parents[1]
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "chores.yaml").write_text(MISSION)
-        world = load_world(root / "data" / "demo_home" / "world.xml")
+        world = load_world(demo_world_path())
         hz = getattr(args, "tick_hz", 0.0) or 0.0
         clock = WallClock() if hz > 0 else SimClock()
         hz = hz if hz > 0 else 10.0

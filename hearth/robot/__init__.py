@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
-from robot.adapter import Action, DoneAction, FailedAction, RobotAdapter, TimedAction, wait
-from robot.errors import RobotError
+from hearth.robot.adapter import Action, DoneAction, FailedAction, RobotAdapter, TimedAction, wait
+from hearth.robot.errors import RobotError
 
 __all__ = ["Action", "DoneAction", "FailedAction", "RobotAdapter", "RobotError", "TimedAction",
            "create_adapter", "wait"]
@@ -31,11 +31,11 @@ def create_adapter(world=None, scenario: Optional[str] = None, recording: Option
     if recording is not None and scenario is not None:
         raise RobotError("give a scenario or a recording, not both")
     if recording is not None:
-        from robot.recording import ReplayRobot
+        from hearth.robot.recording import ReplayRobot
         return ReplayRobot(recording, clock=clock, **kw)
-    from robot.simulated import SimulatedRobot
+    from hearth.robot.simulated import SimulatedRobot
     if scenario is not None:
-        from robot.scenario import load_scenario
+        from hearth.robot.scenario import load_scenario
         sc = load_scenario(scenario, clock=clock)
         kw.setdefault("seed", sc.seed)
         return SimulatedRobot(sc.truth, clock=clock, start_pose=sc.start_pose,

@@ -18,16 +18,15 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
 from perception.camera import Intrinsics, look_at, project
 from perception.render import Scene
 from perception.tracking import ParticleTracker, TrackerConfig, reference_from_view, scene_cloud
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
+DEMO_WORLD = demo_world_path()
 REFERENCE = dict(ote_px=14.6, hz_low=7.0, hz_high=25.0)
 CUP = "blue_cup"
 CUP_HALF_EXTENTS = (0.075, 0.075, 0.06)

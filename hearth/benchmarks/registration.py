@@ -20,14 +20,13 @@ import math
 import os
 import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
 from perception.camera import Intrinsics, look_at
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
+DEMO_WORLD = demo_world_path()
 
 #: A camera on the robot's head: 1.35 m up, 10 cm ahead of the base centre, looking down
 #: at a point 2 m ahead at 0.4 m height.
@@ -68,7 +67,7 @@ def simulate_depth(truth, K: Intrinsics, T_world_camera: np.ndarray, rng: np.ran
 
 def _kinect_noise():
     try:
-        from robot.noise import add_kinect_noise  # type: ignore
+        from hearth.robot.noise import add_kinect_noise  # type: ignore
         return add_kinect_noise
     except ImportError:
         return None
@@ -330,7 +329,7 @@ def run(args) -> dict:
                                        REFERENCE["handle_rot_err_deg"]),
         "reference": REFERENCE,
     }
-    out["noise_model"] = ("robot.noise.add_kinect_noise" if _kinect_noise() is not None
+    out["noise_model"] = ("hearth.robot.noise.add_kinect_noise" if _kinect_noise() is not None
                           else "axial gaussian 1.2 mm + 1.9 mm (z - 0.4)^2")
     out["load_average_1min"] = round(os.getloadavg()[0], 2)
     out["scenes_per_figure"] = n

@@ -13,7 +13,7 @@ from typing import Any, Callable, Optional, Protocol, runtime_checkable
 
 import numpy as np
 
-from robot.errors import RobotError
+from hearth.robot.errors import RobotError
 from worldmodel.pose import Pose
 
 STATUSES = ("running", "succeeded", "failed", "cancelled")

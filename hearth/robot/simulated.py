@@ -21,11 +21,11 @@ from typing import Iterable, Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
-from robot.clock import SimClock
-from robot.errors import RobotError
-from robot.noise import KinectNoise
-from robot.sim import HEAD, Frame, HeadMount, camera_pose, pan_tilt_to, render_view
+from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.clock import SimClock
+from hearth.robot.errors import RobotError
+from hearth.robot.noise import KinectNoise
+from hearth.robot.sim import HEAD, Frame, HeadMount, camera_pose, pan_tilt_to, render_view
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
 from worldmodel.pose import Pose, wrap_angle
 

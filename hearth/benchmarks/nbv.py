@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from benchmarks.objects import (OBJECTS, TABLE, box_object, cluttered_scene, demo_world,
+from hearth.benchmarks.objects import (OBJECTS, TABLE, box_object, cluttered_scene, demo_world,
                                 observe, visible_fractions)
 from perception.camera import Intrinsics
 

@@ -24,10 +24,10 @@ import cv2
 import numpy as np
 
 from perception.camera import Intrinsics
-from robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
-from robot.clock import SimClock
-from robot.errors import RobotError
-from robot.sim import HEAD, Frame, HeadMount, pan_tilt_to
+from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.clock import SimClock
+from hearth.robot.errors import RobotError
+from hearth.robot.sim import HEAD, Frame, HeadMount, pan_tilt_to
 from worldmodel.pose import Pose, wrap_angle
 
 FORMAT = "hearth-recording"

@@ -24,12 +24,11 @@ from __future__ import annotations
 import math
 import os
 import time
-from pathlib import Path
 
 import numpy as np
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
+DEMO_WORLD = demo_world_path()
 REFERENCE = dict(detection=0.96, angle_err_deg=10.0, ms_per_knob=1250.0)
 
 

@@ -19,15 +19,14 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
 from perception.camera import Intrinsics, look_at
 from perception.segmentation import LABELS, accuracy, segment
+from hearth import demo_world_path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_WORLD = ROOT / "data" / "demo_home" / "world.xml"
+DEMO_WORLD = demo_world_path()
 REFERENCE = dict(class_average_accuracy=0.717, ms_per_frame=1000.0)
 TEST_SEED = 99000
 

@@ -35,7 +35,7 @@ from typing import Optional
 
 import numpy as np
 
-from robot.errors import RobotError
+from hearth.robot.errors import RobotError
 from worldmodel.nodes import Model, SmallObject, Visual
 from worldmodel.pose import Pose
 
