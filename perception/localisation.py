@@ -27,6 +27,7 @@ from perception.registration import (
     DepthAgreement, ICPConfig, ICPResult, RegistrationFailed, crop_box, observed_view,
     planar_params, register_planar, render_reference, single_threaded_blas,
 )
+from worldmodel.frames import planar_about, room_at
 from worldmodel.geometry import object_meshes, room_visuals, visual_mesh, LabelledMesh
 
 
@@ -76,24 +77,12 @@ def visible_landmarks(world, K, T_world_camera: np.ndarray, max_range: float = 4
     """Ids of the map's fixed large objects whose bounds fall in the camera's view."""
     fixed = {o.id for o in world.landmarks()}
     # Only the room the camera is in: the renderer of the expected view has no walls.
-    cam = T_world_camera[:3, 3]
-    for room in world.rooms:
-        if room.bounds is not None:
-            x0, y0, x1, y1 = room.bounds
-            if x0 <= cam[0] <= x1 and y0 <= cam[1] <= y1:
-                fixed = {i for i in fixed if world.room_of(i).id == room.id}
-                break
+    room = room_at(world, T_world_camera[0, 3], T_world_camera[1, 3])
+    if room is not None:
+        fixed = {i for i in fixed if world.room_of(i).id == room.id}
     seen = world.in_frustum(T_world_camera, K, max_range=max_range,
                             kinds=("LargeObject", "LargeArticulatedObject"))
     return [i for i in seen if i in fixed]
-
-
-def _planar_about(x: float, y: float, yaw: float, centre: np.ndarray) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    T = np.eye(4)
-    T[:2, :2] = [[c, -s], [s, c]]
-    T[:2, 3] = centre[:2] - T[:2, :2] @ centre[:2] + (x, y)
-    return T
 
 
 @single_threaded_blas
@@ -168,7 +157,7 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
     coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
     xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
     yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
-    cands = np.stack([_planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
+    cands = np.stack([planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
     T0 = cands[int(np.argmax(coarse(cands)))]
     fine = DepthAgreement(ref.points, depth, K, T_world_camera)
     res = register_planar(src, ref.points, ref.normals, T_init=T0, cfg=cfg.icp, scorer=fine,

@@ -32,6 +32,7 @@ import open3d as o3d
 from perception.camera import Intrinsics, depth_to_points, look_at, project
 from perception.errors import PerceptionError
 from perception.objects import color_agreement, model_library
+from worldmodel.frames import room_at, to_room
 
 
 @dataclass(frozen=True)
@@ -123,19 +124,6 @@ def _box_distance(p_xy: np.ndarray, T: np.ndarray, box: np.ndarray) -> np.ndarra
     return np.hypot(dx, dy)
 
 
-def _room_at(world, p_world: np.ndarray):
-    """The room whose bounds hold a world point (a hypothesis of an object that the map keeps
-    in another room still stands where it was seen)."""
-    for room in world.rooms:
-        if room.bounds is None:
-            continue
-        x0, y0, x1, y1 = room.bounds
-        q = np.linalg.inv(room.pose.matrix()) @ np.append(p_world[:3], 1.0)
-        if x0 <= q[0] <= x1 and y0 <= q[1] <= y1:
-            return room
-    return None
-
-
 # -- occupancy ----------------------------------------------------------------------------------
 
 def occupancy_voxels(points_world: np.ndarray, camera_world: np.ndarray, voxel: float,
@@ -219,7 +207,9 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
     obstacles = P[~free & (P[:, 2] > config.obstacle_z[0]) & (P[:, 2] < config.obstacle_z[1])]
 
     # Candidates on the rings, filtered by collision.
-    room = _room_at(world, centre) or world.room_of(hypotheses[0].object_id)
+    # The room where the hypotheses stand (an object the map keeps in another room still
+    # stands where it was seen).
+    room = room_at(world, float(centre[0]), float(centre[1])) or world.room_of(hypotheses[0].object_id)
     cands = []
     for ri, r in enumerate(config.radii):
         for k in range(config.n_angles):
@@ -232,8 +222,7 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
         ok &= _box_distance(xy, T, box) > config.robot_radius
     if room.bounds is not None:
         x0, y0, x1, y1 = room.bounds
-        T_room = room.pose.matrix()
-        local = (np.c_[xy, np.zeros(len(xy))] - T_room[:3, 3]) @ T_room[:3, :3]
+        local = to_room(room, xy)
         rr = config.robot_radius
         ok &= (local[:, 0] > x0 + rr) & (local[:, 0] < x1 - rr) & \
               (local[:, 1] > y0 + rr) & (local[:, 1] < y1 - rr)

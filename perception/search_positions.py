@@ -178,10 +178,22 @@ def _inside(bounds, x: float, y: float, margin: float) -> bool:
 
 def propose_search_positions(table_points_world: np.ndarray, room_bounds=None,
                              occupancy: OccupancyGrid | None = None, robot_xy=None,
-                             config: SearchConfig | None = None) -> list[SearchPosition]:
+                             config: SearchConfig | None = None,
+                             T_world_room: np.ndarray | None = None) -> list[SearchPosition]:
     """Search positions for the tables among ``table_points_world`` (see module docstring),
-    nearest to ``robot_xy`` first when it is given. ``room_bounds`` (xmin, ymin, xmax, ymax)
-    of the robot's room; None skips the room check."""
+    nearest to ``robot_xy`` (world x, y) first when it is given. ``room_bounds`` (xmin, ymin,
+    xmax, ymax) of the robot's room, in the room frame ``T_world_room`` (4x4; default: the
+    world frame); None skips the room check. ``occupancy`` is a grid in the room frame. The
+    positions and their table tops are returned in the world frame."""
+    if T_world_room is not None:
+        T = np.asarray(T_world_room, dtype=float)
+        Tinv = np.linalg.inv(T)
+        P = np.asarray(table_points_world, dtype=float).reshape(-1, 3)
+        local_robot = None if robot_xy is None else \
+            tuple(Tinv[:2, :2] @ np.asarray(robot_xy, float)[:2] + Tinv[:2, 3])
+        local = propose_search_positions(P @ Tinv[:3, :3].T + Tinv[:3, 3], room_bounds,
+                                         occupancy, local_robot, config)
+        return [_to_world(sp, T) for sp in local]
     c = config or SearchConfig()
     out = []
     for t in table_tops(table_points_world, c):
@@ -201,3 +213,14 @@ def propose_search_positions(table_points_world: np.ndarray, room_bounds=None,
     if robot_xy is not None:
         out.sort(key=lambda sp: sp.distance_to_robot)
     return out
+
+
+def _to_world(sp: SearchPosition, T: np.ndarray) -> SearchPosition:
+    """A search position found in a room frame, in the world frame (``T``: T_world_room)."""
+    R = T[:2, :2]
+    yaw_room = math.atan2(T[1, 0], T[0, 0])
+    t = sp.table
+    table = TableTop(R @ t.center + T[:2, 3], t.height + float(T[2, 3]), t.axes @ R.T,
+                     t.half_extents, t.n_points)
+    x, y = R @ (sp.x, sp.y) + T[:2, 3]
+    return SearchPosition(float(x), float(y), sp.yaw + yaw_room, table, sp.distance_to_robot)

@@ -13,6 +13,7 @@ import py_trees
 
 from perception.errors import PerceptionError
 from skills.base import Port, Skill
+from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
 S = py_trees.common.Status
@@ -47,12 +48,7 @@ def hypothesis_dict(h) -> dict:
 
 
 def _T(pose) -> np.ndarray:
-    if isinstance(pose, Pose):
-        return pose.matrix()
-    if isinstance(pose, dict):
-        return Pose(**{k: float(v) for k, v in pose.items()}).matrix()
-    arr = np.asarray(pose, dtype=float)
-    return arr if arr.shape == (4, 4) else Pose(*arr).matrix()
+    return as_matrix(pose)
 
 
 class _PerceptionSkill(Skill):

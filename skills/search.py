@@ -6,8 +6,8 @@ One frame from ``robot.capture()`` (``depth``, ``color``, ``intrinsics`` or ``K`
 skills/segmentation_model.py, trained on first use unless ``setup`` gets a ready
 ``segmentation_model``); the table tops become base poses on their second principal axis at
 the safety distance (perception.search_positions), kept when inside the room and free in an
-occupancy grid made of the map's large objects and the obstacles the view shows. Room
-bounds are taken in the world frame (the rooms of our maps have identity poses).
+occupancy grid made of the map's large objects and the obstacles the view shows. The room's
+bounds and the grid are in the room's own frame (rooms may be turned and offset).
 """
 from __future__ import annotations
 
@@ -16,18 +16,10 @@ import py_trees
 
 from perception.errors import PerceptionError
 from skills.base import Port, Skill
+from worldmodel.frames import T_world_room, room_at, to_room
 from worldmodel.pose import Pose
 
 S = py_trees.common.Status
-
-
-def room_at(world, x: float, y: float):
-    for room in world.rooms:
-        if room.bounds is not None:
-            x0, y0, x1, y1 = room.bounds
-            if x0 <= x <= x1 and y0 <= y <= y1:
-                return room
-    return None
 
 
 class ProposeSearchPositions(Skill):
@@ -66,13 +58,15 @@ class ProposeSearchPositions(Skill):
             if room is None or room.bounds is None:
                 raise PerceptionError("the robot's room (with bounds) is not known")
             occ = OccupancyGrid.empty(room.bounds)
-            occ.mark_footprints([np.asarray(node_mesh(self.world, o.id).vertices)[:, :2]
+            occ.mark_footprints([to_room(room, np.asarray(node_mesh(self.world, o.id).vertices)[:, :2])
                                  for o in room.objects])
             solid = [LABELS.index(n) for n in ("wall", "table", "chair", "cabinet", "object")]
             obstacles = seg.patches.points_world[np.isin(seg.labels, solid)]
-            occ.mark_points(obstacles)
+            if len(obstacles):
+                occ.mark_points(to_room(room, obstacles))
             cfg = SearchConfig(safety_distance_m=float(self.input("safety_distance")))
-            found = propose_search_positions(seg.points("table"), room.bounds, occ, robot_xy, cfg)
+            found = propose_search_positions(seg.points("table"), room.bounds, occ, robot_xy, cfg,
+                                             T_world_room=T_world_room(room))
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE

@@ -15,18 +15,14 @@ import py_trees
 
 from perception.errors import PerceptionError
 from skills.base import Port, Skill
+from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
 S = py_trees.common.Status
 
 
 def _matrix(pose) -> np.ndarray:
-    if isinstance(pose, Pose):
-        return pose.matrix()
-    if isinstance(pose, dict):
-        return Pose(**{k: float(pose.get(k, 0.0)) for k in ("x", "y", "z", "roll", "pitch", "yaw")}).matrix()
-    a = np.asarray(pose, dtype=float)
-    return a if a.shape == (4, 4) else Pose(*a).matrix()
+    return as_matrix(pose)
 
 
 def object_box(world, object_id: str) -> np.ndarray:

@@ -18,7 +18,8 @@ import open3d as o3d
 from worldmodel.nodes import (
     Handle, Knob, LargeArticulatedObject, LargeObject, Model, Part, Room, SmallObject, Visual,
 )
-from worldmodel.pose import Pose, rotation_about_axis, translation_along_axis
+from worldmodel.frames import joint_T, knob_T
+from worldmodel.pose import Pose
 
 WALL_HEIGHT = 2.5
 WALL_THICKNESS = 0.1
@@ -122,21 +123,9 @@ def model_visuals(model: Model, library: dict) -> list[Visual]:
     return list(model.visuals)
 
 
-def joint_T(part: Part, state: Optional[float] = None) -> np.ndarray:
+def part_T(part: Part, state: Optional[float] = None) -> np.ndarray:
     """``T_parent_part`` for a joint state (default: the part's current state)."""
-    j = part.joint
-    s = j.state if state is None else state
-    T = j.origin.matrix()
-    if j.type == "revolute":
-        T = T @ rotation_about_axis(j.axis, s)
-    elif j.type == "prismatic":
-        T = T @ translation_along_axis(j.axis, s)
-    return T
-
-
-def knob_T(knob: Knob, angle: Optional[float] = None) -> np.ndarray:
-    a = knob.angle if angle is None else angle
-    return knob.pose.matrix() @ rotation_about_axis((0, 0, 1), a)
+    return joint_T(part.joint, state)
 
 
 def _emit(out, visuals, T, node_id, owner, base_dir):
@@ -147,7 +136,7 @@ def _emit(out, visuals, T, node_id, owner, base_dir):
 
 
 def _part_meshes(out, part: Part, T_world_parent, owner, library, base_dir, states):
-    T = T_world_parent @ joint_T(part, states.get(part.id) if states else None)
+    T = T_world_parent @ part_T(part, states.get(part.id) if states else None)
     _emit(out, model_visuals(part.model, library), T, part.id, owner, base_dir)
     for h in part.handles:
         _emit(out, handle_visuals(h), T @ h.pose.matrix(), h.id, owner, base_dir)

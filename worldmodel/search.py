@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 from typing import Optional
 
+from worldmodel.frames import room_at
 from worldmodel.nodes import LargeObject, SmallObject
 from worldmodel.pose import Pose
 
@@ -95,7 +96,8 @@ def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[st
     if believed_parent is None:
         p = world.parent(object_id)
         believed_parent = p.id if p is not None else None
-    robot_room = _room_at(world, robot_pose)
+    here = room_at(world, robot_pose.x, robot_pose.y)
+    robot_room = here.id if here is not None else None
     out = []
     for place in candidate_places(world):
         if place.id in exclude:
@@ -119,16 +121,3 @@ def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[st
         out.append(SearchPlace(place.id, best[0].id, best[1], cost, prob, path, pen > 0, relation))
     out.sort(key=lambda s: (s.cost, s.place))
     return out
-
-
-def _room_at(world, pose: Pose) -> Optional[str]:
-    for room in world.rooms:
-        if room.bounds is None:
-            continue
-        x0, y0, x1, y1 = room.bounds
-        T = room.pose.matrix()
-        # Rooms are axis-aligned in the demo; bounds are in the room frame.
-        px, py = pose.x - T[0, 3], pose.y - T[1, 3]
-        if x0 <= px <= x1 and y0 <= py <= y1:
-            return room.id
-    return None

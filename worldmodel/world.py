@@ -20,7 +20,8 @@ from worldmodel.nodes import (
     Apartment, HistoryEntry, Knob, LargeObject, ParkingPosition,
     Part, Room, SearchStat, SmallObject,
 )
-from worldmodel.pose import Pose, rotation_about_axis, transform_points, translation_along_axis
+from worldmodel.frames import joint_T, knob_T, planar_of
+from worldmodel.pose import Pose, transform_points
 from worldmodel.validate import LIMIT_EPS, iter_nodes
 
 STOPWORDS = frozenset({"the", "a", "an", "my", "me", "of", "please", "some", "your", "our", "this",
@@ -214,9 +215,7 @@ class World:
         T = self.T_world(obj.id)
         out = []
         for p in obj.parking:
-            Tw = T @ p.pose.matrix()
-            yaw = float(np.arctan2(Tw[1, 0], Tw[0, 0]))
-            out.append((p, Pose.planar(float(Tw[0, 3]), float(Tw[1, 3]), yaw)))
+            out.append((p, Pose.planar(*planar_of(T @ p.pose.matrix()))))
         out.sort(key=lambda item: item[0].id != obj.default_parking)
         return out
 
@@ -229,15 +228,9 @@ class World:
     def local_T(self, node) -> np.ndarray:
         """``T_parent_node`` including joint motion for parts."""
         if isinstance(node, Part):
-            j = node.joint
-            T = j.origin.matrix()
-            if j.type == "revolute":
-                T = T @ rotation_about_axis(j.axis, j.state)
-            elif j.type == "prismatic":
-                T = T @ translation_along_axis(j.axis, j.state)
-            return T
+            return joint_T(node.joint)
         if isinstance(node, Knob):
-            return node.pose.matrix() @ rotation_about_axis((0, 0, 1), node.angle)
+            return knob_T(node)
         return node.pose.matrix()
 
     def T_world(self, node_id: str) -> np.ndarray:

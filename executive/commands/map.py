@@ -1,7 +1,8 @@
-"""`hearth map show|find`: look at a world file."""
+"""`hearth map show|find|draw`: look at a world file."""
 from __future__ import annotations
 
 import json
+import sys
 
 from worldmodel.describe import find_report, hierarchy_lines
 from worldmodel.io import load_world
@@ -20,6 +21,13 @@ def register(sub) -> None:
     find.add_argument("words", nargs="+", metavar="WORD")
     find.add_argument("--json", action="store_true", help="print JSON")
     find.set_defaults(func=_find)
+    draw = msub.add_parser("draw", help="draw the map top-down to a PNG",
+                           description="Draw any world top-down (rooms where their poses put "
+                                       "them, large objects, parking positions, small objects).")
+    draw.add_argument("world", metavar="WORLD")
+    draw.add_argument("--out", required=True, metavar="PNG", help="the PNG file to write")
+    draw.add_argument("--px-per-m", type=int, default=90, help="pixels per metre (default 90)")
+    draw.set_defaults(func=_draw)
 
 
 def _show(args) -> int:
@@ -44,4 +52,21 @@ def _find(args) -> int:
         print(f"  parking {p['id']}: x={p['x']:.2f} y={p['y']:.2f} yaw={p['yaw']:.2f}")
     if report["candidates"]:
         print("  also matching: " + ", ".join(c["id"] for c in report["candidates"]))
+    return 0
+
+
+def _draw(args) -> int:
+    from worldmodel.topdown import Overlay, draw, save_png
+    world = load_world(args.world)
+    if not 10 <= args.px_per_m <= 1000:
+        print(f"hearth map draw: --px-per-m must be 10..1000, not {args.px_per_m}", file=sys.stderr)
+        return 2
+    img = draw(world, Overlay(title=world.apartment.name or world.apartment.id),
+               px_per_m=args.px_per_m)
+    try:
+        out = save_png(args.out, img)
+    except OSError as err:
+        print(f"{args.out}: {err}", file=sys.stderr)
+        return 2
+    print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} px)")
     return 0

@@ -25,6 +25,7 @@ import numpy as np
 
 from perception.camera import Intrinsics, look_at
 from hearth import demo_world_path
+from worldmodel.frames import planar_T as planar
 
 DEMO_WORLD = demo_world_path()
 
@@ -71,14 +72,6 @@ def _kinect_noise():
         return add_kinect_noise
     except ImportError:
         return None
-
-
-def planar(x: float, y: float, yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    T = np.eye(4)
-    T[:2, :2] = [[c, -s], [s, c]]
-    T[:2, 3] = (x, y)
-    return T
 
 
 def camera_in_front(world, object_id: str, rng: np.random.Generator,

@@ -11,9 +11,9 @@ from __future__ import annotations
 import threading
 from typing import Any, Callable, Optional, Protocol, runtime_checkable
 
-import numpy as np
 
 from hearth.robot.errors import RobotError
+from worldmodel import frames
 from worldmodel.pose import Pose
 
 STATUSES = ("running", "succeeded", "failed", "cancelled")
@@ -148,17 +148,10 @@ def wait(action: Action, clock, timeout: float = 600.0, step: float = 0.1) -> st
 def as_base_pose(pose) -> Pose:
     """A planar base Pose from a Pose, a 4x4 ``T_world_base``, (x, y, yaw) or a mapping with
     x, y, yaw."""
-    if isinstance(pose, Pose):
-        return Pose.planar(pose.x, pose.y, pose.yaw)
-    if isinstance(pose, dict):
-        return Pose.planar(float(pose["x"]), float(pose["y"]), float(pose.get("yaw", 0.0)))
-    arr = np.asarray(pose, dtype=float)
-    if arr.shape == (4, 4):
-        p = Pose.from_matrix(arr)
-        return Pose.planar(p.x, p.y, float(np.arctan2(arr[1, 0], arr[0, 0])))
-    if arr.shape == (3,):
-        return Pose.planar(*map(float, arr))
-    raise RobotError(f"not a base pose: {pose!r}")
+    try:
+        return frames.as_base_pose(pose)
+    except ValueError:
+        raise RobotError(f"not a base pose: {pose!r}") from None
 
 
 @runtime_checkable

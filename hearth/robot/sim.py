@@ -23,6 +23,7 @@ import numpy as np
 
 from perception.camera import Intrinsics
 from hearth.robot.noise import KinectNoise, add_kinect_noise
+from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
 #: Camera axes (OpenCV: x right, y down, z forward) expressed in a body frame with x forward,
@@ -49,11 +50,7 @@ HEAD = HeadMount()
 
 
 def _as_T(pose) -> np.ndarray:
-    if isinstance(pose, Pose):
-        return pose.matrix()
-    if isinstance(pose, (tuple, list)) and len(pose) == 3:
-        return Pose.planar(*map(float, pose)).matrix()
-    return np.asarray(pose, dtype=float)
+    return as_matrix(pose)
 
 
 def T_base_camera(pan: float = 0.0, tilt: float = 0.0, mount: HeadMount = HEAD) -> np.ndarray:

@@ -27,6 +27,7 @@ from hearth.robot.errors import RobotError
 from hearth.robot.noise import KinectNoise
 from hearth.robot.sim import HEAD, Frame, HeadMount, camera_pose, pan_tilt_to, render_view
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
+from worldmodel.frames import room_at
 from worldmodel.pose import Pose, wrap_angle
 
 #: Where a held object is carried, in the base frame (in front of the robot, below the camera).
@@ -389,15 +390,9 @@ class SimulatedRobot:
         return None
 
     def _inside_home(self, pose: Pose) -> bool:
-        rooms = [r for r in self.truth.rooms if r.bounds is not None]
-        if not rooms:
+        if not any(r.bounds is not None for r in self.truth.rooms):
             return True
-        for r in rooms:
-            p = np.linalg.inv(r.pose.matrix()) @ np.array([pose.x, pose.y, 0.0, 1.0])
-            x0, y0, x1, y1 = r.bounds
-            if x0 - 0.05 <= p[0] <= x1 + 0.05 and y0 - 0.05 <= p[1] <= y1 + 0.05:
-                return True
-        return False
+        return room_at(self.truth, pose.x, pose.y, margin=0.05) is not None
 
     def _parking_at(self, believed: Pose, tol: float = 0.05) -> Optional[str]:
         """The parking position id (of the truth's map) the believed pose is at, if any."""
@@ -416,7 +411,7 @@ def _all_parts(parts):
 
 
 def _planar(T) -> Pose:
-    return as_base_pose(np.asarray(T, dtype=float))
+    return as_base_pose(T)
 
 
 def _interpolate(a: Pose, b: Pose, f: float) -> Pose:

@@ -148,3 +148,21 @@ def test_propose_search_positions_skill_finds_the_kitchen_table(demo_world, smal
                    and abs(math.hypot(t["x"] - p.x, t["y"] - p.y) - (t["half_extents"][1] + 0.45)) < 0.02
                    for t in tables)
     py_trees.blackboard.Blackboard.clear()
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-6, 6), st.floats(-6, 6), st.floats(-math.pi, math.pi))
+def test_a_turned_room_gives_the_same_positions_turned_with_it(rx, ry, ryaw):
+    """Bounds and the occupancy grid are in the room frame; the positions come back in the
+    world frame wherever the room stands."""
+    from worldmodel.frames import planar_T, transform_xy
+    local = table_points(1.0, 2.0, 1.2, 0.8, 0.75, 0.0)
+    T = planar_T(rx, ry, ryaw)
+    world = local @ T[:3, :3].T + T[:3, 3]
+    bounds = (0, 1.3, 5, 5)                      # one side of the table is out of the room
+    (ref,) = propose_search_positions(local, room_bounds=bounds)
+    (sp,) = propose_search_positions(world, room_bounds=bounds, T_world_room=T,
+                                     robot_xy=transform_xy(T, [(1.0, 4.0)])[0])
+    np.testing.assert_allclose((sp.x, sp.y), transform_xy(T, [(ref.x, ref.y)])[0], atol=0.03)
+    assert abs(math.remainder(sp.yaw - (ref.yaw + ryaw), 2 * math.pi)) < 0.02
+    np.testing.assert_allclose(sp.table.center, transform_xy(T, [ref.table.center])[0], atol=0.03)
