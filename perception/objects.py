@@ -34,6 +34,10 @@ from perception.camera import Intrinsics, depth_to_points, project
 from perception.errors import PerceptionError
 
 
+#: Materials on which Kinect-class sensors often return no depth (see hearth.robot.noise).
+DROPOUT_MATERIALS = frozenset({"glass", "dark", "shiny"})
+
+
 @dataclass(frozen=True)
 class DetectionConfig:
     """Parameters of ``detect_objects`` (metres, radians)."""
@@ -45,12 +49,15 @@ class DetectionConfig:
     surface_margin: float = 0.03    #: around the surface's extent
     cluster_radius: float = 0.015
     min_cluster_points: int = 15
+    sparse_cluster_radius: float = 0.035  #: for the points no dense cluster took
+    sparse_min_points: int = 10
     inlier_distance: float = 0.010
     icp_iterations: int = 12
     yaw_steps: int = 8              #: initial yaws for models that are not rotationally symmetric
     occlusion_margin: float = 0.02  #: a model point is hidden when measured this much nearer
     accept_confidence: float = 0.45  #: ``Detection.accepted`` threshold
     model_spacing: float = 0.005    #: model surface sample spacing
+    furniture_distance: float = 0.012  #: points this near the supporting furniture's model are its own
 
 
 # -- models -----------------------------------------------------------------------------------
@@ -66,10 +73,14 @@ class ObjectModel:
     height: float
     symmetric: bool         #: rotationally symmetric about z (yaw unobservable)
     tree: cKDTree = field(repr=False, default=None)
+    #: (N,) points on glass, dark or shiny visuals: a depth sensor often returns nothing there
+    dropout: Optional[np.ndarray] = field(repr=False, default=None)
 
     def __post_init__(self):
         if self.tree is None:
             self.tree = cKDTree(self.points)
+        if self.dropout is None:
+            self.dropout = np.zeros(len(self.points), bool)
 
 
 def model_from_world(world, object_id: str, spacing: float = 0.005) -> ObjectModel:
@@ -80,7 +91,7 @@ def model_from_world(world, object_id: str, spacing: float = 0.005) -> ObjectMod
     meshes = small_object_meshes(world, obj, T_world_object=np.eye(4))
     if not meshes:
         raise PerceptionError(f"{object_id} has no model")
-    pts, nrm, col = [], [], []
+    pts, nrm, col, lossy = [], [], [], []
     o3d.utility.random.seed(0)  # the same model samples every time
     for lm in meshes:
         m = lm.mesh
@@ -92,21 +103,22 @@ def model_from_world(world, object_id: str, spacing: float = 0.005) -> ObjectMod
         pts.append(p)
         nrm.append(np.asarray(pc.normals))
         col.append(np.tile(colorsys.rgb_to_hsv(*lm.color), (len(p), 1)))
-    P, N, C = np.vstack(pts), np.vstack(nrm), np.vstack(col)
+        lossy.append(np.full(len(p), lm.material in DROPOUT_MATERIALS))
+    P, N, C, L = np.vstack(pts), np.vstack(nrm), np.vstack(col), np.concatenate(lossy)
     keep = ~((P[:, 2] < 0.003) & (N[:, 2] < -0.9))
-    P, N, C = P[keep], N[keep], C[keep]
+    P, N, C, L = P[keep], N[keep], C[keep], L[keep]
     # Points of one visual that lie inside another (a handle's end in the body) are not surface.
-    P, N, C = _drop_inner(meshes, P, N, C)
+    P, N, C, L = _drop_inner(meshes, P, N, C, L)
     radius = float(np.linalg.norm(P[:, :2], axis=1).max())
     height = float(P[:, 2].max())
-    model = ObjectModel(object_id, P, N, C, radius, height, symmetric=False)
+    model = ObjectModel(object_id, P, N, C, radius, height, symmetric=False, dropout=L)
     model.symmetric = _is_symmetric(model)
     return model
 
 
-def _drop_inner(meshes, P, N, C):
+def _drop_inner(meshes, P, N, C, L):
     if len(meshes) < 2:
-        return P, N, C
+        return P, N, C, L
     scene = o3d.t.geometry.RaycastingScene()
     for lm in meshes:
         scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
@@ -116,7 +128,7 @@ def _drop_inner(meshes, P, N, C):
     # outward normal by 1.5 mm and asking again separates "inside another visual".
     occ2 = scene.compute_occupancy(o3d.core.Tensor((P + 0.0015 * N).astype(np.float32))).numpy()
     keep = ~(inside & (occ2 > 0.5))
-    return P[keep], N[keep], C[keep]
+    return P[keep], N[keep], C[keep], L[keep]
 
 
 def _is_symmetric(model: ObjectModel) -> bool:
@@ -199,6 +211,11 @@ class Detection:
 
 # -- the pipeline -------------------------------------------------------------------------------
 
+#: Below this sine of the angle between a view ray and a surface, the surface is seen edge-on
+#: (about 12 degrees): the simulated and real Kinect-class sensors return no depth there.
+GRAZING_SIN = 0.2
+
+
 def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
                       depth: Optional[np.ndarray] = None, max_range: float = 4.0
                       ) -> list[tuple[str, np.ndarray, float, float]]:
@@ -232,7 +249,13 @@ def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
             if depth is not None and seen.any():
                 px = np.round(uv[seen]).astype(int)
                 measured = np.asarray(depth)[px[:, 1], px[:, 0]]
-                seen[np.flatnonzero(seen)] = np.abs(measured - pc[seen, 2]) < 0.03
+                agree = np.abs(measured - pc[seen, 2]) < 0.03
+                # A surface seen nearly edge-on (a shelf at eye level) gives no depth at all:
+                # a depth sensor drops grazing returns. No reading there is no disagreement.
+                ray = pw[seen] - T_world_camera[:3, 3]
+                sin_inc = np.abs(ray @ T[:3, 2]) / np.maximum(np.linalg.norm(ray, axis=1), 1e-9)
+                grazing = ~(np.isfinite(measured) & (measured > 0)) & (sin_inc < GRAZING_SIN)
+                seen[np.flatnonzero(seen)] = agree | grazing
             if seen.any():
                 # The camera looks at what matters: seen points near the image centre count most.
                 r = np.hypot(uv[seen, 0] - K.cx, uv[seen, 1] - K.cy) / (0.4 * K.width)
@@ -265,12 +288,14 @@ def find_support_plane(points_world: np.ndarray, expected_height: float,
         plane = -plane
     n = np.linalg.norm(plane[:3])
     plane /= n
-    if plane[2] < math.cos(math.radians(10)) or len(inl) < 30:
+    # Supporting surfaces are horizontal and the camera's tilt is known, so a plane tilted by
+    # more than a few degrees is not the surface but a mix of what lies near its height (a
+    # shelf's front edge, a cabinet's back wall): no plane then, the map's height is used.
+    if plane[2] < math.cos(math.radians(4)) or len(inl) < 30:
         return None
-    # Least-squares height on the inliers (RANSAC's plane is from three points).
+    # The height: the median of the inliers (RANSAC's plane is from three points).
     z = near[inl, 2]
-    plane = np.array([0.0, 0.0, 1.0, -float(np.median(z))]) if plane[2] > 0.995 else plane
-    return plane
+    return np.array([0.0, 0.0, 1.0, -float(np.median(z))])
 
 
 def euclidean_clusters(points: np.ndarray, radius: float, min_points: int) -> list[np.ndarray]:
@@ -415,8 +440,20 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     inside = (np.abs(local[:, 0]) < sx / 2 + config.surface_margin) & \
              (np.abs(local[:, 1]) < sy / 2 + config.surface_margin)
     above = inside & (h > config.min_height) & (h < config.max_height)
+    if above.any():
+        # What the map's furniture explains is not a small object: a shelf's back and sides,
+        # the shelf above, a cupboard's walls.
+        above[np.flatnonzero(above)] = ~_explained_by_furniture(
+            world, name.split("/")[0], P[above], config.furniture_distance)
     pts, hsv = P[above], hsv_all[above]
     clusters = euclidean_clusters(pts, config.cluster_radius, config.min_cluster_points)
+    # Glass and dark objects return few, scattered points: what is left over is grouped once
+    # more at a coarser radius (a few points of a jar 2 cm apart are one object).
+    left = np.setdiff1d(np.arange(len(pts)), np.concatenate(clusters)) if clusters \
+        else np.arange(len(pts))
+    if len(left) >= config.sparse_min_points:
+        clusters += [left[c] for c in euclidean_clusters(pts[left], config.sparse_cluster_radius,
+                                                         config.sparse_min_points)]
 
     models = model_library(world, candidates, config.model_spacing)
     cam = T_world_camera[:3, 3]
@@ -455,6 +492,21 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
                                         K, T_cw, color is not None, config))
     hyps = _resolve(hyps)
     return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence)
+
+
+def _explained_by_furniture(world, object_id: str, points_world: np.ndarray,
+                            distance: float) -> np.ndarray:
+    """Which points lie within ``distance`` of the large object's own model (its parts in
+    their believed states; not the small objects it holds), by open3d's distance query."""
+    from worldmodel.geometry import object_meshes
+    meshes = object_meshes(world, world.get(object_id), children=False)
+    if not meshes or not len(points_world):
+        return np.zeros(len(points_world), bool)
+    scene = o3d.t.geometry.RaycastingScene()
+    for lm in meshes:
+        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+    d = scene.compute_distance(o3d.core.Tensor(np.asarray(points_world, np.float32))).numpy()
+    return d < distance
 
 
 def _surface_by_name(world, surface: str):
@@ -529,9 +581,12 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     n_exp, n_vis = int(expected.sum()), int(visible.sum())
     visible_fraction = n_vis / n_exp if n_exp else 0.0
 
-    # Model -> scene: how much of the visible model surface has a measurement on it.
+    # Model -> scene: how much of the visible model surface has a measurement on it. On glass,
+    # dark or shiny visuals a missing return is what the sensor gives: no reading there does
+    # not speak against the hypothesis (a reading elsewhere along the ray would: ``hidden``).
     dm, _ = tree_xyz.query(mp_w[visible], distance_upper_bound=config.inlier_distance * 1.5)
-    inlier_fraction = float(np.isfinite(dm).mean()) if n_vis else 0.0
+    lost = (model.dropout & (measured <= 0))[visible]
+    inlier_fraction = float((np.isfinite(dm) | lost).mean()) if n_vis else 0.0
 
     # Scene -> model: points in the hypothesis' column (its footprint, any height: a taller
     # object is not this one), explained or not.

@@ -114,6 +114,9 @@ class TurnKnob(RobotActionSkill):
             state = knob.states[int(np.argmin(d))].name
         else:
             state = state or knob.off
+            if state not in [s.name for s in knob.states]:
+                raise ValueError(f"{knob.id} has no state {state!r}; its states are "
+                                 + ", ".join(s.name for s in knob.states))
             a = knob.state_angle(state)
         self._knob, self._state, self._angle = knob.id, state, a
         return self.robot.turn_knob(knob.id, a)

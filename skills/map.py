@@ -75,19 +75,72 @@ class PlanSearch(Skill):
               Port("learned", "boolean", required=False, default=True),
               Port("max_places", "integer", required=False, default=6),
               Port("exclude", "list", required=False, default=None))
-    OUTPUTS = (Port("places", "list", required=False), Port("count", "integer", required=False))
+    OUTPUTS = (Port("places", "list", required=False), Port("count", "integer", required=False),
+               Port("first", "dict", required=False, description="the cheapest place"))
 
     def update(self) -> S:
         oid = self.input("object_id")
+        exclude = tuple(place_id(p) for p in (self.input("exclude") or ()))
         places = search_order(self.world, oid, robot_pose(self.robot),
                               user_room=self.input("user_room") or None,
                               weights=SearchWeights(), learned=bool(self.input("learned")),
-                              exclude=tuple(self.input("exclude") or ()))
+                              exclude=exclude)
         places = places[: int(self.input("max_places") or len(places))]
         self.set_output("places", [p.as_dict() for p in places])
         self.set_output("count", len(places))
-        self.feedback_message = "search order: " + ", ".join(p.place for p in places)
+        if places:
+            self.set_output("first", places[0].as_dict())
+        self.feedback_message = ("search order: " + ", ".join(p.place for p in places)
+                                 if places else "no place left to search")
         return S.SUCCESS if places else S.FAILURE
+
+
+def place_id(place) -> str:
+    """The large object id of a search place (a dict with ``place``) or an id."""
+    return str(place["place"]) if isinstance(place, dict) else str(place)
+
+
+class PlaceSurfaces(Skill):
+    """The surface levels of a place to look at one after the other (every shelf of a
+    bookshelf, inside a cupboard after opening): the level the map believes the object on
+    first, then the others highest first. A place without surfaces is one level, its top; a
+    proposed place (with its own point to look at) is one level, that point."""
+
+    NAME = "PlaceSurfaces"
+    DESCRIPTION = "list the surface levels of a place to look at"
+    INPUTS = (Port("place", "any", description="a search place or a large object id"),
+              Port("object_id", "node_id", required=False, default=None),
+              Port("above", "number", required=False, default=0.05,
+                   description="metres above a surface's centre to aim at"))
+    OUTPUTS = (Port("levels", "list", required=False,
+                    description="{place, surface, relation, look_at: [x, y, z]} each"),
+               Port("count", "integer", required=False))
+
+    def update(self) -> S:
+        place = self.input("place")
+        pid = place_id(place)
+        if isinstance(place, dict) and place.get("look_at") is not None:
+            levels = [dict(place=pid, surface=None, relation=place.get("relation", "on"),
+                           look_at=[float(v) for v in place["look_at"]][:3])]
+        else:
+            up = float(self.input("above"))
+            found = self.world.surfaces_of(pid)
+            oid = self.input("object_id")
+            if oid and found and self.world.parent(oid) is not None \
+                    and self.world.parent(oid).id == pid:
+                believed = self.world.surface_near(pid, self.world.T_world(oid)[:3, 3])
+                found.sort(key=lambda lv: lv.surface != believed.surface)
+            levels = [dict(place=pid, surface=lv.name, relation=lv.relation,
+                           look_at=[round(float(v), 4) for v in
+                                    (lv.T_world_surface @ np.array([0.0, 0.0, up, 1.0]))[:3]])
+                      for lv in found]
+            if not levels:
+                levels = [dict(place=pid, surface=None, relation="on",
+                               look_at=[round(float(v), 4) for v in self.world.aim_point(pid, "top")])]
+        self.set_output("levels", levels)
+        self.set_output("count", len(levels))
+        self.feedback_message = f"{pid}: " + ", ".join(lv["surface"] or "top" for lv in levels)
+        return S.SUCCESS
 
 
 class RecordSearch(Skill):
@@ -101,10 +154,10 @@ class RecordSearch(Skill):
 
     def update(self) -> S:
         place = self.input("place")
-        place_id = place["place"] if isinstance(place, dict) else str(place)
+        pid = place_id(place)
         found = bool(self.input("found"))
-        self.world.record_search(self.input("object_id"), place_id, found, source=self.NAME)
-        self.feedback_message = f"{'found' if found else 'not found'} at {place_id}"
+        self.world.record_search(self.input("object_id"), pid, found, source=self.NAME)
+        self.feedback_message = f"{'found' if found else 'not found'} at {pid}"
         return S.SUCCESS
 
 
@@ -122,12 +175,12 @@ class UpdateObjectLocation(Skill):
     def update(self) -> S:
         oid = self.input("object_id")
         place = self.input("place")
-        place_id = place["place"] if isinstance(place, dict) else str(place)
+        pid = place_id(place)
         relation = self.input("relation") or (place.get("relation") if isinstance(place, dict) else None) or "on"
         T_world_obj = as_pose(self.input("pose")).matrix()
-        T_world_parent = self.world.T_world(place_id)
+        T_world_parent = self.world.T_world(pid)
         pose_parent = Pose.from_matrix(np.linalg.inv(T_world_parent) @ T_world_obj)
-        self.world.move_object(oid, place_id, pose_parent, relation=relation, source=self.NAME)
+        self.world.move_object(oid, pid, pose_parent, relation=relation, source=self.NAME)
         where = self.world.describe_location(oid)
         self.set_output("location", where)
         self.feedback_message = f"{oid} is {where}"
@@ -168,8 +221,8 @@ class ClosedParts(Skill):
 
     def update(self) -> S:
         place = self.input("place")
-        place_id = place["place"] if isinstance(place, dict) else str(place)
-        node = self.world.get(place_id)
+        pid = place_id(place)
+        node = self.world.get(pid)
         out = []
         if isinstance(node, LargeArticulatedObject) and "container" in node.affordances:
             thr = float(self.input("open_threshold"))
@@ -178,6 +231,6 @@ class ClosedParts(Skill):
                     out.append({"part": p.id, "handle": p.handles[0].id})
         self.set_output("parts", out)
         self.set_output("count", len(out))
-        self.feedback_message = (f"{place_id}: " + (", ".join(p["part"] for p in out) + " closed"
+        self.feedback_message = (f"{pid}: " + (", ".join(p["part"] for p in out) + " closed"
                                                     if out else "nothing to open"))
         return S.SUCCESS

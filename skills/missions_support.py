@@ -161,7 +161,8 @@ class PlaceOfPose(Skill):
             self.feedback_message = f"nothing to hold an object near {p.x:.2f}, {p.y:.2f}"
             return S.FAILURE
         obj = found[0]
-        relation = obj.surfaces[0].relation if obj.surfaces else "on"
+        level = self.world.surface_near(obj.id, (p.x, p.y, p.z))
+        relation = level.relation if level is not None else "on"
         self.set_output("place", obj.id)
         self.set_output("relation", relation)
         self.feedback_message = f"{relation} the {self.world.label(obj.id)}"
@@ -234,6 +235,21 @@ class Remember(Skill):
         return S.SUCCESS
 
 
+class SetBlackboard(Skill):
+    """Write a value to a key (BehaviorTree.CPP's SetBlackboard): start a list afresh before
+    a loop collects into it."""
+
+    NAME = "SetBlackboard"
+    DESCRIPTION = "write a value to a blackboard key"
+    INPUTS = (Port("value", "any", required=False, default=None),)
+    OUTPUTS = (Port("output", "any", required=False),)
+
+    def update(self) -> S:
+        self.set_output("output", self.input("value"))
+        self.feedback_message = "set"
+        return S.SUCCESS
+
+
 class DescribeCorrection(Skill):
     """A localisation correction {dx, dy, dyaw} in words: "4.2 cm and 1.0 degrees"."""
 
@@ -252,7 +268,7 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
+           "Remember", "SetBlackboard", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
 
 
 def look_target(world, target: Any, focus: str = "centre"):

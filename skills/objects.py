@@ -78,20 +78,29 @@ class DetectObject(_PerceptionSkill):
     INPUTS = (Port("object", "string|node_id", description="map id or words (\"blue cup\")"),
               Port("candidates", "list", required=False, default=None,
                    description="small-object ids whose models to try (default: all)"),
-              Port("surface", "string", required=False, default=None,
-                   description="large_object/surface (default: nearest in view)"),
+              Port("surface", "string|dict", required=False, default=None,
+                   description="large_object/surface, or a level from PlaceSurfaces "
+                               "(default: the nearest surface in view)"),
+              Port("previous", "list", required=False, default=None,
+                   description="hypotheses of earlier views, kept with this view's"),
               Port("update_map", "boolean", required=False, default=True))
     OUTPUTS = (Port("pose", "pose", required=False, description="world frame"),
                Port("confidence", "number", required=False),
-               Port("hypotheses", "list", required=False))
+               Port("hypotheses", "list", required=False,
+                    description="this view's hypotheses and the previous ones, best first"))
 
     def perceive(self):
         from perception.objects import detect_objects
         oid = resolve_object(self.world, self.input("object"))
+        surface = self.input("surface")
+        if isinstance(surface, dict):
+            surface = surface.get("surface")
         depth, color, K, T_wc = capture(self.robot)
         det = detect_objects(self.world, depth, color, K, T_wc,
-                             candidates=self.input("candidates"), surface=self.input("surface"))
-        self.set_output("hypotheses", [hypothesis_dict(h) for h in det.hypotheses[:10]])
+                             candidates=self.input("candidates"), surface=surface)
+        hyps = [hypothesis_dict(h) for h in det.hypotheses[:10]] + list(self.input("previous") or [])
+        hyps.sort(key=lambda d: -float(d.get("confidence", 0.0)))
+        self.set_output("hypotheses", hyps[:10])
         best = det.best(oid)
         accepted = best is not None and best in det.accepted
         self.set_output("confidence", best.confidence if best else 0.0)
@@ -145,18 +154,21 @@ class PlanNextBestView(_PerceptionSkill):
     DESCRIPTION = "plan where to stand to see a small object better"
     INPUTS = (Port("object", "string|node_id"),
               Port("hypotheses", "list", required=False, default=None,
-                   description="DetectObject's hypotheses (default: the map's pose)"))
+                   description="DetectObject's hypotheses (default: the place, else the map's pose)"),
+              Port("place", "any", required=False, default=None,
+                   description="the place being searched: without hypotheses of the object, "
+                               "plan around it (not around the map's pose, which may be elsewhere)"))
     OUTPUTS = (Port("pose", "pose", required=False, description="base pose (x, y, yaw)"),
                Port("look_at", "list", required=False, description="world point [x, y, z]"),
                Port("visible_fraction", "number", required=False))
 
     def perceive(self):
-        from perception.nbv import ObjectHypothesis, from_map, plan_next_best_view
+        from perception.nbv import ObjectHypothesis, plan_next_best_view
         oid = resolve_object(self.world, self.input("object"))
         hs = [ObjectHypothesis(d["object"], _T(d["pose"]), max(float(d.get("confidence", 1)), 1e-3))
               for d in (self.input("hypotheses") or []) if d.get("confidence", 1) >= 0.05]
         if not any(h.object_id == oid for h in hs):
-            hs = from_map(self.world, oid) + hs
+            hs = self._at_place(oid) + hs
         hs = hs[:4]
         depth, _, K, T_wc = capture(self.robot)
         base = None
@@ -173,3 +185,27 @@ class PlanNextBestView(_PerceptionSkill):
         self.set_output("visible_fraction", best.visible_fraction)
         return True, (f"view of {oid} from ({x:.2f}, {y:.2f}): {best.visible_fraction:.0%} "
                       f"of its facing surface unoccluded, {len(views)} candidates")
+
+    def _at_place(self, oid: str) -> list:
+        """A hypothesis of the object standing at the place being searched: on the surface
+        the map believes it on when the place is its parent, else on the highest surface;
+        the map's pose when no place is given."""
+        from perception.nbv import ObjectHypothesis, from_map
+        from skills.map import place_id
+        place = self.input("place")
+        if place is None:
+            return from_map(self.world, oid)
+        pid = place_id(place)
+        parent = self.world.parent(oid)
+        if parent is not None and parent.id == pid:
+            return from_map(self.world, oid)
+        if isinstance(place, dict) and place.get("look_at") is not None:
+            T = np.eye(4)
+            T[:3, 3] = np.asarray(place["look_at"], dtype=float)[:3]
+            return [ObjectHypothesis(oid, T, 1.0)]
+        levels = self.world.surfaces_of(pid)
+        if not levels:
+            T = np.eye(4)
+            T[:3, 3] = self.world.aim_point(pid, "top")
+            return [ObjectHypothesis(oid, T, 1.0)]
+        return [ObjectHypothesis(oid, levels[0].T_world_surface, 1.0)]

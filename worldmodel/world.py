@@ -50,6 +50,23 @@ class MapChange:
 
 
 @dataclass(frozen=True)
+class SurfaceLevel:
+    """One supporting surface of a large object in the world frame: ``T_world_surface`` has
+    its origin at the centre of the top face, +z up; ``relation`` is on or in."""
+    place: str
+    surface: str
+    T_world_surface: np.ndarray
+    relation: str
+    size_x: float
+    size_y: float
+
+    @property
+    def name(self) -> str:
+        """``place/surface``, the form perception's detection takes."""
+        return f"{self.place}/{self.surface}"
+
+
+@dataclass(frozen=True)
 class Match:
     node: Any
     score: float
@@ -299,6 +316,31 @@ class World:
         if focus == "top":
             c[2] = hi[2]
         return c
+
+    def surfaces_of(self, node_id: str) -> list["SurfaceLevel"]:
+        """The supporting surfaces of the large object a node belongs to, in the world frame,
+        highest first."""
+        obj = self.large_object_of(node_id)
+        T = self.T_world(obj.id)
+        out = [SurfaceLevel(obj.id, s.id, T @ s.pose.matrix(), s.relation, s.size_x, s.size_y)
+               for s in obj.surfaces]
+        out.sort(key=lambda lv: (-lv.T_world_surface[2, 3], lv.surface))
+        return out
+
+    def surface_near(self, node_id: str, point) -> Optional["SurfaceLevel"]:
+        """The surface of a large object nearest a world point (metres) by height, among those
+        whose extent (grown by 5 cm) holds the point's x, y; else the nearest by height."""
+        levels = self.surfaces_of(node_id)
+        if not levels:
+            return None
+        p = np.asarray(point, dtype=float)[:3]
+
+        def key(lv):
+            local = np.linalg.inv(lv.T_world_surface) @ np.append(p, 1.0)
+            inside = abs(local[0]) <= lv.size_x / 2 + 0.05 and abs(local[1]) <= lv.size_y / 2 + 0.05
+            # Objects stand on a surface: one just above it is on it, one below is not.
+            return (not inside, abs(local[2]) if local[2] >= -0.02 else 1.0 + abs(local[2]))
+        return min(levels, key=key)
 
     def support_at(self, point, margin: float = 0.05,
                    max_distance: float = 0.5) -> Optional[tuple[LargeObject, float]]:

@@ -130,7 +130,7 @@ def test_fetch_learns_to_start_where_the_cup_turned_up(world):
         Script("DetectObject", outputs={"pose": seen})], object="blue cup")
     assert result.outcome == "succeeded", result.reason
     drive = next(n for p, n in sub.made.items()
-                 if p.endswith("/known_places/search_places/for_each/search_at/sequence/drive/NavigateTo"))
+                 if p.endswith("/known_places/search_known_places/for_each/sequence/search_at/sequence/drive/NavigateTo"))
     assert drive.seen_inputs[0]["target"]["place"] == "side_table"
 
 
@@ -337,8 +337,8 @@ def test_refine_localisation_without_a_fix_says_to_try_elsewhere(world):
         Script("LookAtLandmark")] + ROBOT_SCRIPTS)
     assert result.outcome == "failed"
     assert "I could not correct my position here" in result.reason
-    assert sub.made["/refine_localisation/fix/RefineLocalisation"].activations == 1
-    assert sub.made["/refine_localisation/fix/other_landmarks/sequence/refine_on_another"].activations == 3
+    assert sub.made["/refine_localisation/fix/localise_here/on_landmarks/RefineLocalisation"].activations == 1
+    assert sub.made["/refine_localisation/fix/localise_here/on_landmarks/other_landmarks/sequence/refine_on_another"].activations == 3
 
 
 def test_a_missed_grasp_is_retried_after_relocalising_and_looking_again(world):
@@ -349,3 +349,30 @@ def test_a_missed_grasp_is_retried_after_relocalising_and_looking_again(world):
         + ROBOT_SCRIPTS, object="blue cup")
     assert result.outcome == "succeeded", result.reason
     assert sub.made["/fetch_object/pick_up/relocalise_and_grasp/grasp_again"].activations == 1
+
+
+def test_a_knob_whose_off_state_is_not_called_off_is_turned_to_its_own_off(world):
+    # A thermostat-style knob: states 0..3, off is "0", turning the other way.
+    from worldmodel.nodes import KnobState
+    k = world.get("oven_knob_1")
+    k.states = [KnobState("0", 0.0), KnobState("1", 0.8), KnobState("2", 1.6), KnobState("3", 2.4)]
+    k.off_state, k.state, k.angle = "0", "0", 0.0
+    robot = FakeRobot(knobs={"oven_knob_1": 1.6})
+    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
+                    skills=_oven_skills())
+    assert result.outcome == "succeeded", result.reason
+    assert world.get("oven_knob_1").state == "0"
+    assert robot.truth_knobs["oven_knob_1"] == pytest.approx(0.0)
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_turn_off_oven_falls_back_to_other_landmarks_when_the_fix_on_the_oven_is_not_trusted(world):
+    robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")})
+    result, sub = run("turn_off_oven.yaml", world, [
+        Script("/turn_off_oven/localise/localise_here/on_landmarks/RefineLocalisation",
+               outcomes=["failure"]),
+        Script("LookAtLandmark"),
+        Script("RefineLocalisation", outputs={"correction": {"dx": 0.1, "dy": 0.0, "dyaw": 0.0}}),
+    ] + ROBOT_SCRIPTS, robot=robot, skills=_oven_skills())
+    assert result.outcome == "succeeded", result.reason
+    assert _made(sub, "other_landmarks/sequence/refine_on_another").activations == 1
