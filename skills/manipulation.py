@@ -106,3 +106,16 @@ class HandOver(RobotActionSkill):
 
     def describe(self) -> str:
         return "handing over"
+
+    def succeeded(self, action) -> None:
+        """The user puts what they were handed down on the surface nearest the robot
+        (``World.handover_spot``; the simulator does the same in its truth): the map says so,
+        and the next search for it starts there."""
+        oid = getattr(action, "result", None)
+        if not isinstance(oid, str) or oid not in self.world:
+            return
+        base = self.robot.base_pose() if hasattr(self.robot, "base_pose") else None
+        spot = self.world.handover_spot(base.x, base.y) if base is not None else None
+        if spot is not None:
+            place, pose, relation = spot
+            self.world.move_object(oid, place, pose, relation=relation, source=self.NAME)

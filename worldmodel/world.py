@@ -342,6 +342,32 @@ class World:
             return (not inside, abs(local[2]) if local[2] >= -0.02 else 1.0 + abs(local[2]))
         return min(levels, key=key)
 
+    def handover_spot(self, x: float, y: float, max_distance: float = 1.2,
+                      inset: float = 0.08) -> Optional[tuple[str, Pose, str]]:
+        """Where an object handed over at the robot base (world x, y) is put down: the point
+        of the nearest open surface (relation "on", 0.3-1.3 m high) closest to the base,
+        ``inset`` metres inside its edge, within ``max_distance`` of the base. Returns
+        (large object id, pose in its frame, relation) or None."""
+        best = None
+        for obj in self.large_objects():
+            for lv in self.surfaces_of(obj.id):
+                h = lv.T_world_surface[2, 3]
+                if lv.relation != "on" or not 0.3 <= h <= 1.3:
+                    continue
+                T_inv = np.linalg.inv(lv.T_world_surface)
+                q = T_inv[:2, :2] @ (x, y) + T_inv[:2, 3]
+                hx, hy = max(lv.size_x / 2 - inset, 0.0), max(lv.size_y / 2 - inset, 0.0)
+                spot = np.array([np.clip(q[0], -hx, hx), np.clip(q[1], -hy, hy), 0.0, 1.0])
+                d = float(np.hypot(*(q - spot[:2])))
+                if d <= max_distance and (best is None or d < best[0]):
+                    p_world = lv.T_world_surface @ spot
+                    best = (d, obj.id, p_world, lv.relation)
+        if best is None:
+            return None
+        _, oid, p_world, relation = best
+        local = np.linalg.inv(self.T_world(oid)) @ p_world
+        return oid, Pose(float(local[0]), float(local[1]), float(local[2])), relation
+
     def support_at(self, point, margin: float = 0.05,
                    max_distance: float = 0.5) -> Optional[tuple[LargeObject, float]]:
         """The large object that can hold small objects and that a world point (metres) is

@@ -317,7 +317,13 @@ class SimulatedRobot:
         obj = self.held
 
         def done():
+            # The user puts it down on the surface nearest the robot (the belief's HandOver
+            # skill assumes the same, World.handover_spot); with none near, they keep it.
             self.handed_over.append(obj.id)
+            spot = self.truth.handover_spot(self._true.x, self._true.y)
+            if spot is not None:
+                obj.pose, obj.relation = spot[1], spot[2]
+                self.truth.add_small_object(obj, spot[0], source="simulator")
             self.held = None
             self._dirty = True
             return obj.id
