@@ -388,6 +388,14 @@ class World:
             return None
         return best[1], best[0][0]
 
+    def compact_history(self, max_entries: int) -> int:
+        """Keep the newest ``max_entries`` history entries; returns how many were dropped."""
+        with self.lock:
+            extra = len(self.apartment.history) - max(0, int(max_entries))
+            if extra > 0:
+                del self.apartment.history[:extra]
+            return max(extra, 0)
+
     def history(self, node_id: Optional[str] = None) -> list[HistoryEntry]:
         with self.lock:
             return [h for h in self.apartment.history if node_id is None or h.node == node_id]
