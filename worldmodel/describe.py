@@ -68,10 +68,20 @@ def _children(node) -> list:
 
 def find_report(world, words: str) -> dict:
     """The best match for ``words``, its parent chain, room and parking positions, and the
-    other candidates. Empty ``match`` when nothing matches."""
+    other candidates. Empty ``match`` when nothing matches; when several nodes match
+    equally well ("cup" with a red and a blue cup), ``match`` is None too and ``ambiguous``
+    lists them, as the command layer asks "which cup do you mean"."""
+    import math
     matches = world.find(words)
     if not matches:
         return {"query": words, "match": None, "candidates": []}
+    top = [m for m in matches if math.isclose(m.score, matches[0].score)]
+    if len(top) > 1:
+        return {"query": words, "match": None,
+                "ambiguous": [{"id": m.node.id, "label": world.label(m.node.id),
+                               "location": world.describe_location(m.node.id)} for m in top],
+                "candidates": [{"id": m.node.id, "label": world.label(m.node.id),
+                                "score": round(m.score, 3)} for m in matches[:10]]}
     best = matches[0].node
     chain = world.chain(best.id)
     parent = world.parent(best.id)

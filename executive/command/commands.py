@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from executive.command.vocabulary import SLOT_CLASSES, Template, normalise
+from executive.command.vocabulary import SLOT_CLASSES, Template, normalise, strip_courtesy
 from executive.errors import MissionError
 from executive.missionfile import parse_param_text
 
@@ -65,6 +65,7 @@ class _Resolution:
 
 def resolve_slot(world: Any, words: str, cls: str, param: str) -> _Resolution:
     """The map node ``words`` names among ``cls`` nodes, or a clarifying answer."""
+    words = " ".join(w for w in words.split() if w not in _STOP) or words
     kinds = SLOT_CLASSES[cls] or None
     matches = world.find(words, kinds=kinds) if world is not None else []
     if matches:
@@ -106,7 +107,7 @@ def interpret(text: str, templates: list[Template], world: Any,
     """Map ``text`` to a mission and parameters (see the module docstring).
 
     ``missions`` (name -> Mission) types the slots that are plain values."""
-    said = normalise(text)
+    said = strip_courtesy(normalise(text))
     matched: list[tuple[Template, dict[str, str]]] = []
     for t in sorted(templates, key=_specificity, reverse=True):
         slots = t.match(said)
@@ -150,7 +151,7 @@ def interpret(text: str, templates: list[Template], world: Any,
     for t in templates:
         if t.mission not in seen_missions:
             seen_missions.add(t.mission)
-            examples.append(t.text)
+            examples.append(t.example(world))
     return Interpretation(outcome="not_understood", text_id="T_NOT_UNDERSTOOD",
                           say="Sorry, I did not understand."
                               + (f" You can say: {'; '.join(examples)}." if examples else ""),

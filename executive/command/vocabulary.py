@@ -45,11 +45,23 @@ _TOKEN_RE = re.compile(r"\(([^()]*)\)|\{([A-Za-z_][A-Za-z0-9_]*)(?::([A-Za-z_]+)
 _WORD_RE = re.compile(r"^[a-z0-9']+$")
 
 
+#: Courtesy words and phrases a request may carry anywhere; they never change what is asked.
+COURTESY = ("could you please", "can you please", "would you please", "could you", "can you",
+            "would you", "will you", "please", "kindly", "thank you", "thanks")
+_COURTESY_RE = re.compile(r"(?:^| )(?:" + "|".join(re.escape(c) for c in COURTESY) + r")(?= |$)")
+
+
 def normalise(text: str) -> str:
     """Lower case, punctuation dropped, single spaces: "Where is my pill-box?" ->
     "where is my pill box"."""
     text = text.lower().replace("'", "")
     return " ".join(re.findall(r"[a-z0-9]+", text))
+
+
+def strip_courtesy(normalised: str) -> str:
+    """A normalised utterance without its courtesy words: "could you bring me the cup
+    please" -> "bring me the cup"."""
+    return " ".join(_COURTESY_RE.sub(" ", f" {normalised} ").split())
 
 
 @dataclass(frozen=True)
@@ -78,6 +90,34 @@ class Template:
     def to_json(self) -> dict[str, Any]:
         return {"say": self.text, "slots": {s.param: s.cls or "value" for s in self.slots},
                 "params": self.params}
+
+    def example(self, world: Any = None) -> str:
+        """The template as a person would say it: the first word of each group, each slot
+        filled with a name from the map of its class (or the class's name): "bring me the
+        blue cup"."""
+        def fill(m: re.Match) -> str:
+            group, slot, cls, word = m.groups()
+            if group is not None:
+                return group.split("|")[0].strip()
+            if slot is not None:
+                s = next(x for x in self.slots if x.param == slot)
+                return example_words(world, s.cls) or (s.cls or s.param).replace("_", " ")
+            return word
+        return " ".join(w for w in (fill(m) for m in _TOKEN_RE.finditer(self.text)) if w)
+
+
+def example_words(world: Any, cls: str | None) -> str:
+    """A name from the map for a slot class (the first by id), or ""."""
+    if world is None or cls is None:
+        return ""
+    kinds = SLOT_CLASSES.get(cls) or None
+    nodes = sorted((n for n in world.nodes() if kinds is None or n.kind in kinds),
+                   key=lambda n: n.id)
+    for n in nodes:
+        label = world.label(n.id)
+        if label and label != n.id:
+            return label
+    return ""
 
 
 def compile_template(text: str, mission: Mission, file: str, line: int,

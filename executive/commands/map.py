@@ -42,6 +42,10 @@ def _find(args) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0 if report["match"] else 1
+    if report.get("ambiguous"):
+        which = " or ".join(f"the {a['label']} ({a['id']}) {a['location']}" for a in report["ambiguous"])
+        print(f"which {report['query']} do you mean: {which}?")
+        return 1
     if not report["match"]:
         print(f"nothing in the map matches {report['query']!r}")
         return 1

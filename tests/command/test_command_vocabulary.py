@@ -76,6 +76,21 @@ def test_ambiguous_words_list_every_candidate(catalogue, demo_world):
     assert it.mission == "fetch_test" and it.slot == "object"
 
 
+@pytest.mark.parametrize("text", ["bring me the cup please", "could you please bring me a cup",
+                                  "bring me the cup, thank you"])
+def test_courtesy_words_are_not_part_of_what_is_asked_for(text, catalogue, demo_world):
+    it = _say(text, catalogue, demo_world)
+    assert it.outcome == "clarify" and it.args["words"] == "cup"
+    assert it.say.startswith("Which cup do you mean: ")
+
+
+def test_not_understood_gives_examples_a_person_can_say(catalogue, demo_world):
+    it = _say("sing me a song", catalogue, demo_world)
+    assert it.outcome == "not_understood"
+    assert "{" not in it.say and "(" not in it.say and "|" not in it.say
+    assert "bring me the " in it.say
+
+
 def test_a_value_slot_that_does_not_parse_asks_again(catalogue, demo_world):
     it = _say("count to seven", catalogue, demo_world)
     assert it.outcome == "clarify" and it.say == "I did not get the n: expected integer, got 'seven'."

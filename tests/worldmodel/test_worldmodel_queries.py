@@ -212,3 +212,10 @@ def test_aim_point_is_the_top_of_a_table_or_the_middle_of_the_knobs(demo_world):
     assert top == pytest.approx([3.0, 2.2, 0.87], abs=1e-6)
     knobs = demo_world.aim_point("oven", "knobs")
     assert knobs[2] == pytest.approx(0.81, abs=1e-6)
+
+
+def test_cli_map_find_asks_which_one_when_words_name_several():
+    r = subprocess.run([sys.executable, "-m", "executive", "map", "find",
+                        "data/demo_home/world.xml", "cup"], capture_output=True, text=True)
+    assert r.returncode == 1
+    assert r.stdout.startswith("which cup do you mean: the blue cup (blue_cup) on the kitchen table or ")
