@@ -248,11 +248,17 @@ class _Exporter:
         self.used_skills: set[str] = set()
         self.used_custom: set[str] = set()
         self.written: dict[tuple[str, str | None], set[str]] = {}
+        self._docs: dict[str, LineDict] = {}
+
+    def load(self, file: str) -> LineDict:
+        if file not in self._docs:
+            self._docs[file] = load_yaml(file)
+        return self._docs[file]
 
     # -- trees --------------------------------------------------------------------------
     def run(self) -> str:
         main = (self.mission.file, None)
-        doc = load_yaml(self.mission.file)
+        doc = self.load(self.mission.file)
         name = self.mission.name
         if name in self.reserved:
             raise MissionError(f"mission name {name!r} is also a node type; BehaviorTree.CPP "
@@ -270,7 +276,7 @@ class _Exporter:
     def tree_id(self, file: str, sub: str | None) -> str:
         key = (file, sub)
         if key not in self.ids:
-            base = sub if sub is not None else str(load_yaml(file).get("name") or Path(file).stem)
+            base = sub if sub is not None else str(self.load(file).get("name") or Path(file).stem)
             cand, n = base, 2
             while cand in self.used_ids or cand in self.reserved:
                 cand, n = f"{base}_{n}", n + 1
@@ -280,7 +286,7 @@ class _Exporter:
 
     def body(self, key: tuple[str, str | None]) -> tuple[LineDict, LineDict]:
         file, sub = key
-        doc = load_yaml(file)
+        doc = self.load(file)
         return (doc if sub is None else doc["subtrees"][sub]), doc
 
     def emit(self, key: tuple[str, str | None]) -> None:

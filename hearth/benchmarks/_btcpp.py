@@ -124,10 +124,12 @@ def standin_tree(xml: str, leaf: Callable[[Any], Any] | None = None,
 # hearth bench executive: the same tree ticked by BehaviorTree.CPP
 # ---------------------------------------------------------------------------------------
 def tick_times(path: str, skills: dict[str, type], ticks: int, warmup: int = 50,
-               leaf_id: str = "BenchWork", port: str = "ticks") -> list[float] | str:
+               leaf_id: str = "BenchWork", port: str = "ticks",
+               on_start: Callable[[str], None] | None = None) -> list[float] | str:
     """Per-tick wall times (s) of the mission at ``path`` exported and ticked by BT.CPP
     (``tick_exactly_once``), each ``leaf_id`` leaf a Python stateful action that runs for
-    its ``port`` input's number of ticks, as the Hearth skill does. A string says why not."""
+    its ``port`` input's number of ticks, as the Hearth skill does (``on_start(name)`` is
+    called at each start, for tests). A string says why not."""
     reason = missing()
     if reason:
         return reason
@@ -149,16 +151,18 @@ def tick_times(path: str, skills: dict[str, type], ticks: int, warmup: int = 50,
             return RUNNING
         return SUCCESS
 
-    def on_start(node: Any) -> Any:
+    def start(node: Any) -> Any:
         name = node.name()
         left[name] = duration[name]
+        if on_start is not None:
+            on_start(name)
         return step(name)
 
     def on_running(node: Any) -> Any:
         return step(node.name())
 
     try:
-        st = standin_tree(export_mission(path, skills), stateful={leaf_id: (on_start, on_running)})
+        st = standin_tree(export_mission(path, skills), stateful={leaf_id: (start, on_running)})
     except RuntimeError as err:
         return f"BehaviorTree.CPP refused the tree: {err}"
     tick = st.tree.tick_exactly_once
