@@ -48,6 +48,7 @@ PROTOCOL_ID = 2
 DEFAULT_PORT = 1667
 _HEADER = struct.Struct("<BBI")
 _STATUS = {"RUNNING": 1, "SUCCESS": 2, "FAILURE": 3, "INVALID": 0}
+_FINAL = ("succeeded", "failed", "cancelled", "preempted")
 #: A bound on the recorded transitions a client has not fetched yet (BT.CPP keeps 1000).
 MAX_TRANSITIONS = 100_000
 
@@ -78,10 +79,12 @@ class Groot2Publisher:
         self._pending: str | None = None
         self._built: Any = None
         self._live: Any = None
+        self._final_bb: dict | None = None
         self._uuid = bytes(16)
         self._status: dict[int, int] = {}
         self._recording = False
         self._record_t0 = 0.0
+        self._record_mono = 0.0
         self._transitions: list[tuple[int, int, int]] = []
         self.requests = 0
         self._closed = threading.Event()
@@ -136,6 +139,12 @@ class Groot2Publisher:
         if ev.run != self._run:
             if not self._adopt(ev.run):
                 return
+        if ev.kind == "run" and ev.data.get("state") in _FINAL:
+            # The run's keys are removed when it ends: keep what a viewer would last see.
+            snapshot = self._main_blackboard()
+            with self._lock:
+                self._final_bb = snapshot
+            return
         if ev.kind != "status" or ev.path is None:
             return
         live = self._live
@@ -152,7 +161,7 @@ class Groot2Publisher:
             for u in (uid, *live.mirrors.get(ev.path, ())):
                 self._status[u] = shown
                 if self._recording and len(self._transitions) < MAX_TRANSITIONS:
-                    usec = int((time.time() - self._record_t0) * 1e6)
+                    usec = int((time.monotonic() - self._record_mono) * 1e6)
                     self._transitions.append((usec, u, code))
 
     def _adopt(self, run: str) -> bool:
@@ -165,6 +174,7 @@ class Groot2Publisher:
         live = live_tree(built.mission)
         with self._lock:
             self._run, self._built, self._live = run, built, live
+            self._final_bb = None
             self._uuid = os.urandom(16)
             self._status = {u: 0 for u in live.order}
         return True
@@ -216,6 +226,7 @@ class Groot2Publisher:
                 cmd = frames[1].decode("utf-8", "replace")
                 if cmd == "start":
                     self._record_t0 = time.time()
+                    self._record_mono = time.monotonic()
                     self._transitions = []
                     self._recording = True
                     return [head, str(int(self._record_t0 * 1e6)).encode()]
@@ -240,6 +251,13 @@ class Groot2Publisher:
                 return [b"error", b"Hearth does not support breakpoints"]
         return [b"error", b"Request not recognized"]
 
+    def _main_blackboard(self) -> dict[str, Any]:
+        """The mission's own keys and its $parameters, as JSON values."""
+        if self._built is None:
+            return {}
+        values = {k: v for k, v in self._built.blackboard().items() if "/" not in k}
+        return json.loads(json.dumps(values, default=repr))
+
     def _blackboard(self, head: bytes, names: str) -> list[bytes]:
         try:
             import msgpack
@@ -249,9 +267,8 @@ class Groot2Publisher:
         main = self._built.mission.name
         for name in filter(None, names.split(";")):
             if name == main:
-                values = {k: v for k, v in self._built.blackboard().items()
-                          if "/" not in k}
-                out[name] = json.loads(json.dumps(values, default=repr))
+                out[name] = self._final_bb if self._final_bb is not None \
+                    else self._main_blackboard()
             elif name in self._live.instances:
                 out[name] = {}   # keys private to an include are not mapped back (yet)
         return [head, msgpack.packb(out, use_bin_type=True)]
