@@ -332,9 +332,13 @@ class _Exporter:
                 port.text = str(spec["description"])
         meta = {}
         if key[1] is None:
-            for k in ("utterances", "blackboard"):
-                if body.get(k):
-                    meta[k] = "json:" + json.dumps(plain(body[k]), ensure_ascii=False)
+            if body.get("utterances"):
+                meta["utterances"] = "json:" + json.dumps(plain(body["utterances"]),
+                                                          ensure_ascii=False)
+            if body.get("blackboard"):
+                values = {scope.rename.get(str(k), str(k)): plain(v)
+                          for k, v in body["blackboard"].items()}
+                meta["blackboard"] = "json:" + json.dumps(values, ensure_ascii=False)
         if meta:
             fields = etree.SubElement(model, "MetadataFields")
             for k, v in meta.items():

@@ -205,3 +205,13 @@ def test_cli_run_with_a_port_in_use_is_one_line_exit_2(tmp_path, capsys):
         ctx.destroy(linger=0)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("groot2: cannot listen on 127.0.0.1:")
+
+
+def test_serve_and_run_take_groot2_with_a_default_port():
+    from executive.cli import build_parser
+    parser = build_parser()
+    serve = parser.parse_args(["serve", "--groot2"])
+    assert (serve.groot2, serve.groot2_host) == (1667, "127.0.0.1")
+    run = parser.parse_args(["run", "m.yaml", "--groot2", "1800", "--groot2-host", "0.0.0.0"])
+    assert (run.groot2, run.groot2_host) == (1800, "0.0.0.0")
+    assert parser.parse_args(["run", "m.yaml"]).groot2 is None

@@ -278,3 +278,31 @@ def test_state_machines_and_guards_round_trip(tmp_path):
     a = run_case(str(src), case, runs_dir=str(tmp_path / "a"))
     b = run_case(back, case, runs_dir=str(tmp_path / "b"))
     assert a.outcome == "succeeded" and timeline(b.log_path) == timeline(a.log_path)
+
+
+def test_initial_blackboard_and_a_key_named_like_a_parameter_round_trip(tmp_path):
+    src = tmp_path / "bb.yaml"
+    src.write_text(textwrap.dedent("""\
+        name: bb
+        parameters:
+          room: {type: string, default: kitchen}
+        blackboard: {room: hall, count: 2}
+        tree:
+          sequence:
+            - skill: Say
+              inputs: {text: "{room}"}
+            - skill: Say
+              name: param
+              inputs: {text: $room}
+            - condition: "{room} == hall"
+            - condition: "{count} == 2"
+        """))
+    xml, back = imported(tmp_path, str(src))
+    assert '<Say text="{room_key}"/>' in xml and 'text="{room}"' in xml
+    assert export_mission(back) == xml
+    case = Case(scripts=[])
+    a = run_case(str(src), case, runs_dir=str(tmp_path / "a"))
+    b = run_case(back, case, runs_dir=str(tmp_path / "b"))
+    assert a.outcome == b.outcome == "succeeded"
+    seen = [e for e in timeline(b.log_path) if e[1] == "status"]
+    assert seen == [e for e in timeline(a.log_path) if e[1] == "status"]
