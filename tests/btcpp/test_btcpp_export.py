@@ -132,3 +132,16 @@ def test_cli_export_of_a_bad_mission_is_one_line_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"{bad}:3: unknown skill 'FlyTo'"]
     assert not out.exists()
+
+
+def test_without_behaviortreepy_the_btcpp_figures_are_null_with_a_reason(monkeypatch, tmp_path):
+    import sys
+    from hearth.benchmarks import _btcpp
+    from hearth.benchmarks.executive import Work, mission_yaml
+    monkeypatch.setitem(sys.modules, "behaviortreepy", None)   # import fails
+    path = tmp_path / "bench.yaml"
+    path.write_text(mission_yaml(0))
+    times = _btcpp.tick_times(str(path), {"BenchWork": Work}, 10)
+    out = _btcpp.figures(times, 0.0003)
+    assert out["btcpp_tick_ms"] is None and out["tick_ratio_vs_btcpp"] is None
+    assert "behaviortreepy is not installed" in out["btcpp_note"]
