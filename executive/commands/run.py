@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import sys
+import time
 
 from executive.cliutil import add_run_arguments, make_executive, run_to_end
 
@@ -14,12 +15,43 @@ def register(sub) -> None:
                                    "it succeeds, 1 when it fails or is cancelled.")
     add_run_arguments(p)
     p.add_argument("--quiet", action="store_true", help="print only the outcome")
+    add_groot2_arguments(p)
+    p.add_argument("--groot2-linger", type=float, default=0.0, metavar="SECONDS",
+                   help="with --groot2: keep publishing the ended mission this long (a "
+                        "simulated run may end before a viewer attaches)")
     p.set_defaults(func=_run)
+
+
+def add_groot2_arguments(p) -> None:
+    p.add_argument("--groot2", nargs="?", type=int, const=1667, default=None, metavar="PORT",
+                   help="publish the running tree and its statuses over the Groot2 protocol "
+                        "(Groot2, btview) on PORT and PORT+1 (default 1667)")
+    p.add_argument("--groot2-host", default="127.0.0.1", metavar="HOST",
+                   help="address the Groot2 publisher binds (default 127.0.0.1; the protocol "
+                        "has no authentication)")
+
+
+def start_groot2(args, executive):
+    """The Groot2 publisher asked for by --groot2 (None when not asked)."""
+    if args.groot2 is None:
+        return None
+    from executive.groot2 import Groot2Publisher
+    pub = Groot2Publisher(executive, port=args.groot2, host=args.groot2_host)
+    print(f"groot2: publishing on tcp://{args.groot2_host}:{pub.port} (and {pub.port + 1})",
+          file=sys.stderr, flush=True)
+    return pub
 
 
 def _run(args) -> int:
     mission, params, ex = make_executive(args)
-    result = run_to_end(ex, mission, params, quiet=args.quiet)
+    pub = start_groot2(args, ex)
+    try:
+        result = run_to_end(ex, mission, params, quiet=args.quiet)
+        if pub is not None and args.groot2_linger > 0:
+            time.sleep(args.groot2_linger)
+    finally:
+        if pub is not None:
+            pub.close()
     print(f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
           f"{result.duration:.2f} s; log {result.log_path}", file=sys.stderr if args.quiet else sys.stdout)
     return 0 if result.outcome == "succeeded" else 1

@@ -11,6 +11,7 @@ import os
 import sys
 
 from executive.cliutil import DEFAULT_WORLD, make_world_and_robot
+from executive.commands.run import add_groot2_arguments, start_groot2
 from hearth import missions_dir
 
 DEFAULT_MISSIONS = missions_dir()
@@ -40,6 +41,7 @@ def register(sub) -> None:
                         "default 3: never ask)")
     p.add_argument("--approval-timeout", type=float, default=120.0,
                    help="seconds to wait for an approval before the skill fails")
+    add_groot2_arguments(p)
     p.set_defaults(func=_serve)
 
 
@@ -69,7 +71,9 @@ def _serve(args: argparse.Namespace) -> int:
     for line in service.catalogue_problems:
         print(f"hearth serve: skipped {line}", file=sys.stderr)
     names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
+    pub = None
     try:
+        pub = start_groot2(args, service.executive)
         try:
             sock = bind_socket(args.host, args.port)
         except OSError as err:
@@ -81,6 +85,8 @@ def _serve(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
         make_server(create_app(service, token=args.token)).run(sockets=[sock])
     finally:
+        if pub is not None:
+            pub.close()
         service.executive.shutdown()
         service.close()
     return 0

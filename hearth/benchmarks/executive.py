@@ -30,6 +30,7 @@ from pathlib import Path
 import py_trees
 from py_trees import common
 
+from hearth.benchmarks import _btcpp
 from skills.base import Bindings, Port, Skill
 
 GROUPS = 18
@@ -149,6 +150,8 @@ def run(args) -> dict:
         ex.run_until_idle(100)
         ex.shutdown()
         log_lines = sum(1 for _ in open(handle.log_path))
+        # The same tree, exported and ticked by BehaviorTree.CPP (hearth/benchmarks/_btcpp.py).
+        btcpp_times = _btcpp.tick_times(str(path), {"BenchWork": Work}, len(h_times), warmup)
 
     d_med, h_med = statistics.median(d_times), statistics.median(h_times)
     d_mean, h_mean = statistics.fmean(d_times), statistics.fmean(h_times)
@@ -168,6 +171,7 @@ def run(args) -> dict:
         "tick_overhead_ratio_bare_mean": round(h_mean / d_mean, 3),
         "events_per_tick": round(log_lines / (len(h_times) + warmup), 2),
         "log_lines": log_lines,
+        **_btcpp.figures(btcpp_times, h_med),
         "targets": {"tick_overhead_ratio": 1.3, "tick_ms": 1.0},
         "seed": seed,
     }

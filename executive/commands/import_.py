@@ -1,0 +1,33 @@
+"""`hearth import TREE.xml [-o MISSION.yaml]`: a BehaviorTree.CPP v4 XML tree as a mission.
+
+(The module is ``import_`` because ``import`` is a Python keyword; the command is ``import``.)
+"""
+from __future__ import annotations
+
+import sys
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import", help="read a BehaviorTree.CPP v4 XML tree as a mission",
+                       description="Read BehaviorTree.CPP v4 XML (Groot2, Nav2) and write the "
+                                   "mission YAML, checked like any mission. A leaf that is no "
+                                   "registered skill, an undeclared port, a node Hearth does "
+                                   "not map, an XML entity or a syntax error is one "
+                                   "'file:line: message' and exit status 2.")
+    p.add_argument("tree", metavar="TREE.xml")
+    p.add_argument("-o", "--output", metavar="MISSION.yaml", help="write here (default: stdout)")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from executive.btcpp import import_tree
+    from executive.commands.export import write_atomically
+    text, mission = import_tree(args.tree)
+    if args.output:
+        write_atomically(args.output, text)
+        nodes = sum(1 for _ in mission.nodes())
+        print(f"{args.tree}: mission {mission.name} ({nodes} nodes) written to {args.output}",
+              file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0
