@@ -235,11 +235,11 @@ class Remember(Skill):
         return S.SUCCESS
 
 
-class SetBlackboard(Skill):
-    """Write a value to a key (BehaviorTree.CPP's SetBlackboard): start a list afresh before
+class SetValue(Skill):
+    """Write a value to a key (like BehaviorTree.CPP's SetBlackboard): start a list afresh before
     a loop collects into it."""
 
-    NAME = "SetBlackboard"
+    NAME = "SetValue"
     DESCRIPTION = "write a value to a blackboard key"
     INPUTS = (Port("value", "any", required=False, default=None),)
     OUTPUTS = (Port("output", "any", required=False),)
@@ -268,7 +268,7 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "SetBlackboard", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
+           "Remember", "SetValue", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
 
 
 def look_target(world, target: Any, focus: str = "centre"):

@@ -33,8 +33,8 @@ def test_btcpps_factory_refuses_what_is_wrong(tmp_path):
     """The check is BT.CPP's own: a subtree's mandatory port left out, a built-in node's
     port that does not convert, a SubTree ID that names no tree."""
     xml = export_mission(Path(_btcpp.__file__).parents[2] / "missions" / "search_object.yaml")
-    missing_port = xml.replace('<SubTree ID="look_here" object_id="{object_id}" pose="{pose}"/>',
-                               '<SubTree ID="look_here" pose="{pose}"/>')
+    missing_port = xml.replace('<SubTree ID="look_here" object_id="{object_id}" place="{place}" pose="{pose}"/>',
+                               '<SubTree ID="look_here" place="{place}" pose="{pose}"/>')
     assert missing_port != xml
     with pytest.raises(RuntimeError, match=r"mandatory port called \[object_id\]"):
         _btcpp.standin_tree(missing_port)
