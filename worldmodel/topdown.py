@@ -71,7 +71,7 @@ def draw(world, overlay: Optional[Overlay] = None, px_per_m: int = 90, margin_m:
     # Labels last, so none is painted over; rooms first, so they keep their places.
     for r, cs in zip(rooms, corners):
         # Near the room's (xmin, ymin) corner, inside the room whatever its turn.
-        inner = room_corners_inset(r, 0.15)
+        inner = room_corners_inset(r, 0.25)
         labels.put(r.name, px(*inner), 0.6, (80, 80, 80))
     for obj in world.large_objects():
         c = world.T_world(obj.id)[:2, 3]
@@ -96,9 +96,15 @@ FOUND = (20, 170, 40)
 
 
 def room_corners_inset(room, inset: float) -> tuple[float, float]:
-    """World x, y of the room's (xmin, ymin) corner moved ``inset`` metres into the room."""
-    x0, y0, _x1, _y1 = room.bounds
-    return tuple(transform_xy(room.pose.matrix(), [(x0 + inset, y0 + inset)])[0])
+    """Where a room's name goes: its corner furthest to the left in the picture (the text
+    runs to the right), moved ``inset`` metres towards the room's centre along each side."""
+    cs = room_corners(room)
+    i = int(np.argmin(cs[:, 0] - 1e-3 * cs[:, 1]))
+    c = cs[i]
+    a, b = cs[(i + 1) % 4] - c, cs[(i - 1) % 4] - c
+    p = c + inset * a / np.linalg.norm(a) + inset * b / np.linalg.norm(b)
+    # Text sits above its origin: start from the lower of the two ways into the room.
+    return float(p[0]), float(p[1])
 
 
 class _Labels:
