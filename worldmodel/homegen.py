@@ -118,7 +118,7 @@ class HomeConfig:
         if self.knobs_per_appliance[0] < 1 or self.max_knobs < self.knobs_per_appliance[0]:
             raise HomeGenError("home config: max_knobs must be at least knobs_per_appliance[0] "
                                "(every kitchen has an appliance with knobs)")
-        if not 0.35 <= self.table_height[0] and self.table_height[1] <= 1.15:
+        if not (0.35 <= self.table_height[0] and self.table_height[1] <= 1.15):
             raise HomeGenError(f"home config: table_height must be within 0.35..1.15 m (the "
                                f"camera must see the top), not {self.table_height}")
         for name, v in self.__dict__.items():
@@ -325,6 +325,11 @@ class _Ctx:
 
 # -- parking candidates and views ---------------------------------------------------------------
 
+def _facing(x: float, y: float, tx: float, ty: float) -> Pose:
+    """A base pose at (x, y) looking at (tx, ty) (object frame)."""
+    return Pose.planar(_mm(x), _mm(y), _deg(math.atan2(ty - y, tx - x)))
+
+
 def front_parking(ctx: _Ctx, oid: str, front_x: float, width: float) -> list[ParkingPosition]:
     """Front, left and right parking positions facing a front at x = ``front_x`` (object
     frame), looking at its centre: the robot centre ``parking_distance`` from the face, then
@@ -334,34 +339,28 @@ def front_parking(ctx: _Ctx, oid: str, front_x: float, width: float) -> list[Par
     d = _mm(ctx.u(*ctx.cfg.parking_distance))
     ladder = [d + b for b in (0.0, 0.15, 0.3, 0.45)] + [x for x in (lo + 0.1, lo) if x < d]
     spread = _mm(min(max(width / 2 * ctx.u(0.6, 1.0), 0.25), 0.6))
-    out = []
-    for name, y in (("front", 0.0), ("left", spread), ("right", -spread)):
-        for dist in ladder:
-            x = _mm(front_x + dist)
-            yaw = _deg(math.atan2(-y, front_x - x))
-            out.append(ParkingPosition(f"{oid}_{name}", Pose.planar(x, y, yaw)))
-    return out
+    return [ParkingPosition(f"{oid}_{name}", _facing(front_x + dist, y, front_x, 0.0))
+            for name, y in (("front", 0.0), ("left", spread), ("right", -spread))
+            for dist in ladder]
 
 
 def around_parking(ctx: _Ctx, oid: str, sx: float, sy: float) -> list[ParkingPosition]:
-    """Parking positions on each side of a table (the long sides first), looking at its
-    centre; long sides get two."""
+    """Parking positions on each side of an sx x sy table (the long sides first) looking at
+    its centre; a long table gets one more on each long side, looking straight at it."""
     d = _mm(ctx.u(0.5, 0.75))
-    out = []
+    long_x = sx >= sy
     sides = [("south", 0.0, -(sy / 2 + d)), ("north", 0.0, sy / 2 + d),
              ("west", -(sx / 2 + d), 0.0), ("east", sx / 2 + d, 0.0)]
-    if sx < sy:
+    if not long_x:
         sides = sides[2:] + sides[:2]
-    for name, x, y in sides:
-        out.append(ParkingPosition(f"{oid}_{name}", Pose.planar(_mm(x), _mm(y),
-                                                                 _deg(math.atan2(-y, -x)))))
-    if max(sx, sy) > 1.3:     # a long table: two more along its long sides
+    out = [ParkingPosition(f"{oid}_{name}", _facing(x, y, 0.0, 0.0)) for name, x, y in sides]
+    if max(sx, sy) > 1.3:
         a = max(sx, sy) / 4
-        for name, x, y in ((f"south_2", a, -(sy / 2 + d)), (f"north_2", -a, sy / 2 + d)) \
-                if sx >= sy else ((f"west_2", -(sx / 2 + d), a), (f"east_2", sx / 2 + d, -a)):
-            tx, ty = (x, 0.0) if sx >= sy else (0.0, y)
-            out.append(ParkingPosition(f"{oid}_{name}", Pose.planar(
-                _mm(x), _mm(y), _deg(math.atan2(ty - y, tx - x)))))
+        extra = ([("south_2", a, -(sy / 2 + d), a, 0.0), ("north_2", -a, sy / 2 + d, -a, 0.0)]
+                 if long_x else
+                 [("west_2", -(sx / 2 + d), a, 0.0, a), ("east_2", sx / 2 + d, -a, 0.0, -a)])
+        out += [ParkingPosition(f"{oid}_{name}", _facing(x, y, tx, ty))
+                for name, x, y, tx, ty in extra]
     return out
 
 
@@ -414,7 +413,7 @@ def _keep_visible(cfg: HomeConfig, piece: Piece) -> None:
 def _surface_views(surfaces: list[Surface], headroom: dict, front_x: float, cfg: HomeConfig,
                    open_above: set) -> list[View]:
     """Views of the surfaces small objects may go on: the top of those open above, through
-    the front opening for the others (a point 5 cm in from the front edge, a little up)."""
+    the front opening for the others (a point 6 cm in from the front edge, a little up)."""
     out = []
     for s in surfaces:
         if s.pose.z > cfg.max_object_height or s.relation == "under":
@@ -464,7 +463,8 @@ def table(ctx: _Ctx, kind: str = "table") -> Piece:
                                    (h - t) / 2, color=color, name="leg"))
         surface = Surface("top", Pose(0, 0, h), _mm(2 * r * 0.68), _mm(2 * r * 0.68))
     else:
-        if kind in ("desk", "counter") or ctx.chance(0.2):      # long and narrow
+        if kind in ("desk", "counter") or (kind in ("table", "dining", "side") and ctx.chance(0.2)):
+            # long and narrow
             sx, sy = _mm(ctx.u(1.2, 1.9)), _mm(ctx.u(0.4, 0.6))
         elif kind in ("side", "bedside"):
             sx, sy = _mm(ctx.u(0.4, 0.7)), _mm(ctx.u(0.35, 0.55))
@@ -681,8 +681,7 @@ def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
         description=f"{'tall ' if tall else ''}{names[kind]}, {len(parts)} door{'s' if two else ''}")
     front = D / 2 + dt + 0.002
     views = [View("face", (front, 0.0, lift + min(H / 2, 1.0)))]
-    views += _surface_views(_lifted(surfaces, lift), {k: v for k, v in headroom.items()},
-                            D / 2, cfg, open_above)
+    views += _surface_views(_lifted(surfaces, lift), headroom, D / 2, cfg, open_above)
     reach = [tuple(_handle_point(p, lift)) for p in parts]
     piece = Piece(obj, "free" if not wall and ctx.chance(cfg.free_standing_probability) else "wall",
                   front_parking(ctx, oid, front, W), views=views, reach=reach, headroom=headroom,
