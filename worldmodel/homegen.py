@@ -763,7 +763,7 @@ def fridge(ctx: _Ctx) -> Piece:
     two = ctx.chance(0.5)
     split = _mm(ctx.u(0.55, 0.8)) if two else plinth
     shelves = _shelf_levels(ctx, split + t, H - t, ctx.i(2, 3), 0.22)
-    v = [x for x in _carcass(D, W, H, color, t, plinth, shelves=shelves)]
+    v = _carcass(D, W, H, color, t, plinth, shelves=shelves)
     if two:
         v.append(box(D - t - 0.01, W - 2 * t, t, -0.005 + t / 2, 0, split - t / 2, color=color,
                      name="divider"))
