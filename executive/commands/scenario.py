@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 from executive.cliutil import DEFAULT_WORLD
 
@@ -10,7 +11,8 @@ def register(sub) -> None:
     p = sub.add_parser("scenario", help="make a simulation scenario (belief, truth, start pose)",
                        description="Perturb a world's truth from a seed (moved objects, ajar "
                                    "doors, knobs on, clutter, occluders, localisation error) "
-                                   "and write belief.xml, truth.xml and scenario.json.")
+                                   "and write belief.xml, truth.xml and scenario.json, with "
+                                   "copies of the meshes the world refers to.")
     s = p.add_subparsers(dest="scenario_command", required=True)
     m = s.add_parser("make", help="write a scenario directory")
     m.add_argument("--world", default=str(DEFAULT_WORLD), help="world file")
@@ -23,7 +25,11 @@ def _make(args) -> int:
     from hearth.robot.scenario import make_scenario, save_scenario
     from worldmodel.io import load_world
     sc = make_scenario(load_world(args.world), args.seed)
-    save_scenario(sc, args.out)
+    try:
+        save_scenario(sc, args.out)
+    except OSError as err:
+        print(f"{args.out}: cannot write the scenario: {err.strerror or err}", file=sys.stderr)
+        return 2
     e = sc.localisation_error
     print(f"scenario {args.seed} in {args.out}: {len(sc.perturbations)} changes to the truth, "
           f"localisation error {math.hypot(e.x, e.y) * 100:.1f} cm / {math.degrees(e.yaw):.1f} deg")
@@ -34,4 +40,6 @@ def _make(args) -> int:
         print(f"  stuck knob: {k}")
     for d in sc.locked:
         print(f"  locked: {d}")
+    for n in sc.notes:
+        print(f"  note: {n}")
     return 0

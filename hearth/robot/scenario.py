@@ -5,16 +5,23 @@ the *truth* is perturbed with a numpy Generator seeded by ``seed`` (so a seed al
 the same scenario):
 
 - small objects moved to other supporting surfaces (the ``surface`` elements of large
-  objects: table tops, shelves), at free spots;
+  objects: table tops, shelves) with room above them for the object, at free spots;
 - doors and drawers left ajar, knobs turned on;
-- clutter (small boxes and cylinders) and taller occluders put on tables, unknown to the
-  belief;
+- clutter (small boxes and cylinders) and taller occluders put on surfaces open enough above
+  (table tops; shelves only where the shelf above leaves room), unknown to the belief;
 - a true start pose at a parking position and a localisation error (believed = true composed
   with the error, body frame);
 - optionally a stuck knob and a locked door.
 
+Everything perturbed is taken from the map (its surfaces, parts, knobs and parking
+positions), so any valid world works; a world the tool cannot use (no parking position to
+start the robot at) is one ``RobotError`` line naming the node. A world without surfaces
+gets no moved objects, clutter or occluders, and ``Scenario.notes`` says so.
+
 ``save_scenario`` writes ``belief.xml``, ``truth.xml`` (worldmodel XML) and
-``scenario.json`` (format below, versioned); ``load_scenario`` reads them back.
+``scenario.json`` (format below, versioned), and copies the files the world refers to
+(meshes, point clouds) into the scenario directory, so that both maps validate there;
+``load_scenario`` reads them back.
 
 scenario.json (version 1)::
 
@@ -69,22 +76,34 @@ class Scenario:
     perturbations: list[dict] = field(default_factory=list)
     source: str = ""
     directory: Optional[Path] = None
+    notes: list[str] = field(default_factory=list)
 
 
 def make_scenario(world, seed: int, config: ScenarioConfig = ScenarioConfig()) -> Scenario:
     """A scenario from ``world`` (left unchanged) and ``seed``."""
     rng = np.random.default_rng(seed)
+    _check_usable(world)
     belief = world.copy()
     truth = world.copy()
     log: list[dict] = []
+    notes: list[str] = []
     surfaces = _surfaces(truth)
+    room = _headroom(truth, surfaces)
     # Small objects to other surfaces.
     small = sorted(o.id for o in truth.small_objects())
     n = min(int(rng.integers(config.moved_objects[0], config.moved_objects[1] + 1)), len(small))
+    if n and not surfaces:
+        notes.append("no <surface> in the map: no small object moved, no clutter put down")
+        n = 0
     for oid in rng.choice(small, size=n, replace=False) if n else []:
         oid = str(oid)
         here = truth.parent(oid).id
-        options = [s for s in surfaces if s[0] != here] or surfaces
+        height = _height(truth, oid) + 0.01
+        fits = [s for s in surfaces if room[(s[0], s[1].id)] >= height]
+        options = [s for s in fits if s[0] != here] or fits
+        if not options:
+            notes.append(f"{oid}: no surface has room for it; not moved")
+            continue
         spot = _free_spot(truth, options, rng)
         if spot is None:
             continue
@@ -110,15 +129,19 @@ def make_scenario(world, seed: int, config: ScenarioConfig = ScenarioConfig()) -
         state = str(rng.choice(on))
         truth.set_knob_state(knob.id, state, source="scenario")
         log.append(dict(kind="knob", knob=knob.id, state=state))
-    # Clutter and occluders on tables, unknown to the belief.
-    tops = [s for s in surfaces if s[1].relation == "on"]
+    # Clutter and occluders on surfaces open enough above (table tops), unknown to the belief.
     for kind, (lo_n, hi_n) in (("clutter", config.clutter), ("occluder", config.occluders)):
+        tops = [s for s in surfaces if s[1].relation == "on"
+                and room[(s[0], s[1].id)] >= CLUTTER_HEIGHT[kind] + 0.02]
         for i in range(int(rng.integers(lo_n, hi_n + 1)) if tops else 0):
             spot = _free_spot(truth, tops, rng)
             if spot is None:
                 continue
             parent, surface, pose = spot
-            obj = _clutter(f"{kind}_{i}", kind, rng, pose)
+            oid = f"{kind}_{i}"
+            while oid in truth:
+                oid += "_"
+            obj = _clutter(oid, kind, rng, pose)
             truth.add_small_object(obj, parent, source="scenario")
             log.append(dict(kind=kind, object=obj.id, parent=parent, pose=pose.as_dict()))
     # Start pose and localisation error.
@@ -138,14 +161,16 @@ def make_scenario(world, seed: int, config: ScenarioConfig = ScenarioConfig()) -
         locked.append(str(rng.choice(doors)))
     return Scenario(seed=int(seed), belief=belief, truth=truth, start_pose=start,
                     localisation_error=error, stuck_knobs=stuck, locked=locked,
-                    perturbations=log, source=str(world.path or ""))
+                    perturbations=log, source=str(world.path or ""), notes=notes)
 
 
 def save_scenario(scenario: Scenario, directory) -> Path:
-    """Write belief.xml, truth.xml and scenario.json into ``directory`` (created)."""
+    """Write belief.xml, truth.xml and scenario.json into ``directory`` (created), with copies
+    of the mesh and point-cloud files the maps refer to (``copy_world_files``)."""
     from worldmodel.io import save_world
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
+    copy_world_files([scenario.belief, scenario.truth], d)
     save_world(scenario.belief, d / "belief.xml")
     save_world(scenario.truth, d / "truth.xml")
     meta = dict(version=VERSION, seed=scenario.seed, source=scenario.source,
@@ -200,6 +225,67 @@ def load_scenario(directory, clock=None) -> Scenario:
         raise RobotError(f"bad scenario field: {err}", file=str(path)) from None
 
 
+def copy_world_files(worlds, directory) -> None:
+    """Copy the files ``worlds`` refer to (mesh visuals, room point clouds; relative to each
+    world's ``base_dir``) into ``directory``, so world files saved there validate.
+
+    A relative path inside the world's folder keeps its path (``meshes/door.ply`` lands in
+    ``directory/meshes/door.ply``); any other (absolute, or leading out with ``..``) is copied
+    to ``directory/files/`` under a name made unique by a hash of its source path, and the
+    maps are rewritten to it. Each world's ``base_dir`` becomes ``directory``. RobotError
+    naming the node when a file is missing."""
+    import hashlib
+    import os
+    import shutil
+    d = Path(directory)
+    copied: dict[Path, str] = {}
+    for world in worlds:
+        base = Path(world.base_dir) if world.base_dir is not None else Path.cwd()
+        for node_id, holder, attr in _file_refs(world):
+            rel = getattr(holder, attr)
+            src = (base / rel).resolve()
+            if src not in copied:
+                if not src.is_file():
+                    raise RobotError(f"{attr if attr != 'file' else 'mesh'} file {rel!r} not found "
+                                     f"(looked in {base})", node=node_id)
+                inside = not os.path.isabs(rel) and ".." not in Path(rel).parts
+                new = Path(rel).as_posix() if inside else (
+                    f"files/{hashlib.sha1(str(src).encode()).hexdigest()[:10]}-{src.name}")
+                dst = d / new
+                if dst.resolve() != src:
+                    dst.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copyfile(src, dst)
+                copied[src] = new
+            setattr(holder, attr, copied[src])
+        world.base_dir = d.resolve()
+
+
+def _file_refs(world):
+    """(node id, object, attribute) for every file reference of a world: mesh visuals of the
+    library and of every node, and room point clouds."""
+    from worldmodel.validate import iter_nodes
+    ap = world.apartment
+    for mid, model in ap.library.items():
+        for v in model.visuals:
+            if v.shape == "mesh" and v.file:
+                yield mid, v, "file"
+    for node, _ in iter_nodes(ap):
+        model = getattr(node, "model", None)
+        for v in (model.visuals if model is not None else []):
+            if v.shape == "mesh" and v.file:
+                yield node.id, v, "file"
+        if getattr(node, "kind", "") == "Room" and node.pointcloud:
+            yield node.id, node, "pointcloud"
+
+
+def _check_usable(world) -> None:
+    """RobotError naming the node when a scenario cannot be made from ``world``."""
+    if not any(o.parking for o in world.large_objects()):
+        raise RobotError("the map has no parking position to start the robot at (add a large "
+                         "object with <parking>; docs/world-format.md)",
+                         node=world.apartment.id)
+
+
 def _planar_dict(p: Pose) -> dict:
     return dict(x=p.x, y=p.y, yaw=p.yaw)
 
@@ -209,6 +295,43 @@ def _surfaces(world) -> list:
     for obj in sorted(world.large_objects(), key=lambda o: o.id):
         for s in obj.surfaces:
             out.append((obj.id, s))
+    return out
+
+
+#: The tallest clutter and occluder ``_clutter`` makes (metres).
+CLUTTER_HEIGHT = {"clutter": 0.15, "occluder": 0.33}
+
+
+def _height(world, object_id: str) -> float:
+    """Height (metres) of a small object's model above its base."""
+    from worldmodel.geometry import small_object_meshes
+    meshes = small_object_meshes(world, world.get(object_id), T_world_object=np.eye(4))
+    z = [np.asarray(m.mesh.vertices)[:, 2].max() for m in meshes if len(m.mesh.vertices)]
+    return float(max(z)) if z else 0.0
+
+
+def _headroom(world, surfaces) -> dict:
+    """(object id, surface id) -> free height above the surface (metres; inf when nothing of
+    its object is above it): up to the next surface of the same object above it (less a
+    board's thickness), else up to the object's top when the surface is inside it."""
+    from worldmodel.geometry import object_meshes
+    tops = {}
+    out = {}
+    for oid, s in surfaces:
+        if oid not in tops:
+            obj = world.get(oid)
+            meshes = object_meshes(world, obj, T_world_object=np.eye(4), children=False)
+            z = [np.asarray(m.mesh.vertices)[:, 2].max() for m in meshes if len(m.mesh.vertices)]
+            tops[oid] = float(max(z)) if z else -math.inf
+        above = [o.pose.z for o2, o in surfaces if o2 == oid and o.pose.z > s.pose.z + 1e-6
+                 and abs(o.pose.x - s.pose.x) < (o.size_x + s.size_x) / 2
+                 and abs(o.pose.y - s.pose.y) < (o.size_y + s.size_y) / 2]
+        if above:
+            out[(oid, s.id)] = min(above) - s.pose.z - 0.03
+        elif s.pose.z < tops[oid] - 0.03:
+            out[(oid, s.id)] = tops[oid] - s.pose.z - 0.03
+        else:
+            out[(oid, s.id)] = math.inf
     return out
 
 

@@ -54,3 +54,107 @@ def test_broken_scenarios_are_one_clear_line(demo_world, tmp_path):
     (tmp_path / "scenario.json").write_text("{not json")
     with pytest.raises(robot.RobotError, match="corrupt scenario"):
         load_scenario(tmp_path)
+
+
+# -- any world: one clear line for what cannot be used, scenarios that validate anywhere --------
+
+_NO_SURFACE = """<?xml version='1.0' encoding='UTF-8'?>
+<apartment id="flat" version="1">
+  <room id="hall" name="hall" bounds="0 0 4 3">
+    <LargeObject id="stool" type="stool">
+      <pose x="2" y="1.5"/>
+      <model><box size="0.4 0.4 0.5" color="0.5 0.4 0.3"><pose z="0.25"/></box>{mesh}</model>
+      <parking default="p"><position id="p" x="-0.8" y="0" yaw="0"/></parking>
+      <SmallObject id="key" type="key" color="grey">
+        <pose z="0.5"/>
+        <model><box size="0.05 0.02 0.01" color="0.5 0.5 0.5"/></model>
+      </SmallObject>
+    </LargeObject>
+  </room>
+</apartment>
+"""
+
+
+def test_a_world_with_a_small_object_and_no_surface_gets_a_scenario_and_a_note(tmp_path, capsys):
+    from executive.cli import main
+    world = tmp_path / "w.xml"
+    world.write_text(_NO_SURFACE.format(mesh=""))
+    assert main(["scenario", "make", "--world", str(world), "--seed", "1",
+                 "--out", str(tmp_path / "sc")]) == 0
+    out = capsys.readouterr().out
+    assert "note: no <surface> in the map: no small object moved, no clutter put down" in out
+    sc = load_scenario(tmp_path / "sc")
+    assert sc.truth.parent("key").id == "stool"
+
+
+def test_a_world_the_scenario_tool_cannot_use_is_one_line_naming_the_node(tmp_path, capsys):
+    from executive.cli import main
+    world = tmp_path / "empty.xml"
+    world.write_text("<?xml version='1.0'?>\n<apartment id=\"flat\" version=\"1\">"
+                     "<room id=\"hall\" name=\"hall\" bounds=\"0 0 4 3\"/></apartment>\n")
+    assert main(["scenario", "make", "--world", str(world), "--out", str(tmp_path / "sc")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("node flat: the map has no parking position to start the robot at (add a "
+                   "large object with <parking>; docs/world-format.md)")
+    assert not (tmp_path / "sc").exists()
+
+
+def test_a_scenario_of_a_generated_home_validates_where_its_meshes_are(tmp_path, capsys):
+    from executive.cli import main
+    from worldmodel.homegen import make_home
+    from worldmodel.io import validate_file
+    home = make_home(2, tmp_path / "home")
+    meshes = sorted(p.name for p in (tmp_path / "home" / "meshes").iterdir())
+    assert meshes, "seed 2 has no mesh: pick a seed that has"
+    out = tmp_path / "elsewhere" / "sc"
+    assert main(["scenario", "make", "--world", str(home), "--seed", "4", "--out", str(out)]) == 0
+    assert validate_file(out / "truth.xml") == [] and validate_file(out / "belief.xml") == []
+    assert sorted(p.name for p in (out / "meshes").iterdir()) == meshes
+    sc = load_scenario(out)
+    r = robot.create_adapter(world=sc.belief, scenario=str(out), clock=SimClock())
+    frame = r.capture()
+    assert (frame.depth > 0).mean() > 0.5
+
+
+def test_mesh_files_outside_the_world_folder_are_copied_and_the_maps_rewritten(tmp_path):
+    from worldmodel.io import load_world, validate_file
+    (tmp_path / "shared").mkdir()
+    (tmp_path / "flat").mkdir()
+    ply = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+           "end_header\n0 0 0\n0.1 0 0\n0 0.1 0\n3 0 1 2\n")
+    (tmp_path / "shared" / "leg.ply").write_text(ply)
+    world = tmp_path / "flat" / "w.xml"
+    world.write_text(_NO_SURFACE.format(mesh='<mesh file="../shared/leg.ply"/>'))
+    sc, later = make_scenario(load_world(world), seed=0), make_scenario(load_world(world), seed=0)
+    save_scenario(sc, tmp_path / "sc")
+    assert validate_file(tmp_path / "sc" / "truth.xml") == []
+    copied = list((tmp_path / "sc" / "files").iterdir())
+    assert len(copied) == 1 and copied[0].name.endswith("-leg.ply")
+    assert f'file="files/{copied[0].name}"' in (tmp_path / "sc" / "truth.xml").read_text()
+    (tmp_path / "shared" / "leg.ply").unlink()
+    with pytest.raises(robot.RobotError) as err:
+        save_scenario(later, tmp_path / "sc2")
+    assert str(err.value) == (f"node stool: mesh file '../shared/leg.ply' not found (looked in "
+                              f"{tmp_path / 'flat'})")
+
+
+def test_what_a_scenario_puts_on_shelves_fits_under_the_shelf_above(tmp_path):
+    from hearth.robot.scenario import ScenarioConfig, _headroom, _height, _surfaces
+    from worldmodel.homegen import generate_home
+    cfg = ScenarioConfig(moved_objects=(3, 3), clutter=(4, 4), occluders=(2, 2))
+    shelves = 0
+    for seed in range(6):
+        world = generate_home(seed, mesh_dir=tmp_path)
+        sc = make_scenario(world, seed, cfg)
+        room = _headroom(sc.truth, _surfaces(sc.truth))
+        for p in sc.perturbations:
+            if p["kind"] not in ("moved", "clutter", "occluder"):
+                continue
+            oid = p["object"]
+            parent = sc.truth.parent(oid)
+            z = sc.truth.get(oid).pose.z
+            surf = next(s for s in parent.surfaces if abs(s.pose.z - z) < 1e-6)
+            assert _height(sc.truth, oid) <= room[(parent.id, surf.id)], (seed, p)
+            shelves += room[(parent.id, surf.id)] < 1.0
+    assert shelves > 0
