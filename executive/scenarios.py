@@ -227,12 +227,15 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
         surf = place.surfaces[int(rng.integers(len(place.surfaces)))]
     others = [c for c in place.children if c.id != object_id
               and abs(c.pose.z - surf.pose.z) < 0.05]
+    T = surf.pose.matrix()      # surface frame in the place's frame (it may be turned)
     for _ in range(60):
-        x = surf.pose.x + rng.uniform(-0.35, 0.35) * surf.size_x
-        y = surf.pose.y + rng.uniform(-0.35, 0.35) * surf.size_y
+        u = rng.uniform(-0.35, 0.35) * surf.size_x
+        v = rng.uniform(-0.35, 0.35) * surf.size_y
+        x, y, z = (T @ np.array([u, v, 0.0, 1.0]))[:3]
         if all(math.hypot(x - o.pose.x, y - o.pose.y) > 0.15 for o in others):
             world.move_object(object_id, place_id,
-                              Pose(x, y, surf.pose.z, 0.0, 0.0, float(rng.uniform(-math.pi, math.pi))),
+                              Pose(float(x), float(y), float(z), 0.0, 0.0,
+                                   float(rng.uniform(-math.pi, math.pi))),
                               relation=surf.relation, source=source)
             return True
     return False
