@@ -216,12 +216,13 @@ class Guard:
     read, or once the bytes counted as they arrive pass the limit (a chunked body): 413, and
     the connection is closed rather than drained.
 
-    Written here, not with Starlette's TrustedHostMiddleware and body-limit middleware: those
-    take a fixed list (the address a connection came in on is what a server bound to 0.0.0.0
-    serves) and answer in plain text; these answers are the API's JSON errors.
+    Written here rather than with Starlette's TrustedHostMiddleware and body-limit middleware:
+    the first takes a fixed list of names (a server bound to 0.0.0.0 serves the address each
+    connection came in on), and both answer in plain text, not with the API's JSON errors.
     """
 
-    def __init__(self, app: Any, allowed_hosts: Iterable[str] = (), max_body: int = MAX_BODY_BYTES):
+    def __init__(self, app: Any, allowed_hosts: Iterable[str] = (),
+                 max_body: int = MAX_BODY_BYTES):
         self.app = app
         self.allowed_hosts = tuple(allowed_hosts)
         self.max_body = max_body
@@ -238,7 +239,10 @@ class Guard:
                 length = value.decode("latin-1")
         local = (scope.get("server") or (None,))[0]
         if host is not None and not host_is_served(host, local, self.allowed_hosts):
-            names = sorted({"localhost", *(a for a in self.allowed_hosts)} | ({local} if local else set()))
+            here = _ip(local)
+            names = [str(here)] if here is not None else []
+            names += ["localhost"] if here is None or here.is_loopback else []
+            names += [a for a in self.allowed_hosts if a not in names]
             await _refuse(scope, receive, send, 421,
                           f"this server does not serve the host {_host_name(host)!r} (it "
                           f"serves {', '.join(names)}); add a name with hearth serve "
