@@ -149,9 +149,10 @@ def _error(status: int, message: str, **extra: Any) -> JSONResponse:
 
 
 def _check_token(expected: str | None, in_query: bool = False):
-    """A dependency: the token from a header (and, with ``in_query``, from ``?token=``)."""
-    def check(request: Request, authorization: str | None = Header(default=None),
-              x_hearth_token: str | None = Header(default=None)) -> None:
+    """A dependency: the token from a header (and, with ``in_query``, from ``?token=``).
+    Async, so that FastAPI runs it on the event loop instead of handing it to a thread."""
+    async def check(request: Request, authorization: str | None = Header(default=None),
+                    x_hearth_token: str | None = Header(default=None)) -> None:
         if expected is None:
             return
         given = x_hearth_token or (request.query_params.get("token") if in_query else None)
