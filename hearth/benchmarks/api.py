@@ -169,7 +169,7 @@ async def _clients(url, clients, rounds, think_s, seed, tag, monitor, limit, rea
 
     # Made before the clock starts: an httpx client loads CA certificates when made.
     made = [httpx.AsyncClient(base_url=url, timeout=60.0,
-                              limits=httpx.Limits(max_connections=2)) for _ in clients]
+                              limits=httpx.Limits(max_connections=4)) for _ in clients]
     watcher = None
     if monitor:
         opened = asyncio.Event()
