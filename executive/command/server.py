@@ -59,23 +59,29 @@ def bind_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
-def make_server(app: Any, log_level: str = "warning") -> uvicorn.Server:
+def make_server(app: Any, log_level: str = "warning", *, tls_cert: str | None = None,
+                tls_key: str | None = None) -> uvicorn.Server:
+    """uvicorn for ``app``; with ``tls_cert`` and ``tls_key`` (PEM files) it serves HTTPS."""
     config = uvicorn.Config(app, log_level=log_level, access_log=False,
-                            timeout_graceful_shutdown=1, lifespan="on", backlog=2048)
+                            timeout_graceful_shutdown=1, lifespan="on", backlog=2048,
+                            ssl_certfile=tls_cert, ssl_keyfile=tls_key)
     return uvicorn.Server(config)
 
 
 class ServerThread:
-    """uvicorn serving ``app`` on ``host`` in a daemon thread (port 0: an ephemeral port).
-    ``url`` once started; ``stop()`` (or leaving the ``with``) shuts it down."""
+    """uvicorn serving ``app`` on ``host`` in a daemon thread (port 0: an ephemeral port;
+    ``tls_cert``/``tls_key``: HTTPS). ``url`` once started; ``stop()`` (or leaving the
+    ``with``) shuts it down."""
 
     def __init__(self, app: Any, host: str = "127.0.0.1", port: int = 0,
-                 log_level: str = "warning"):
+                 log_level: str = "warning", *, tls_cert: str | None = None,
+                 tls_key: str | None = None):
         self.sock = bind_socket(host, port)
         self.host, self.port = self.sock.getsockname()[:2]
-        self.url = f"http://{self.host}:{self.port}" if ":" not in self.host else \
-            f"http://[{self.host}]:{self.port}"
-        self.server = make_server(app, log_level)
+        scheme = "https" if tls_cert else "http"
+        self.url = f"{scheme}://{self.host}:{self.port}" if ":" not in self.host else \
+            f"{scheme}://[{self.host}]:{self.port}"
+        self.server = make_server(app, log_level, tls_cert=tls_cert, tls_key=tls_key)
         self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
                                        name="hearth-api", daemon=True)
 

@@ -2,7 +2,8 @@
 
 Binds to 127.0.0.1 by default. Listening on any other address needs a token
 (``--token`` or the HEARTH_TOKEN environment variable); clients send it as
-``Authorization: Bearer TOKEN``.
+``Authorization: Bearer TOKEN``. Requests whose Host is not the address they came in on (or
+localhost, or an ``--allowed-host``) are refused; ``--tls-cert``/``--tls-key`` serve HTTPS.
 """
 from __future__ import annotations
 
@@ -27,6 +28,14 @@ def register(sub) -> None:
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free)")
     p.add_argument("--token", default=os.environ.get("HEARTH_TOKEN"),
                    help="require this bearer token (default: $HEARTH_TOKEN)")
+    p.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
+                   help="also serve requests whose Host header is NAME, e.g. robot.local "
+                        "(repeatable; '*': any, behind a proxy that checks Host). By default "
+                        "only the address a request came in on, and localhost on loopback")
+    p.add_argument("--tls-cert", default=None, metavar="PEM",
+                   help="serve HTTPS with this certificate (chain) file; needs --tls-key")
+    p.add_argument("--tls-key", default=None, metavar="PEM",
+                   help="the certificate's private key file")
     p.add_argument("--missions", action="append", default=None, metavar="PATH",
                    help="mission file or directory that can be asked for (repeatable; "
                         "default: missions/)")
@@ -54,8 +63,24 @@ def check_bind(host: str, token: str | None) -> str | None:
     return None
 
 
+def check_tls(cert: str | None, key: str | None) -> str | None:
+    """Why the TLS files cannot be used (None: fine, or no TLS asked for)."""
+    if cert is None and key is None:
+        return None
+    if cert is None or key is None:
+        return "hearth serve: --tls-cert and --tls-key go together (a certificate and its key)"
+    import ssl
+    try:
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert, key)
+    except OSError as err:      # ssl.SSLError is an OSError
+        what = err.strerror or getattr(err, "reason", None) or str(err)
+        where = f" ({err.filename})" if getattr(err, "filename", None) else ""
+        return f"hearth serve: cannot use --tls-cert {cert} / --tls-key {key}{where}: {what}"
+    return None
+
+
 def _serve(args: argparse.Namespace) -> int:
-    problem = check_bind(args.host, args.token)
+    problem = check_bind(args.host, args.token) or check_tls(args.tls_cert, args.tls_key)
     if problem:
         print(problem, file=sys.stderr)
         return 2
@@ -81,9 +106,12 @@ def _serve(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             return 2
         host, port = sock.getsockname()[:2]
-        print(f"hearth serve: missions {names}; http://{host}:{port}/ (API docs at /docs)",
+        scheme = "https" if args.tls_cert else "http"
+        shown = f"[{host}]" if ":" in host else host
+        print(f"hearth serve: missions {names}; {scheme}://{shown}:{port}/ (API docs at /docs)",
               file=sys.stderr, flush=True)
-        make_server(create_app(service, token=args.token)).run(sockets=[sock])
+        app = create_app(service, token=args.token, allowed_hosts=args.allowed_host)
+        make_server(app, tls_cert=args.tls_cert, tls_key=args.tls_key).run(sockets=[sock])
     finally:
         if pub is not None:
             pub.close()

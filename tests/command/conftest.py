@@ -3,6 +3,7 @@ whose skills are scripted stand-ins (executive.testing), on the demo home's map.
 from __future__ import annotations
 
 import json
+import ssl
 from pathlib import Path
 
 import httpx
@@ -33,7 +34,8 @@ def registry() -> dict:
 class Server:
     """A running API: ``url``, ``client`` (httpx), ``service``, ``world``."""
 
-    def __init__(self, world, granted=3, token=None, approval_timeout=120.0):
+    def __init__(self, world, granted=3, token=None, approval_timeout=120.0, tls_cert=None,
+                 tls_key=None, **app_options):
         self.world = world
         # wait_test's first step runs for an hour (it is cancelled); the rest succeed at once.
         self.substitution = Substitution([Script(match="/wait_test/hold", duration=3600.0)], None)
@@ -42,10 +44,13 @@ class Server:
                                     make_skill=self.substitution, clock=WallClock(),
                                     tick_hz=50, runs_dir=None, granted=granted,
                                     approval_timeout=approval_timeout)
-        self.thread = ServerThread(create_app(self.service, token=token)).start()
+        self.thread = ServerThread(create_app(self.service, token=token, **app_options),
+                                   tls_cert=tls_cert, tls_key=tls_key).start()
         self.url = self.thread.url
         headers = {"Authorization": f"Bearer {token}"} if token else {}
-        self.client = httpx.Client(base_url=self.url, timeout=30.0, headers=headers)
+        verify = ssl.create_default_context(cafile=tls_cert) if tls_cert else True
+        self.client = httpx.Client(base_url=self.url, timeout=30.0, headers=headers,
+                                   verify=verify)
 
     def events(self, run=None, since=0, close_on_end=True, until=None):
         """Yield (kind, data) from the event stream; stops at the end of ``run`` or when

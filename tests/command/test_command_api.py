@@ -121,8 +121,25 @@ def test_token_is_required_when_set(make_server):
     import httpx
     bare = httpx.get(srv.url + "/api/health")
     assert bare.status_code == 401 and "token" in bare.json()["error"]["message"]
-    assert httpx.get(srv.url + "/api/health", params={"token": "s3cret"}).status_code == 200
+    # A token in a URL lands in access logs: ?token= is taken only by the event stream.
+    assert httpx.get(srv.url + "/api/health", params={"token": "s3cret"}).status_code == 401
     assert httpx.get(srv.url + "/api/health", headers={"X-Hearth-Token": "wrong"}).status_code == 401
+    assert httpx.get(srv.url + "/api/health", headers={"X-Hearth-Token": "s3cret"}).status_code == 200
+
+
+def test_event_stream_takes_the_token_in_its_url_for_eventsource(make_server):
+    import httpx
+    srv = make_server(token="s3cret")
+    run = srv.client.post("/api/runs", json={"mission": "fetch_test",
+                                             "params": {"object": "blue_cup"}}).json()["run"]
+    params = {"run": run["id"], "since": 0, "close_on_end": "true"}
+    assert httpx.get(srv.url + "/api/events", params=params).status_code == 401
+    with httpx.stream("GET", srv.url + "/api/events", params={**params, "token": "s3cret"},
+                      timeout=30.0) as r:
+        assert r.status_code == 200
+        assert r.headers["content-type"].startswith("text/event-stream")
+        kinds = [line[7:] for line in r.iter_lines() if line.startswith("event: ")]
+    assert kinds[0] == "submitted" and kinds[-1] == "end"
 
 
 def test_idempotency_key_returns_the_same_run_and_never_runs_twice(server):
