@@ -318,6 +318,8 @@ def rgb_to_hsv(rgb: np.ndarray) -> np.ndarray:
     """(N, 3) uint8 or [0, 1] RGB -> HSV in [0, 1] (OpenCV's ranges rescaled)."""
     import cv2
     a = np.asarray(rgb)
+    if a.size == 0:
+        return np.zeros((0, 3))
     if a.dtype != np.uint8:
         a = np.clip(a * 255.0, 0, 255).astype(np.uint8)
     hsv = cv2.cvtColor(a.reshape(-1, 1, 3), cv2.COLOR_RGB2HSV_FULL).reshape(-1, 3)
