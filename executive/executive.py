@@ -36,7 +36,7 @@ from typing import Any, Callable
 from py_trees import common
 from transitions import Machine
 
-from executive import nodes
+from executive import nodes, treetick
 from executive.errors import MissionError, MissionValidationError
 from executive.missionfile import Mission, load_mission, plain, skill_registry
 from executive.tree import BuiltTree, SkillFactory, build_tree
@@ -601,7 +601,7 @@ class Executive:
             self._emit(run, "tick", None)
         try:
             # Each node's status as it is yielded (a parent may still stop it later on).
-            visited = {node: node.status for node in root.tick()}
+            visited = treetick.tick(root)
         except Exception as err:  # noqa: BLE001 - a crashing skill fails the mission
             log.exception("tick failed")
             self._halt_tree(root)
