@@ -48,8 +48,7 @@ StopFn = Callable[[Any, Status], None]
 
 _TICKS: dict[Any, TickFn] = {}      # a class's tick function -> its direct tick
 _STOPS: dict[Any, StopFn] = {}      # a class's stop function -> its direct stop
-_tick_of: dict[type, TickFn] = {}   # cache: node class -> direct tick
-_stop_of: dict[type, StopFn] = {}
+_stop_of: dict[type, StopFn] = {}   # cache: node class -> direct stop
 
 
 def register(tick_fn: Any = None, direct_tick: TickFn | None = None, stop_fn: Any = None,
@@ -60,7 +59,6 @@ def register(tick_fn: Any = None, direct_tick: TickFn | None = None, stop_fn: An
         _TICKS[tick_fn] = direct_tick
     if stop_fn is not None:
         _STOPS[stop_fn] = direct_stop
-    _tick_of.clear()
     _stop_of.clear()
 
 
@@ -72,20 +70,28 @@ def _debug_on() -> bool:
 
 
 def direct(root: Behaviour) -> bool:
-    """Whether every node under ``root`` has a known direct tick. Decided once per root
-    (Hearth builds a run's tree once; a tree changed later keeps the first answer)."""
+    """Whether every node under ``root`` has a known direct tick (and if so, give each node
+    its direct tick). Decided once per root: Hearth builds a run's tree once; a tree changed
+    after its first tick keeps the first answer."""
     ok = root.__dict__.get("_treetick_direct")
     if ok is None:
-        ok = root._treetick_direct = ENABLED and all(_known(n) for n in root.iterate())
+        nodes = list(root.iterate())
+        ok = ENABLED and all(_known(n) for n in nodes)
+        if ok:
+            for n in nodes:
+                n._treetick = _TICKS[type(n).tick]
+        root._treetick_direct = ok
     return ok
 
 
 def _known(node: Any) -> bool:
-    if type(node).tick not in _TICKS:
+    cls = type(node)
+    if cls.tick not in _TICKS:
         return False
-    if isinstance(node, Parallel) and type(node).tick is Parallel.tick:
-        return isinstance(node.policy, (common.ParallelPolicy.SuccessOnAll,
-                                        common.ParallelPolicy.SuccessOnOne))
+    if isinstance(node, Parallel) and cls.tick is Parallel.tick:
+        return (isinstance(node.policy, (common.ParallelPolicy.SuccessOnAll,
+                                         common.ParallelPolicy.SuccessOnOne))
+                and cls.validate_policy_configuration is Parallel.validate_policy_configuration)
     return True
 
 
@@ -100,18 +106,14 @@ def tick(root: Behaviour) -> Seen:
         for node in root.tick():
             seen[node] = node.status
         return seen
-    tick_node(root, seen)
+    root._treetick(root, seen)
     return seen
 
 
 def tick_node(node: Any, seen: Seen) -> None:
-    """Tick one node (and what it ticks below it) into ``seen``; only for trees that
-    :func:`direct` accepts."""
-    cls = type(node)
-    fn = _tick_of.get(cls)
-    if fn is None:
-        fn = _tick_of[cls] = _TICKS[cls.tick]
-    fn(node, seen)
+    """Tick one node (and what it ticks below it) into ``seen``; only within :func:`tick`
+    of a tree that :func:`direct` accepted."""
+    node._treetick(node, seen)
 
 
 def stop(node: Any, new_status: Status) -> None:
@@ -151,13 +153,14 @@ def _behaviour_tick(node: Any, seen: Seen) -> None:
 
 
 def _behaviour_stop(node: Any, new_status: Status) -> None:
+    # py_trees also sets ``node.iterator = node.tick()``, a fresh generator nothing reads.
     node.terminate(new_status)
     node.status = new_status
-    node.iterator = node.tick()
 
 
 def composite_stop(node: Any, new_status: Status) -> None:
-    """py_trees' ``Composite.stop``, stopping children through :func:`stop`."""
+    """py_trees' ``Composite.stop``, stopping children through :func:`stop` (and without
+    recreating ``node.iterator``)."""
     if not ENABLED:
         Composite.stop(node, new_status)
         return
@@ -168,7 +171,6 @@ def composite_stop(node: Any, new_status: Status) -> None:
                 stop(child, new_status)
     node.terminate(new_status)
     node.status = new_status
-    node.iterator = node.tick()
 
 
 def _parallel_stop(node: Any, new_status: Status) -> None:
@@ -208,7 +210,7 @@ def _sequence_tick(node: Any, seen: Seen) -> None:
         return
     n = len(children)
     for child in children[index:]:
-        tick_node(child, seen)
+        child._treetick(child, seen)
         status = child.status
         if status is not SUCCESS:
             if not node.memory:
@@ -247,7 +249,7 @@ def _selector_tick(node: Any, seen: Seen) -> None:
         index = 0
     previous = node.current_child
     for child in children[index:]:
-        tick_node(child, seen)
+        child._treetick(child, seen)
         status = child.status
         if status is RUNNING or status is SUCCESS:
             node.current_child = child
@@ -269,8 +271,8 @@ def _selector_tick(node: Any, seen: Seen) -> None:
 
 
 def _parallel_tick(node: Any, seen: Seen) -> None:
-    policy = node.policy      # SuccessOnAll or SuccessOnOne (see _known)
-    node.validate_policy_configuration()
+    # SuccessOnAll or SuccessOnOne (see _known): validate_policy_configuration checks nothing
+    policy = node.policy
     children = node.children
     if node.status is not RUNNING:
         for child in children:
@@ -287,23 +289,28 @@ def _parallel_tick(node: Any, seen: Seen) -> None:
     for child in children:
         if synchronise and child.status is SUCCESS:
             continue
-        tick_node(child, seen)
+        child._treetick(child, seen)
     new_status = RUNNING
     node.current_child = children[-1]
-    failed = next((c for c in children if c.status is FAILURE), None)
-    if failed is not None:
-        node.current_child = failed
-        new_status = FAILURE
-    elif isinstance(policy, common.ParallelPolicy.SuccessOnAll):
-        if all(c.status is SUCCESS for c in children):
-            new_status = SUCCESS
-            node.current_child = children[-1]
+    for child in children:
+        if child.status is FAILURE:
+            node.current_child = child
+            new_status = FAILURE
+            break
     else:
-        for child in reversed(children):
-            if child.status is SUCCESS:
+        if isinstance(policy, common.ParallelPolicy.SuccessOnAll):
+            for child in children:
+                if child.status is not SUCCESS:
+                    break
+            else:
                 new_status = SUCCESS
-                node.current_child = child
-                break
+                node.current_child = children[-1]
+        else:
+            for child in reversed(children):
+                if child.status is SUCCESS:
+                    new_status = SUCCESS
+                    node.current_child = child
+                    break
     if new_status is not RUNNING:
         stop(node, new_status)
     node.status = new_status
@@ -313,7 +320,8 @@ def _parallel_tick(node: Any, seen: Seen) -> None:
 def _decorator_tick(node: Any, seen: Seen) -> None:
     if node.status is not RUNNING:
         node.initialise()
-    tick_node(node.decorated, seen)
+    child = node.decorated
+    child._treetick(child, seen)
     new_status = node.update()
     if new_status not in _STATUSES:
         new_status = _checked(node, new_status)

@@ -91,7 +91,7 @@ def _run(args) -> int:
     print(HELP)
     while not handle.done:
         try:
-            line = input(f"[tick {ex._current.tick if ex._current else 0}] > ").strip()
+            line = input(f"[tick {ex.current_tick or 0}] > ").strip()
         except EOFError:
             line = "q"
         cmd, _, arg = line.partition(" ")

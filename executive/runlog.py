@@ -1,0 +1,113 @@
+"""Execution logs: one writer for a run's JSON-lines log (``runs/<run id>.jsonl``).
+
+A log is a ``start`` header, one line per :class:`~executive.events.Event` and an ``end``
+line (docs/missions.md, "Events and execution logs"; read back by executive/replay.py).
+Every line is ``json.dumps(obj, default=repr)``; status lines, most of a log, are formatted
+by hand on the hot path (a tick of a 200-node tree writes about 30 of them) and must be the
+same bytes as the generic path, ``json.dumps(Event(...).to_json())``:
+tests/executive/test_runlog.py writes both through this class and compares the files.
+
+A run that never started (cancelled while queued) gets a log too: its header says
+``"started": false`` and the end line says how it ended, so every submitted run can be
+accounted for.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import IO, Any
+
+from py_trees import common
+
+from executive.events import Event, EventKind
+
+#: Version of the log format (the header's ``format``).
+LOG_FORMAT = 1
+START, END = "start", "end"
+
+Status = common.Status
+# (status, previous) values -> the end of a status line; keyed by the enums' string values
+# (hashing py_trees' Status members goes through Python-level Enum.__hash__).
+_TAILS = {(a.value, b.value): f', "status": "{a.value}", "previous": "{b.value}"'
+          for a in Status for b in Status}
+
+
+def dumps(obj: Any) -> str:
+    return json.dumps(obj, default=repr)
+
+
+class RunLog:
+    """The log file of one run. Not thread-safe: the executive writes it under its lock.
+
+    ``event(ev)`` writes any event; ``begin_tick``/``status``/``flush`` are the hot path for
+    status changes (buffered within a tick, written before the next other event, so lines
+    keep their order)."""
+
+    def __init__(self, path: str | Path, run_id: str):
+        self.path = Path(path)
+        self._file: IO[str] | None = open(self.path, "w", encoding="utf-8")  # noqa: SIM115
+        self._run_json = json.dumps(run_id)
+        self._head = ""
+        self._pending: list[str] = []
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None
+
+    def header(self, fields: dict[str, Any]) -> None:
+        """The ``start`` line (``fields`` in the order they are written, after ``e``)."""
+        self._write(dumps({"e": START, **fields}) + "\n")
+
+    def event(self, ev: Event) -> None:
+        self.flush()
+        self._write(dumps(ev.to_json()) + "\n")
+
+    def end(self, run_id: str, tick: int, time: float, outcome: str, reason: str,
+            outputs: Any, extra: dict[str, Any] | None = None) -> None:
+        self.flush()
+        self._write(dumps({"e": END, "run": run_id, "tick": tick, "t": time, "outcome": outcome,
+                           "reason": reason, "outputs": outputs, **(extra or {})}) + "\n")
+
+    # -- the hot path ------------------------------------------------------------------------
+    def begin_tick(self, tick: int, now: float) -> None:
+        """Status lines from here on are of tick ``tick`` at clock time ``now``."""
+        self.flush()
+        self._head = (f'{{"e": "status", "run": {self._run_json}, "tick": {tick}, '
+                      f'"t": {_time_json(now)}, "path": ')
+
+    def status(self, path_json: str, status: Status, previous: Status,
+               halted: bool = False) -> None:
+        """A status line of this tick (``path_json``: the node path, JSON-encoded)."""
+        self._pending.append(self._head + path_json + _TAILS[status._value_, previous._value_]
+                             + (', "halted": true}\n' if halted else "}\n"))
+
+    def flush(self) -> None:
+        if self._pending:
+            self._write("".join(self._pending))
+            self._pending.clear()
+
+    def close(self) -> None:
+        if self._file is not None:
+            try:
+                self.flush()
+            finally:
+                self._file.close()
+                self._file = None
+
+    def _write(self, text: str) -> None:
+        if self._file is not None:
+            self._file.write(text)
+
+
+def _time_json(t: float) -> str:
+    # json.dumps(float) is float.__repr__ (clock times are finite).
+    return repr(round(t, 9))
+
+
+def status_event(run_id: str, tick: int, now: float, path: str, status: Status,
+                 previous: Status, halted: bool = False) -> Event:
+    """The Event a status line stands for."""
+    data: dict[str, Any] = {"status": status.value, "previous": previous.value}
+    if halted:
+        data["halted"] = True
+    return Event(EventKind.STATUS, run_id, tick, now, path, data)

@@ -1,0 +1,195 @@
+"""Ticking: the tick loop with its rate keeping, and a started mission's tick with its
+status diffing.
+
+:class:`TickLoop` is the one loop the executive runs, in its background thread or in
+``run_until_idle``: a simulated clock is advanced by one period after each step that did
+something (nothing sleeps, runs are deterministic); on a wall clock the loop sleeps until the
+next tick is due, and a late tick starts the schedule afresh (no burst of ticks to catch up).
+
+:class:`Run` is a started mission: its tree, tick counter, what was last reported of each
+node, and its halting state. :meth:`Run.tick_tree` ticks the tree once (executive/treetick.py)
+and reports what changed.
+"""
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING, Any, Callable
+
+from py_trees import common
+
+from executive import treetick
+from executive.events import EventKind
+from executive.runlog import RunLog
+from executive.tree import BuiltTree
+
+if TYPE_CHECKING:
+    from executive.scheduler import Submission
+
+Status = common.Status
+RUNNING, INVALID = Status.RUNNING, Status.INVALID
+
+
+class TickLoop:
+    """Steps at ``1 / period`` Hz on ``clock`` (see the module docstring)."""
+
+    def __init__(self, clock: Any, period: float):
+        self.clock = clock
+        self.period = period
+        self.simulated = bool(getattr(clock, "simulated", False))
+        self._next = 0.0
+
+    def advance(self, did: bool) -> None:
+        """After a step: a simulated clock moves on one period if the step did something."""
+        if did and self.simulated:
+            self.clock.advance(self.period)
+
+    def run(self, step: Callable[[], bool], wait_for_work: Callable[[], bool] | None = None,
+            max_ticks: int | None = None) -> int:
+        """Call ``step()`` (which advances the clock, see :meth:`advance`) at the tick rate;
+        the number of steps that did something.
+
+        Without ``wait_for_work`` it returns at the first step that did nothing, or after
+        ``max_ticks``. With it (the background thread) it first calls ``wait_for_work()``,
+        which blocks while there is nothing to do and returns False to stop the loop."""
+        n = 0
+        self._next = self.clock.now()
+        while max_ticks is None or n < max_ticks:
+            if wait_for_work is not None and not wait_for_work():
+                break
+            if step():
+                n += 1
+            elif wait_for_work is None:
+                break
+            self._pace()
+        return n
+
+    def _pace(self) -> None:
+        if self.simulated:
+            return
+        self._next += self.period
+        delay = self._next - self.clock.now()
+        if delay > 0:
+            self.clock.sleep(delay)
+        else:
+            self._next = self.clock.now()
+
+
+Emit = Callable[..., None]   # emit(run, kind, path, **data)
+
+
+class Run:
+    """A started mission (see the module docstring). The executive changes it under its lock.
+
+    ``emit(run, kind, path, **data)`` reports an event (log and subscribers); ``quiet`` is
+    True while nobody subscribes, and then status changes go straight to the log's hot path.
+    """
+
+    def __init__(self, sub: "Submission", emit: Emit):
+        self.sub = sub
+        self.id = sub.id
+        self.emit = emit
+        self.tree: BuiltTree | None = None
+        self.log: RunLog | None = None
+        self.tick = 0
+        self.t0 = 0.0
+        self.now = 0.0                   # clock time of the current tick
+        self.quiet = True
+        self.running: dict[Any, None] = {}      # nodes RUNNING after the last tick, deepest first
+        self.halting: list = []                  # halted skills still reporting is_halting()
+        self.halt_started = 0.0
+        self.halt_deadline = 0.0
+
+    def prepare(self, tree: BuiltTree) -> None:
+        """Take the built tree: what the diff needs on each node, and the direct tick."""
+        self.tree = tree
+        for node in tree.root.iterate():
+            node.hearth_leaf = not node.children
+            node.hearth_path_json = json.dumps(node.hearth_path)
+            node.hearth_last = INVALID       # the last status reported
+            node.hearth_feedback = ""        # the last feedback reported
+        treetick.direct(tree.root)
+
+    def begin_step(self, now: float, quiet: bool) -> None:
+        self.now = now
+        self.quiet = quiet
+        if self.log is not None:
+            self.log.begin_tick(self.tick, now)
+
+    def tick_tree(self) -> None:
+        """Tick the tree once and report what changed (exceptions propagate: a crashing
+        skill fails the mission)."""
+        self.diff(treetick.tick(self.tree.root))
+
+    def diff(self, visited: dict) -> None:
+        """Status and feedback events for what changed in this tick.
+
+        ``visited`` maps each node ticked to its status as it was yielded. A visited leaf
+        that starts again (previous status not RUNNING) is reported even when its status
+        repeats, so replay sees every activation. Nodes stopped from above (halted) without
+        being ticked, or changed after being yielded, are reported with ``halted``.
+
+        What was last reported of a node lives on the node (``hearth_last``,
+        ``hearth_feedback``, set by :meth:`prepare`): this loop runs for every node of every
+        tick, and attribute reads are its cheapest lookups."""
+        log = self.log if self.quiet else None
+        status_line = log.status if log is not None else self._status
+        running: dict = {}   # ordered as ticked: children before parents, deepest first
+        running_add = running.setdefault
+        changed_after = []
+        for node, st in visited.items():
+            prev = node.hearth_last
+            if st is not prev or (prev is not RUNNING and node.hearth_leaf):
+                if log is not None:
+                    status_line(node.hearth_path_json, st, prev)
+                else:
+                    status_line(node, st, prev)
+                node.hearth_last = st
+            fb = node.feedback_message
+            if fb and fb != node.hearth_feedback:
+                node.hearth_feedback = fb
+                self.emit(self, EventKind.FEEDBACK, node.hearth_path, message=fb)
+            if node.status is not st:
+                changed_after.append(node)
+            elif st is RUNNING:
+                running_add(node)
+        for node in self.running:
+            if node not in visited:
+                final = node.status
+                prev = node.hearth_last
+                if final is not prev:
+                    self._status(node, final, prev, True)
+                    node.hearth_last = final
+                if final is RUNNING:
+                    running_add(node)
+        for node in changed_after:
+            final = node.status
+            self._status(node, final, node.hearth_last, True)
+            node.hearth_last = final
+            if final is RUNNING:
+                running_add(node)
+        if log is not None:
+            log.flush()
+        self.running = running
+
+    def _status(self, node: Any, st: Status, prev: Status, halted: bool = False) -> None:
+        if self.quiet:
+            if self.log is not None:
+                self.log.status(node.hearth_path_json, st, prev, halted)
+            return
+        data = {"status": st.value, "previous": prev.value}
+        if halted:
+            data["halted"] = True
+        self.emit(self, EventKind.STATUS, node.hearth_path, **data)
+
+    def reason(self, status: Status) -> str:
+        """In words: the deepest failing node's feedback, or 'completed'."""
+        if status == Status.SUCCESS:
+            return "completed"
+        node = self.tree.root
+        while True:
+            failed = [c for c in node.children if c.status == Status.FAILURE]
+            if not failed:
+                break
+            node = failed[-1]
+        path = self.tree.path_of.get(id(node), node.name)
+        return f"{path} failed" + (f": {node.feedback_message}" if node.feedback_message else "")
