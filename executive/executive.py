@@ -381,7 +381,7 @@ class Executive:
         return True
 
     def _start(self, sub: Submission) -> Run | None:
-        run = Run(sub, self._emit)
+        run = Run(sub, self._emit, self._notify)
         run.t0 = run.now = self.clock.now()
         try:
             with self._lock:
@@ -576,6 +576,12 @@ class Executive:
             run.log.event(ev)
         if subscribers:
             self._outbox.post(ev, subscribers)
+
+    def _notify(self, run: Run, kind: EventKind, path: str | None, data: dict[str, Any]) -> None:
+        """Post an event of ``run`` to its subscribers only (it is logged already)."""
+        subscribers = run.sub.subscribers + self._subscribers
+        if subscribers:
+            self._outbox.post(Event(kind, run.id, run.tick, run.now, path, data), subscribers)
 
     def _header(self, sub: Submission, t0: float, ns: str | None) -> dict[str, Any]:
         m = sub.mission

@@ -75,19 +75,23 @@ class TickLoop:
 
 
 Emit = Callable[..., None]   # emit(run, kind, path, **data)
+Notify = Callable[["Run", EventKind, "str | None", dict], None]
 
 
 class Run:
     """A started mission (see the module docstring). The executive changes it under its lock.
 
-    ``emit(run, kind, path, **data)`` reports an event (log and subscribers); ``quiet`` is
-    True while nobody subscribes, and then status changes go straight to the log's hot path.
+    ``emit(run, kind, path, **data)`` reports an event (log and subscribers);
+    ``notify(run, kind, path, data)`` gives one to the subscribers only. Status changes, most
+    events, are written to the log by its hot path and, unless ``quiet`` (nobody subscribes),
+    also made Events for the subscribers.
     """
 
-    def __init__(self, sub: "Submission", emit: Emit):
+    def __init__(self, sub: "Submission", emit: Emit, notify: Notify):
         self.sub = sub
         self.id = sub.id
         self.emit = emit
+        self.notify = notify
         self.tree: BuiltTree | None = None
         self.log: RunLog | None = None
         self.tick = 0
@@ -131,18 +135,19 @@ class Run:
         What was last reported of a node lives on the node (``hearth_last``,
         ``hearth_feedback``, set by :meth:`prepare`): this loop runs for every node of every
         tick, and attribute reads are its cheapest lookups."""
-        log = self.log if self.quiet else None
-        status_line = log.status if log is not None else self._status
+        log = self.log
+        status_line = log.status if log is not None else None
+        tell = None if self.quiet else self._tell
         running: dict = {}   # ordered as ticked: children before parents, deepest first
         running_add = running.setdefault
         changed_after = []
         for node, st in visited.items():
             prev = node.hearth_last
             if st is not prev or (prev is not RUNNING and node.hearth_leaf):
-                if log is not None:
+                if status_line is not None:
                     status_line(node.hearth_path_json, st, prev)
-                else:
-                    status_line(node, st, prev)
+                if tell is not None:
+                    tell(node, st, prev)
                 node.hearth_last = st
             fb = node.feedback_message
             if fb and fb != node.hearth_feedback:
@@ -172,14 +177,16 @@ class Run:
         self.running = running
 
     def _status(self, node: Any, st: Status, prev: Status, halted: bool = False) -> None:
-        if self.quiet:
-            if self.log is not None:
-                self.log.status(node.hearth_path_json, st, prev, halted)
-            return
-        data = {"status": st.value, "previous": prev.value}
+        if self.log is not None:
+            self.log.status(node.hearth_path_json, st, prev, halted)
+        if not self.quiet:
+            self._tell(node, st, prev, halted)
+
+    def _tell(self, node: Any, st: Status, prev: Status, halted: bool = False) -> None:
+        data = {"status": st._value_, "previous": prev._value_}
         if halted:
             data["halted"] = True
-        self.emit(self, EventKind.STATUS, node.hearth_path, **data)
+        self.notify(self, EventKind.STATUS, node.hearth_path, data)
 
     def reason(self, status: Status) -> str:
         """In words: the deepest failing node's feedback, or 'completed'."""

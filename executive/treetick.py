@@ -48,7 +48,6 @@ StopFn = Callable[[Any, Status], None]
 
 _TICKS: dict[Any, TickFn] = {}      # a class's tick function -> its direct tick
 _STOPS: dict[Any, StopFn] = {}      # a class's stop function -> its direct stop
-_stop_of: dict[type, StopFn] = {}   # cache: node class -> direct stop
 
 
 def register(tick_fn: Any = None, direct_tick: TickFn | None = None, stop_fn: Any = None,
@@ -59,7 +58,12 @@ def register(tick_fn: Any = None, direct_tick: TickFn | None = None, stop_fn: An
         _TICKS[tick_fn] = direct_tick
     if stop_fn is not None:
         _STOPS[stop_fn] = direct_stop
-    _stop_of.clear()
+        _generation[0] += 1
+
+
+# Each class caches its direct stop in its own __dict__ (no global cache keeping classes
+# alive: replay and substitution make classes per run), tagged with the registry generation.
+_generation = [0]
 
 
 _INFO = py_trees.logging.Level.INFO
@@ -71,7 +75,7 @@ def _debug_on() -> bool:
 
 def direct(root: Behaviour) -> bool:
     """Whether every node under ``root`` has a known direct tick (and if so, give each node
-    its direct tick). Decided once per root: Hearth builds a run's tree once; a tree changed
+    its direct tick and stop, ``_treetick`` and ``_treestop``, for the tick functions below). Decided once per root: Hearth builds a run's tree once; a tree changed
     after its first tick keeps the first answer."""
     ok = root.__dict__.get("_treetick_direct")
     if ok is None:
@@ -80,6 +84,7 @@ def direct(root: Behaviour) -> bool:
         if ok:
             for n in nodes:
                 n._treetick = _TICKS[type(n).tick]
+                n._treestop = _STOPS.get(type(n).stop, _stop_method)
         root._treetick_direct = ok
     return ok
 
@@ -119,9 +124,11 @@ def tick_node(node: Any, seen: Seen) -> None:
 def stop(node: Any, new_status: Status) -> None:
     """``node.stop(new_status)`` without py_trees' debug formatting (when it is off)."""
     cls = type(node)
-    fn = _stop_of.get(cls)
-    if fn is None:
-        fn = _stop_of[cls] = (_STOPS.get(cls.stop, _stop_method) if ENABLED else _stop_method)
+    cached = cls.__dict__.get("_treetick_stop")
+    if cached is None or cached[0] != _generation[0]:
+        cached = (_generation[0], _STOPS.get(cls.stop, _stop_method) if ENABLED else _stop_method)
+        cls._treetick_stop = cached
+    fn = cached[1]
     if fn is not _stop_method and _debug_on():
         fn = _stop_method
     fn(node, new_status)
@@ -147,7 +154,7 @@ def _behaviour_tick(node: Any, seen: Seen) -> None:
     if new_status not in _STATUSES:
         new_status = _checked(node, new_status)
     if new_status is not RUNNING:
-        stop(node, new_status)
+        node._treestop(node, new_status)
     node.status = new_status
     seen[node] = new_status
 
@@ -197,7 +204,7 @@ def _sequence_tick(node: Any, seen: Seen) -> None:
         node.current_child = children[0] if children else None
         for child in children:
             if child.status is not INVALID:
-                stop(child, INVALID)
+                child._treestop(child, INVALID)
         node.initialise()
     elif node.memory and node.current_child is not None:
         index = children.index(node.current_child)
@@ -205,7 +212,7 @@ def _sequence_tick(node: Any, seen: Seen) -> None:
         node.current_child = children[0] if children else None
     if not children:
         node.current_child = None
-        stop(node, SUCCESS)
+        node._treestop(node, SUCCESS)
         seen[node] = node.status
         return
     n = len(children)
@@ -216,9 +223,9 @@ def _sequence_tick(node: Any, seen: Seen) -> None:
             if not node.memory:
                 for later in children[index + 1:]:
                     if later.status is not INVALID:
-                        stop(later, INVALID)
+                        later._treestop(later, INVALID)
             if status is not RUNNING:
-                stop(node, status)
+                node._treestop(node, status)
             else:
                 node.status = status
             seen[node] = node.status
@@ -226,7 +233,7 @@ def _sequence_tick(node: Any, seen: Seen) -> None:
         if index + 1 < n:
             node.current_child = children[index + 1]
             index += 1
-    stop(node, SUCCESS)
+    node._treestop(node, SUCCESS)
     seen[node] = node.status
 
 
@@ -237,14 +244,14 @@ def _selector_tick(node: Any, seen: Seen) -> None:
         node.initialise()
     if not children:
         node.current_child = None
-        stop(node, FAILURE)
+        node._treestop(node, FAILURE)
         seen[node] = node.status
         return
     if node.memory:
         index = children.index(node.current_child)
         for child in children[:index]:
             if child.status is not INVALID:
-                stop(child, INVALID)
+                child._treestop(child, INVALID)
     else:
         index = 0
     previous = node.current_child
@@ -257,15 +264,15 @@ def _selector_tick(node: Any, seen: Seen) -> None:
                 passed = False
                 for other in children:
                     if passed and other.status is not INVALID:
-                        stop(other, INVALID)
+                        other._treestop(other, INVALID)
                     passed = True if other == child else passed
             if status is SUCCESS:
-                stop(node, status)
+                node._treestop(node, status)
             else:
                 node.status = status
             seen[node] = node.status
             return
-    stop(node, FAILURE)
+    node._treestop(node, FAILURE)
     node.current_child = children[-1] if children else None
     seen[node] = node.status
 
@@ -277,12 +284,12 @@ def _parallel_tick(node: Any, seen: Seen) -> None:
     if node.status is not RUNNING:
         for child in children:
             if child.status is not INVALID:
-                stop(child, INVALID)
+                child._treestop(child, INVALID)
         node.current_child = None
         node.initialise()
     if not children:
         node.current_child = None
-        stop(node, SUCCESS)
+        node._treestop(node, SUCCESS)
         seen[node] = node.status
         return
     synchronise = policy.synchronise
@@ -312,7 +319,7 @@ def _parallel_tick(node: Any, seen: Seen) -> None:
                     node.current_child = child
                     break
     if new_status is not RUNNING:
-        stop(node, new_status)
+        node._treestop(node, new_status)
     node.status = new_status
     seen[node] = new_status
 
@@ -326,7 +333,7 @@ def _decorator_tick(node: Any, seen: Seen) -> None:
     if new_status not in _STATUSES:
         new_status = _checked(node, new_status)
     if new_status is not RUNNING:
-        stop(node, new_status)
+        node._treestop(node, new_status)
     node.status = new_status
     seen[node] = new_status
 
@@ -340,7 +347,7 @@ def _eternal_guard_tick(node: Any, seen: Seen) -> None:
         node.logger.error(f"The {error_message}")
         raise RuntimeError(error_message)
     if not result:
-        stop(node, FAILURE)
+        node._treestop(node, FAILURE)
         seen[node] = node.status
     else:
         _decorator_tick(node, seen)

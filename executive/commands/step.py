@@ -40,11 +40,12 @@ class Stepper:
         handle.subscribe(self._on_event)
 
     def _on_event(self, e) -> None:
-        if e.kind == "status":
+        from executive.events import EventKind
+        if e.kind is EventKind.STATUS:
             self.statuses[e.path] = e.data["status"]
-        elif e.kind == "feedback":
+        elif e.kind is EventKind.FEEDBACK:
             self.feedback[e.path] = e.data["message"]
-        if e.kind != "tick":
+        if e.kind is not EventKind.TICK:
             print(format_event(e.to_json()), file=self.out)
 
     def tick(self, n: int = 1) -> int:
