@@ -28,8 +28,9 @@ START, END = "start", "end"
 Status = common.Status
 # (status, previous) values -> the end of a status line; keyed by the enums' string values
 # (hashing py_trees' Status members goes through Python-level Enum.__hash__).
-_TAILS = {(a.value, b.value): f', "status": "{a.value}", "previous": "{b.value}"'
-          for a in Status for b in Status}
+_TAILS = {(a.value, b.value, halted): f', "status": "{a.value}", "previous": "{b.value}"'
+          + (', "halted": true}\n' if halted else "}\n")
+          for a in Status for b in Status for halted in (False, True)}
 
 
 def dumps(obj: Any) -> str:
@@ -78,8 +79,8 @@ class RunLog:
     def status(self, path_json: str, status: Status, previous: Status,
                halted: bool = False) -> None:
         """A status line of this tick (``path_json``: the node path, JSON-encoded)."""
-        self._pending.append(self._head + path_json + _TAILS[status._value_, previous._value_]
-                             + (', "halted": true}\n' if halted else "}\n"))
+        self._pending.append(self._head + path_json
+                             + _TAILS[status._value_, previous._value_, halted])
 
     def flush(self) -> None:
         if self._pending:

@@ -299,17 +299,18 @@ def _parallel_tick(node: Any, seen: Seen) -> None:
         child._treetick(child, seen)
     new_status = RUNNING
     node.current_child = children[-1]
+    all_succeeded = True       # one pass: the first failure, else whether all succeeded
     for child in children:
-        if child.status is FAILURE:
+        status = child.status
+        if status is FAILURE:
             node.current_child = child
             new_status = FAILURE
             break
+        if status is not SUCCESS:
+            all_succeeded = False
     else:
         if isinstance(policy, common.ParallelPolicy.SuccessOnAll):
-            for child in children:
-                if child.status is not SUCCESS:
-                    break
-            else:
+            if all_succeeded:
                 new_status = SUCCESS
                 node.current_child = children[-1]
         else:
