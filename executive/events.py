@@ -158,7 +158,8 @@ class Outbox:
         """Deliver what is pending, then stop the delivery thread (at most ``timeout`` s)."""
         if self._queue is not None and self._thread is not None:
             self._queue.put(_CLOSE)
-            self._thread.join(timeout)
+            if threading.current_thread() is not self._thread:   # a subscriber may shut down
+                self._thread.join(timeout)
         else:
             self.deliver()
 

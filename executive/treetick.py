@@ -14,9 +14,10 @@ direct ticks here beside their generator ticks.
 The result is what ``{n: n.status for n in root.tick()}`` gives: the same calls of
 ``initialise``/``update``/``terminate`` in the same order, the same statuses and feedback.
 A tree holding a node whose class overrides ``tick`` with code this module does not know is
-ticked by py_trees' generators; a class with its own ``stop`` is stopped by that method. The direct path is used
-only with the py_trees versions it was transcribed from and only while py_trees' debug
-logging is off (with it on, py_trees' own methods run, printing their messages).
+ticked by py_trees' generators; a class with its own ``stop`` is stopped by that method. The
+direct path is used only with the py_trees versions it was transcribed from and only while
+py_trees' debug logging is off (with it on, py_trees' own methods run, printing their
+messages).
 tests/executive/test_treetick.py checks equality against py_trees' generators on random
 trees of every node kind.
 """
