@@ -45,13 +45,12 @@ from typing import Any, Callable
 
 from py_trees import common
 
-from executive import nodes, treetick
 from executive.errors import MissionError, MissionValidationError
 from executive.events import TERMINAL, Event, EventKind, MissionResult, Outbox, RunState
 from executive.missionfile import Mission, load_mission, plain, skill_registry
-from executive.runlog import LOG_FORMAT, RunLog
+from executive.runlog import LOG_FORMAT, RunLog, header_fields
 from executive.scheduler import STATES, MissionHandle, Scheduler, Submission
-from executive.ticking import Run, TickLoop
+from executive.ticking import Run, TickLoop, halt_tree
 from executive.tree import BuiltTree, SkillFactory, build_tree
 
 __all__ = ["Executive", "Event", "EventKind", "MissionHandle", "MissionResult", "RunState",
@@ -393,12 +392,6 @@ class Executive:
                 ns = f"/hearth/r{next(_ns_counter)}"
                 self._open_log(run, ns)
                 run.prepare(build_tree(sub.mission, sub.params, ns, self.make_skill))
-                for node in run.tree.root.iterate():
-                    if hasattr(node, "output_hook"):
-                        node.output_hook = self._make_output_hook(run)
-                    if isinstance(node, nodes.Watch):
-                        node.on_restart = self._make_restart_hook(run)
-                        node.on_stopped = self._make_stopped_hook(run)
                 self._emit(run, EventKind.RUN, None, state=RunState.RUNNING, reason="started")
             run.tree.setup(world=self.world, robot=self.robot, clock=self.clock,
                            executive=self, **self.setup_kwargs)
@@ -432,30 +425,7 @@ class Executive:
             run.sub.life.halt()
             self._emit(run, EventKind.RUN, None, state=RunState.HALTING, reason=req.reason,
                        final=req.final)
-            running = nodes.running_skills(tree.root)
-            self._halt_tree(tree.root)
-            run.diff({})
-            run.halting = nodes.still_halting(running, self._make_stopped_hook(run))
-            run.halt_started = self.clock.now()
-            run.halt_deadline = run.halt_started + nodes.halt_timeout(run.halting)
-
-    @staticmethod
-    def _halt_tree(root: Any) -> None:
-        """Halt every running node, deepest first; a terminate that raises does not keep the
-        others from being halted."""
-        try:
-            if root.status != Status.INVALID:
-                treetick.stop(root, Status.INVALID)
-            return
-        except Exception:  # noqa: BLE001
-            log.exception("halting the tree failed; halting node by node")
-        for node in root.iterate():          # children before parents
-            if node.status != Status.INVALID:
-                try:
-                    node.stop(Status.INVALID)
-                except Exception:  # noqa: BLE001
-                    log.exception("terminate failed on %s", node.name)
-                    node.status = Status.INVALID
+            run.halt(self.clock.now())
 
     def _stop_robot(self) -> None:
         stop = getattr(self.robot, "stop", None)
@@ -466,15 +436,14 @@ class Executive:
                 log.exception("robot.stop() failed")
 
     def _poll_halting(self, run: Run) -> None:
-        stopped = self._make_stopped_hook(run)
-        run.halting = nodes.still_halting(run.halting, stopped)
+        run.poll_halting()
         now = self.clock.now()
         if run.halting and now < run.halt_deadline:
             return
         self._stop_robot()
         if run.halting:
             # Past HALT_TIMEOUT: robot.stop() may still have stopped them; ask once more.
-            run.halting = nodes.still_halting(run.halting, stopped)
+            run.poll_halting()
         req = run.sub.cancel
         waited = round(now - run.halt_started, 9)
         timed_out = [run.tree.path_of.get(id(s), s.name) for s in run.halting]
@@ -501,7 +470,7 @@ class Executive:
             run.tick_tree()
         except Exception as err:  # noqa: BLE001 - a crashing skill fails the mission
             log.exception("tick failed")
-            self._halt_tree(root)
+            halt_tree(root)
             self._stop_robot()
             run.sub.life.fail()
             reason = f"{type(err).__name__}: {err}"
@@ -526,7 +495,7 @@ class Executive:
             return
         try:
             if run.tree is not None:
-                self._halt_tree(run.tree.root)
+                halt_tree(run.tree.root)
         finally:
             self._stop_robot()
         req = run.sub.cancel
@@ -548,23 +517,6 @@ class Executive:
             log.exception("reporting the end of %s failed", run.id)
         self._end(run, final, reason, robot_stopped=robot_stopped)
 
-    def _make_output_hook(self, run: Run) -> Callable:
-        def hook(node: Any, port: str, key: str, value: Any) -> None:
-            self._emit(run, EventKind.WRITE, run.tree.path_of.get(id(node)), port=port,
-                       key=run.tree.short_key(key), value=plain(value))
-        return hook
-
-    def _make_stopped_hook(self, run: Run) -> Callable:
-        def hook(node: Any) -> None:
-            self._emit(run, EventKind.STOPPED, run.tree.path_of.get(id(node)))
-        return hook
-
-    def _make_restart_hook(self, run: Run) -> Callable:
-        def hook(node: Any, changed: dict) -> None:
-            self._emit(run, EventKind.RESTART, run.tree.path_of.get(id(node)),
-                       changed={k: [plain(o), plain(n)] for k, (o, n) in changed.items()})
-        return hook
-
     # -- events and logs -------------------------------------------------------------------
     def _emit(self, run: Run, kind: EventKind, path: str | None, **data: Any) -> None:
         """Log an event of ``run`` and post it to its subscribers (lock held)."""
@@ -584,26 +536,13 @@ class Executive:
             self._outbox.post(Event(kind, run.id, run.tick, run.now, path, data), subscribers)
 
     def _header(self, sub: Submission, t0: float, ns: str | None) -> dict[str, Any]:
-        m = sub.mission
-        sources = {}
-        for f in m.files:
-            try:
-                sources[f] = Path(f).read_text(encoding="utf-8")
-            except OSError:
-                pass
-        return {"format": LOG_FORMAT, "run": sub.id, "tick": 0, "t": t0,
-                "wall": self.clock.wall(), "mission": m.name, "file": m.file,
-                "sources": sources, "params": plain(sub.params), "priority": sub.priority,
-                "tick_hz": self.tick_hz,
-                "clock": "sim" if getattr(self.clock, "simulated", False) else "wall", "ns": ns}
+        return header_fields(sub.id, sub.mission, sub.params, sub.priority, t0,
+                             self.clock.wall(), self.tick_hz, self._loop.simulated, ns)
 
     def _open_log(self, run: Run, ns: str) -> None:
-        if self.runs_dir is None:
-            return
-        self.runs_dir.mkdir(parents=True, exist_ok=True)
-        run.log = RunLog(self.runs_dir / f"{run.id}.jsonl", run.id)
-        run.sub.log_path = str(run.log.path)
-        run.log.header(self._header(run.sub, run.t0, ns))
+        if self.runs_dir is not None:
+            run.log = RunLog.create(self.runs_dir, run.id, self._header(run.sub, run.t0, ns))
+            run.sub.log_path = str(run.log.path)
 
     def _end(self, run: Run, outcome: RunState, reason: str, robot_stopped: bool = True) -> None:
         """Close the run: result, log end line, teardown (lock held; never raises)."""
@@ -620,15 +559,8 @@ class Executive:
                                duration=now - run.t0, log_path=sub.log_path,
                                robot_stopped=robot_stopped)
         if run.log is not None:
-            try:
-                run.log.end(run.id, run.tick, now, outcome, reason, result.outputs,
-                            None if robot_stopped else {"robot_stopped": False})
-            except Exception:  # noqa: BLE001 - e.g. a full disk: the run ends all the same
-                log.exception("writing the end of %s failed", sub.log_path)
-            try:
-                run.log.close()
-            except Exception:  # noqa: BLE001
-                log.exception("closing %s failed", sub.log_path)
+            run.log.finish(run.id, run.tick, now, outcome, reason, result.outputs,
+                           None if robot_stopped else {"robot_stopped": False})
         if run.tree is not None:
             run.tree.teardown()
         if self._current is run:
@@ -640,18 +572,9 @@ class Executive:
         now = self.clock.now()
         ev = Event(EventKind.RUN, sub.id, 0, now, None, {"state": outcome, "reason": reason})
         if self.runs_dir is not None:
-            try:
-                self.runs_dir.mkdir(parents=True, exist_ok=True)
-                runlog = RunLog(self.runs_dir / f"{sub.id}.jsonl", sub.id)
-                sub.log_path = str(runlog.path)
-                try:
-                    runlog.header({**self._header(sub, now, None), "started": False})
-                    runlog.event(ev)
-                    runlog.end(sub.id, 0, now, outcome, reason, {})
-                finally:
-                    runlog.close()
-            except OSError:
-                log.exception("writing the log of %s failed", sub.id)
+            path = RunLog.write_unstarted(self.runs_dir, sub.id, self._header(sub, now, None),
+                                          ev, outcome, reason)
+            sub.log_path = str(path) if path is not None else None
         subscribers = sub.subscribers + self._subscribers
         if subscribers:
             self._outbox.post(ev, subscribers)

@@ -14,12 +14,16 @@ accounted for.
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import IO, Any
 
 from py_trees import common
 
 from executive.events import Event, EventKind
+from executive.missionfile import Mission, plain
+
+log = logging.getLogger("hearth.executive")
 
 #: Version of the log format (the header's ``format``).
 LOG_FORMAT = 1
@@ -37,6 +41,23 @@ def dumps(obj: Any) -> str:
     return json.dumps(obj, default=repr)
 
 
+def header_fields(run_id: str, mission: Mission, params: dict[str, Any], priority: int,
+                  t0: float, wall: float, tick_hz: float, simulated: bool,
+                  ns: str | None) -> dict[str, Any]:
+    """What a ``start`` line says, in its order: the mission and the source text of every
+    file it was loaded from, parameters, priority, tick rate, clock kind, start time."""
+    sources = {}
+    for f in mission.files:
+        try:
+            sources[f] = Path(f).read_text(encoding="utf-8")
+        except OSError:
+            pass
+    return {"format": LOG_FORMAT, "run": run_id, "tick": 0, "t": t0, "wall": wall,
+            "mission": mission.name, "file": mission.file, "sources": sources,
+            "params": plain(params), "priority": priority, "tick_hz": tick_hz,
+            "clock": "sim" if simulated else "wall", "ns": ns}
+
+
 class RunLog:
     """The log file of one run. Not thread-safe: the executive writes it under its lock.
 
@@ -50,6 +71,28 @@ class RunLog:
         self._run_json = json.dumps(run_id)
         self._head = ""
         self._pending: list[str] = []
+
+    @classmethod
+    def create(cls, runs_dir: Path, run_id: str, header: dict[str, Any]) -> "RunLog":
+        """``runs_dir/<run id>.jsonl`` with its ``start`` line written."""
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        runlog = cls(runs_dir / f"{run_id}.jsonl", run_id)
+        runlog.header(header)
+        return runlog
+
+    @classmethod
+    def write_unstarted(cls, runs_dir: Path, run_id: str, header: dict[str, Any], ev: Event,
+                        outcome: str, reason: str) -> Path | None:
+        """The whole log of a run that ended before it started (``"started": false``);
+        its path, or None if it could not be written."""
+        try:
+            runlog = cls.create(runs_dir, run_id, {**header, "started": False})
+            runlog.event(ev)
+            runlog.finish(run_id, 0, ev.time, outcome, reason, {})
+            return runlog.path
+        except OSError:
+            log.exception("writing the log of %s failed", run_id)
+            return None
 
     @property
     def closed(self) -> bool:
@@ -68,6 +111,19 @@ class RunLog:
         self.flush()
         self._write(dumps({"e": END, "run": run_id, "tick": tick, "t": time, "outcome": outcome,
                            "reason": reason, "outputs": outputs, **(extra or {})}) + "\n")
+
+    def finish(self, run_id: str, tick: int, time: float, outcome: str, reason: str,
+               outputs: Any, extra: dict[str, Any] | None = None) -> None:
+        """The ``end`` line, then close; never raises (a full disk must not keep a run
+        from ending: the error is logged)."""
+        try:
+            self.end(run_id, tick, time, outcome, reason, outputs, extra)
+        except Exception:  # noqa: BLE001
+            log.exception("writing the end of %s failed", self.path)
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001
+            log.exception("closing %s failed", self.path)
 
     # -- the hot path ------------------------------------------------------------------------
     def begin_tick(self, tick: int, now: float) -> None:

@@ -17,8 +17,11 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from py_trees import common
 
-from executive import treetick
+import logging
+
+from executive import nodes, treetick
 from executive.events import EventKind
+from executive.missionfile import plain
 from executive.runlog import RunLog
 from executive.tree import BuiltTree
 
@@ -27,6 +30,7 @@ if TYPE_CHECKING:
 
 Status = common.Status
 RUNNING, INVALID = Status.RUNNING, Status.INVALID
+log = logging.getLogger("hearth.executive")
 
 
 class TickLoop:
@@ -104,14 +108,47 @@ class Run:
         self.halt_deadline = 0.0
 
     def prepare(self, tree: BuiltTree) -> None:
-        """Take the built tree: what the diff needs on each node, and the direct tick."""
+        """Take the built tree: what the diff needs on each node, the hooks that report
+        outputs, watch restarts and stopped skills, and the direct tick."""
         self.tree = tree
         for node in tree.root.iterate():
             node.hearth_leaf = not node.children
             node.hearth_path_json = json.dumps(node.hearth_path)
             node.hearth_last = INVALID       # the last status reported
             node.hearth_feedback = ""        # the last feedback reported
+            if hasattr(node, "output_hook"):
+                node.output_hook = self._on_output
+            if isinstance(node, nodes.Watch):
+                node.on_restart = self._on_restart
+                node.on_stopped = self._on_stopped
         treetick.direct(tree.root)
+
+    def _on_output(self, node: Any, port: str, key: str, value: Any) -> None:
+        self.emit(self, EventKind.WRITE, self.tree.path_of.get(id(node)), port=port,
+                  key=self.tree.short_key(key), value=plain(value))
+
+    def _on_stopped(self, node: Any) -> None:
+        self.emit(self, EventKind.STOPPED, self.tree.path_of.get(id(node)))
+
+    def _on_restart(self, node: Any, changed: dict) -> None:
+        self.emit(self, EventKind.RESTART, self.tree.path_of.get(id(node)),
+                  changed={k: [plain(o), plain(n)] for k, (o, n) in changed.items()})
+
+    # -- halting ---------------------------------------------------------------------------
+    def halt(self, now: float) -> None:
+        """Halt the tree (deepest first), report what stopped, and start waiting for the
+        halted skills that report ``is_halting()`` (at most their largest HALT_TIMEOUT)."""
+        running = nodes.running_skills(self.tree.root)
+        halt_tree(self.tree.root)
+        self.diff({})
+        self.halting = nodes.still_halting(running, self._on_stopped)
+        self.halt_started = now
+        self.halt_deadline = now + nodes.halt_timeout(self.halting)
+
+    def poll_halting(self) -> list:
+        """The halted skills still stopping (a ``stopped`` event for each that has stopped)."""
+        self.halting = nodes.still_halting(self.halting, self._on_stopped)
+        return self.halting
 
     def begin_step(self, now: float, quiet: bool) -> None:
         self.now = now
@@ -200,3 +237,21 @@ class Run:
             node = failed[-1]
         path = self.tree.path_of.get(id(node), node.name)
         return f"{path} failed" + (f": {node.feedback_message}" if node.feedback_message else "")
+
+
+def halt_tree(root: Any) -> None:
+    """Halt every running node, deepest first; a terminate that raises does not keep the
+    others from being halted."""
+    try:
+        if root.status != Status.INVALID:
+            treetick.stop(root, Status.INVALID)
+        return
+    except Exception:  # noqa: BLE001
+        log.exception("halting the tree failed; halting node by node")
+    for node in root.iterate():          # children before parents
+        if node.status != Status.INVALID:
+            try:
+                node.stop(Status.INVALID)
+            except Exception:  # noqa: BLE001
+                log.exception("terminate failed on %s", node.name)
+                node.status = Status.INVALID
