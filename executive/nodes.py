@@ -13,6 +13,10 @@
 * :class:`StateMachine`: SMACH-style container on a ``transitions`` machine.
 
 Behaviours that need time or a clock get it from ``setup(clock=...)``.
+
+Each node with its own ``tick()`` generator also has ``tick_into(seen)``, the same tick by
+direct calls (executive/treetick.py): both share the code between the child ticks, so the
+two differ only in how a child is ticked and how a visited node is reported.
 """
 from __future__ import annotations
 
@@ -24,6 +28,7 @@ from py_trees import common
 from py_trees.behaviour import Behaviour
 from transitions import Machine
 
+from executive import treetick
 from executive.missionfile import Expr
 
 Status = common.Status
@@ -38,9 +43,9 @@ class DeepestFirst:
     def stop(self, new_status: Status) -> None:
         child = self.decorated
         if new_status == Status.INVALID and child.status != Status.INVALID:
-            child.stop(Status.INVALID)
+            treetick.stop(child, Status.INVALID)
         elif child.status == Status.RUNNING:
-            child.stop(Status.INVALID)
+            treetick.stop(child, Status.INVALID)
         self.terminate(new_status)
         self.status = new_status
 
@@ -93,7 +98,7 @@ class Timeout(DeepestFirst, py_trees.decorators.Timeout):
         now = self._now()
         if self.decorated.status == Status.RUNNING and now >= self.finish_time:
             self.feedback_message = f"timed out after {self.duration:g} s"
-            self.decorated.stop(Status.INVALID)
+            treetick.stop(self.decorated, Status.INVALID)
             return Status.FAILURE
         if self.decorated.status == Status.RUNNING:
             self.feedback_message = f"{self.finish_time - now:.2f} s left"
@@ -111,16 +116,34 @@ class ThresholdParallel(py_trees.composites.Parallel):
         self.threshold = threshold
 
     def tick(self) -> Iterator[Behaviour]:
+        self._begin()
+        for child in self._pending():
+            yield from child.tick()
+        self._finish()
+        yield self
+
+    def tick_into(self, seen: dict) -> None:
+        self._begin()
+        for child in self._pending():
+            treetick.tick_node(child, seen)
+        self._finish()
+        seen[self] = self.status
+
+    def _begin(self) -> None:
         if self.status != Status.RUNNING:
             for child in self.children:
                 if child.status != Status.INVALID:
-                    child.stop(Status.INVALID)
+                    treetick.stop(child, Status.INVALID)
             self.current_child = None
             self.initialise()
+
+    def _pending(self) -> Iterator[Behaviour]:
+        """The children to tick, each checked as the previous one has been ticked."""
         for child in self.children:
-            if child.status in (Status.SUCCESS, Status.FAILURE):
-                continue
-            yield from child.tick()
+            if child.status not in (Status.SUCCESS, Status.FAILURE):
+                yield child
+
+    def _finish(self) -> None:
         succeeded = sum(c.status == Status.SUCCESS for c in self.children)
         failed = sum(c.status == Status.FAILURE for c in self.children)
         self.feedback_message = f"{succeeded} of {self.threshold} needed succeeded, {failed} failed"
@@ -131,9 +154,8 @@ class ThresholdParallel(py_trees.composites.Parallel):
             new_status = Status.FAILURE
         self.current_child = self.children[-1]
         if new_status != Status.RUNNING:
-            self.stop(new_status)
+            treetick.stop(self, new_status)
         self.status = new_status
-        yield self
 
 
 class ForEach(DeepestFirst, py_trees.decorators.ForEach):
@@ -166,11 +188,22 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
             self.initialise()
         if self._current_item is not self._DONE:
             yield from self.decorated.tick()
+        self._finish()
+        yield self
+
+    def tick_into(self, seen: dict) -> None:
+        if self.status != Status.RUNNING:
+            self.initialise()
+        if self._current_item is not self._DONE:
+            treetick.tick_node(self.decorated, seen)
+        self._finish()
+        seen[self] = self.status
+
+    def _finish(self) -> None:
         new_status = self.update()
         if new_status != Status.RUNNING:
-            self.stop(new_status)
+            treetick.stop(self, new_status)
         self.status = new_status
-        yield self
 
     def initialise(self) -> None:
         items = self.source()
@@ -346,6 +379,20 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
         self._halting = []
 
     def tick(self) -> Iterator[Behaviour]:
+        if self._before():
+            yield from self.decorated.tick()
+            self._finish()
+        yield self
+
+    def tick_into(self, seen: dict) -> None:
+        if self._before():
+            treetick.tick_node(self.decorated, seen)
+            self._finish()
+        seen[self] = self.status
+
+    def _before(self) -> bool:
+        """Restart on a changed parameter; False while halted skills are still stopping
+        (the watch stays RUNNING without ticking its child)."""
         if self.status != Status.RUNNING:
             self.initialise()
         else:
@@ -358,7 +405,7 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
                 self.feedback_message = f"restarting: {what}"
                 running = running_skills(self.decorated)
                 if self.decorated.status != Status.INVALID:
-                    self.decorated.stop(Status.INVALID)
+                    treetick.stop(self.decorated, Status.INVALID)
                 self._halting = still_halting(running, self.on_stopped)
                 self._halt_deadline = self._now() + halt_timeout(self._halting)
                 if self.on_restart is not None:
@@ -368,15 +415,15 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
             if self._halting and self._now() < self._halt_deadline:
                 self.feedback_message = f"waiting for {len(self._halting)} skill(s) to stop"
                 self.status = Status.RUNNING
-                yield self
-                return
+                return False
             self._halting = []
-        yield from self.decorated.tick()
+        return True
+
+    def _finish(self) -> None:
         new_status = self.decorated.status
         if new_status != Status.RUNNING:
-            self.stop(new_status)
+            treetick.stop(self, new_status)
         self.status = new_status
-        yield self
 
     def update(self) -> Status:
         return self.decorated.status
@@ -428,52 +475,80 @@ class StateMachine(py_trees.composites.Composite):
         self.history = []
 
     def tick(self) -> Iterator[Behaviour]:
-        if self.status != Status.RUNNING:
-            for child in self.children:
-                if child.status != Status.INVALID:
-                    child.stop(Status.INVALID)
-            self.initialise()
+        self._begin()
         for _ in range(len(self.children) + 1):
-            state = self.model.state
-            child = self.by_state[state]
-            self.current_child = child
-            if child.status in (Status.SUCCESS, Status.FAILURE):
-                child.stop(Status.INVALID)   # a state entered again starts afresh
+            child = self._enter()
             yield from child.tick()
-            if child.status == Status.RUNNING:
-                self.status = Status.RUNNING
-                yield self
-                return
-            if isinstance(child, StateMachine):
-                outcome = child.outcome or "failure"
-            elif child.status != Status.SUCCESS:
-                outcome = "failure"
-            elif state in self.outcome_readers:
-                outcome = self.outcome_readers[state]()
-                if outcome is MISSING or outcome not in self.tables[state]:
-                    # SMACH raises on an unmapped outcome; here the block fails, saying why.
-                    self.feedback_message = f"state {state}: unmapped outcome {outcome!r}" \
-                        if outcome is not MISSING else f"state {state}: outcome key not set"
-                    self.outcome = None
-                    self.stop(Status.FAILURE)
-                    yield self
-                    return
-            else:
-                outcome = "success"
-            self.model.trigger(f"on_{outcome}")
-            self.history.append((state, outcome, self.model.state))
-            self.feedback_message = f"{state} --{outcome}--> {self.model.state}"
-            if self.model.state in self.outcomes:
-                self.outcome = self.model.state
-                final = Status.SUCCESS if self.outcomes[self.outcome] == "success" else Status.FAILURE
-                self.stop(final)
+            if self._after(child):
                 yield self
                 return
         self.status = Status.RUNNING
         yield self
 
+    def tick_into(self, seen: dict) -> None:
+        self._begin()
+        for _ in range(len(self.children) + 1):
+            child = self._enter()
+            treetick.tick_node(child, seen)
+            if self._after(child):
+                seen[self] = self.status
+                return
+        self.status = Status.RUNNING
+        seen[self] = self.status
+
+    def _begin(self) -> None:
+        if self.status != Status.RUNNING:
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    treetick.stop(child, Status.INVALID)
+            self.initialise()
+
+    def _enter(self) -> Behaviour:
+        """The current state's node, ready to tick."""
+        child = self.by_state[self.model.state]
+        self.current_child = child
+        if child.status in (Status.SUCCESS, Status.FAILURE):
+            treetick.stop(child, Status.INVALID)   # a state entered again starts afresh
+        return child
+
+    def _after(self, child: Behaviour) -> bool:
+        """Follow the ticked state's outcome; True when the block yields for this tick
+        (the state is running, or the block has ended)."""
+        state = self.model.state
+        if child.status == Status.RUNNING:
+            self.status = Status.RUNNING
+            return True
+        if isinstance(child, StateMachine):
+            outcome = child.outcome or "failure"
+        elif child.status != Status.SUCCESS:
+            outcome = "failure"
+        elif state in self.outcome_readers:
+            outcome = self.outcome_readers[state]()
+            if outcome is MISSING or outcome not in self.tables[state]:
+                # SMACH raises on an unmapped outcome; here the block fails, saying why.
+                self.feedback_message = f"state {state}: unmapped outcome {outcome!r}" \
+                    if outcome is not MISSING else f"state {state}: outcome key not set"
+                self.outcome = None
+                treetick.stop(self, Status.FAILURE)
+                return True
+        else:
+            outcome = "success"
+        self.model.trigger(f"on_{outcome}")
+        self.history.append((state, outcome, self.model.state))
+        self.feedback_message = f"{state} --{outcome}--> {self.model.state}"
+        if self.model.state in self.outcomes:
+            self.outcome = self.model.state
+            final = Status.SUCCESS if self.outcomes[self.outcome] == "success" else Status.FAILURE
+            treetick.stop(self, final)
+            return True
+        return False
+
     def stop(self, new_status: Status = Status.INVALID) -> None:
         for child in self.children:
             if child.status == Status.RUNNING:
-                child.stop(Status.INVALID)
-        py_trees.composites.Composite.stop(self, new_status)
+                treetick.stop(child, Status.INVALID)
+        treetick.composite_stop(self, new_status)
+
+
+for _node in (ThresholdParallel, ForEach, Watch, StateMachine):
+    treetick.register(_node.tick, _node.tick_into)

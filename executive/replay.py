@@ -184,6 +184,9 @@ def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayRep
     from executive.executive import Executive
 
     header, events, end = read_log(path)
+    if header.get("started") is False:     # cancelled while queued: nothing ran
+        outcome = end["outcome"] if end else None
+        return ReplayReport(original=[], replayed=[], outcome=outcome, replayed_outcome=outcome)
     file = header["file"]
     source = header.get("sources", {}).get(file)
     if source is not None and Path(file).exists():
@@ -222,8 +225,8 @@ def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayRep
     ex_ref: list[Executive] = []
 
     def current_tick() -> int:
-        run = ex_ref[0]._current if ex_ref else None
-        return run.tick if run is not None else 0
+        tick = ex_ref[0].current_tick if ex_ref else None
+        return tick if tick is not None else 0
 
     def make(spec: NodeSpec, bindings: Bindings) -> Skill:
         cls = type(f"Replay{spec.skill.__name__}", (ReplaySkill,),
@@ -255,7 +258,7 @@ def replay(path: str | Path, skills: dict[str, type] | None = None) -> ReplayRep
             ex.set_parameter(name, value)
         if k in cancel_at:
             final, reason = cancel_at[k]
-            ex._request_cancel(handle, final, reason)
+            ex.cancel(handle, reason, outcome=final)
         ex.tick()
     if not handle.done:
         handle.cancel("replay ran past the logged end")

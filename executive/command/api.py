@@ -28,7 +28,7 @@ from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
 from fastapi.responses import HTMLResponse, JSONResponse, StreamingResponse
 from pydantic import BaseModel, Field, field_validator
 
-from executive.command.service import TERMINAL, CommandService, Conflict, NotFound
+from executive.command.service import CommandService, Conflict, NotFound
 from executive.errors import MissionError, MissionValidationError
 
 #: A request body, in bytes: refused from its Content-Length before it is read, and by counting
@@ -567,11 +567,10 @@ async def _stream(service: CommandService, cursor: int, run: str | None, close_o
             yield f"event: gap\ndata: {{\"e\": \"gap\", \"after\": {cursor}}}\n\n"
         chunk = []
         ended = False
-        for seq, kind, ev_run, text in items:
+        for seq, kind, ev_run, text, ends_run in items:
             cursor = seq
             chunk.append(f"id: {seq}\nevent: {kind}\ndata: {text}\n\n")
-            if (close_on_end and run is not None and ev_run == run and kind == "run"
-                    and any(f'"state": "{s}"' in text for s in TERMINAL)):
+            if close_on_end and run is not None and ev_run == run and ends_run:
                 ended = True
                 break
         if chunk:

@@ -20,12 +20,12 @@ from typing import Any
 from executive.autonomy import Approvals
 from executive.command.commands import Interpretation, interpret
 from executive.command.vocabulary import Vocabulary, load_catalogue
+from executive.events import TERMINAL, EventKind
 from executive.missionfile import plain
 
-TERMINAL = ("succeeded", "failed", "cancelled", "preempted")
 #: executive event kinds not forwarded (``tick``: one per tick on a wall clock; ``map``: the
 #: hub hears the map directly, also while no mission runs)
-_DROPPED = {"tick", "map"}
+_DROPPED = {EventKind.TICK, EventKind.MAP}
 
 
 class NotFound(LookupError):
@@ -39,11 +39,13 @@ class Conflict(RuntimeError):
 
 class EventHub:
     """Numbered events (``seq`` from 1) in a ring buffer. ``publish`` from any thread is
-    O(1) (the tick thread calls it for every event); asyncio readers wake on new events."""
+    O(1) (the executive's event delivery calls it for every event); asyncio readers wake on
+    new events. Each item is ``(seq, kind, run, text, ends_run)``: ``ends_run`` marks the
+    event that reports a run's end (its ``run`` event in a terminal state)."""
 
     def __init__(self, keep: int = 50_000):
         self._lock = threading.Lock()
-        self._buf: deque[tuple[int, str, str | None, str]] = deque(maxlen=keep)
+        self._buf: deque[tuple[int, str, str | None, str, bool]] = deque(maxlen=keep)
         # A stream that follows one run reads that run's events and the run-less ones (map,
         # vocabulary, autonomy) without scanning everybody else's (50 clients each
         # following their own run would otherwise rescan every event).
@@ -59,12 +61,13 @@ class EventHub:
         self._loop = loop
         self._event = asyncio.Event()
 
-    def publish(self, kind: str, data: dict[str, Any], run: str | None = None) -> int:
+    def publish(self, kind: str, data: dict[str, Any], run: str | None = None,
+                ends_run: bool = False) -> int:
         text = json.dumps(data, default=repr)
         with self._lock:
             self.last_seq += 1
             seq = self.last_seq
-            item = (seq, kind, run, text)
+            item = (seq, kind, run, text, ends_run)
             self._buf.append(item)
             if run is None:
                 self._global.append(item)
@@ -99,7 +102,7 @@ class EventHub:
         return self._event
 
     def since(self, seq: int, limit: int = 1000, run: str | None = None
-              ) -> tuple[list[tuple[int, str, str | None, str]], bool]:
+              ) -> tuple[list[tuple[int, str, str | None, str, bool]], bool]:
         """Events after ``seq`` (at most ``limit``) and whether some were already dropped.
         With ``run``: only that run's events and the run-less ones."""
         with self._lock:
@@ -181,20 +184,22 @@ class CommandService:
 
     # -- events ------------------------------------------------------------------------
     def _on_event(self, ev: Any) -> None:
-        # The tick thread, under the executive's lock: keep it short.
-        if ev.kind in _DROPPED:
+        # The executive's event delivery (one thread, in order, outside the executive's
+        # lock): keep it short, every event of every run passes here.
+        kind = ev.kind
+        if kind in _DROPPED:
             return
-        if ev.path is not None and ev.kind in ("status", "feedback"):
-            # No service lock here (the executive's lock is held: lock order); a run may
-            # report before submit() has filed its record, so its nodes live apart.
+        if ev.path is not None and kind in (EventKind.STATUS, EventKind.FEEDBACK):
+            # A run may report before submit() has filed its record, so its nodes live apart.
             live = self._live.get(ev.run)
             if live is None:
                 live = self._live.setdefault(ev.run, ({}, {}))
-            if ev.kind == "status":
+            if kind is EventKind.STATUS:
                 live[0][ev.path] = ev.data.get("status", "")
             else:
                 live[1][ev.path] = ev.data.get("message", "")
-        self.hub.publish(ev.kind, ev.to_json(), run=ev.run)
+        ends = kind is EventKind.RUN and ev.data.get("state") in TERMINAL
+        self.hub.publish(kind, ev.to_json(), run=ev.run, ends_run=ends)
 
     def _on_approval(self, kind: str, data: dict) -> None:
         self.hub.publish(kind, {"e": kind, **data}, run=data.get("run"))

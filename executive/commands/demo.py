@@ -59,34 +59,43 @@ def perturbed_truth(world, seed: int = 0):
 
 
 class _Progress:
-    """Prints a mission's progress: run states, each skill's final word, what was said."""
+    """Prints a mission's progress: run states, each skill's final word, what was said.
+
+    Which nodes are skills comes from the mission (:meth:`follow`), whether a skill is still
+    running from its status events: a running action reports its progress every tick, so a
+    skill's feedback is printed only once it has finished."""
 
     def __init__(self, quiet: bool):
         self.quiet = quiet
+        self.skills: set[str] = set()      # tree paths of the followed mission's skills
+        self.running: set[str] = set()     # of those, the ones running now
         self.last: dict[str, str] = {}
         self.previous = ""
 
+    def follow(self, mission) -> None:
+        self.skills = {n.path for n in mission.nodes() if n.kind == "skill"}
+        self.running.clear()
+
     def __call__(self, e) -> None:
+        from executive.events import EventKind, RunState
         if self.quiet:
             return
-        if e.kind == "run":
-            print(f"  [{e.time:7.1f} s] mission {e.data.get('state')}"
-                  + (f": {e.data.get('reason')}" if e.data.get("state") not in ("running",) else ""))
-        elif e.kind == "feedback" and e.path:
+        if e.kind is EventKind.RUN:
+            state = e.data.get("state")
+            print(f"  [{e.time:7.1f} s] mission {state}"
+                  + (f": {e.data.get('reason')}" if state != RunState.RUNNING else ""))
+        elif e.kind is EventKind.STATUS and e.path in self.skills:
+            if e.data.get("status") == "RUNNING":
+                self.running.add(e.path)
+            else:
+                self.running.discard(e.path)
+        elif e.kind is EventKind.FEEDBACK and e.path in self.skills:
             msg = str(e.data.get("message", ""))
-            leaf = e.path.rsplit("/", 1)[-1]
-            # Running actions report a percentage every tick: print only how they ended.
-            if (not msg or msg.endswith(("%", ": True", ": False")) or msg == self.previous
+            if (e.path in self.running or not msg or msg == self.previous
                     or msg == self.last.get(e.path)):
                 return
-            if leaf in ("sequence", "selector", "for_each", "retry", "force_success",
-                        "force_failure", "condition") or msg.startswith(("item ", "running [",
-                                                                         "succeeded [", "attempt",
-                                                                         "failure is success",
-                                                                         "success is failure")):
-                return
             self.last[e.path] = self.previous = msg
-            print(f"  [{e.time:7.1f} s] {leaf}: {msg}")
+            print(f"  [{e.time:7.1f} s] {e.path.rsplit('/', 1)[-1]}: {msg}")
 
 
 def _run(args) -> int:
@@ -130,13 +139,15 @@ def _run(args) -> int:
     ex = Executive(world=belief, robot=robot, clock=clock, tick_hz=10.0,
                    runs_dir=str(out / "runs"), background=False)
     ex.subscribe(track)
-    ex.subscribe(_Progress(args.quiet))
+    progress = _Progress(args.quiet)
+    ex.subscribe(progress)
     rows = []
     for file, params, why in DEMO_MISSIONS:
         t_sim, t_wall = clock.now(), time.perf_counter()
         err_before = robot.localisation_error()
         print(f"== {file[:-5]} ({why})")
         handle = ex.submit(str(MISSIONS / file), **params)
+        progress.follow(handle.mission)
         ex.run_until_idle(200_000)
         r = handle.result
         err_after = robot.localisation_error()

@@ -40,11 +40,12 @@ class Stepper:
         handle.subscribe(self._on_event)
 
     def _on_event(self, e) -> None:
-        if e.kind == "status":
+        from executive.events import EventKind
+        if e.kind is EventKind.STATUS:
             self.statuses[e.path] = e.data["status"]
-        elif e.kind == "feedback":
+        elif e.kind is EventKind.FEEDBACK:
             self.feedback[e.path] = e.data["message"]
-        if e.kind != "tick":
+        if e.kind is not EventKind.TICK:
             print(format_event(e.to_json()), file=self.out)
 
     def tick(self, n: int = 1) -> int:
@@ -91,7 +92,7 @@ def _run(args) -> int:
     print(HELP)
     while not handle.done:
         try:
-            line = input(f"[tick {ex._current.tick if ex._current else 0}] > ").strip()
+            line = input(f"[tick {ex.current_tick or 0}] > ").strip()
         except EOFError:
             line = "q"
         cmd, _, arg = line.partition(" ")

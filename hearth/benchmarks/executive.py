@@ -6,7 +6,10 @@ The tree: ``repeat`` forever over a ``parallel`` (all) of 18 groups, each a ``pa
 for 0-3 ticks (fixed seed) and succeeds, so about half the tree is ticked every tick and
 statuses keep changing (Hearth has events to track). Hearth ticks it through
 ``Executive.tick()`` on a simulated clock, with the execution log written (the cost every
-run pays; subscribers add their own).
+run pays); ``tick_ms_subscribed`` is the same with one (empty) subscriber, so every event is
+also made an ``Event`` and delivered, as under the HTTP API. The executive ticks the tree by
+direct calls (executive/treetick.py), not py_trees' generators; docs/missions.md,
+"Performance", has the profile.
 
 The baseline is the same behaviour classes assembled by hand from py_trees composites and
 ticked the way py_trees ticks a tree, ``py_trees.trees.BehaviourTree.tick()``
@@ -134,21 +137,28 @@ def run(args) -> dict:
         ex = Executive(clock=SimClock(), tick_hz=10, runs_dir=Path(tmp) / "runs",
                        skills={"BenchWork": Work}, background=False)
         handle = ex.submit(mission)
+        ex_sub = Executive(clock=SimClock(), tick_hz=10, runs_dir=Path(tmp) / "runs_sub",
+                           skills={"BenchWork": Work}, background=False)
+        ex_sub.subscribe(lambda event: None)
+        handle_sub = ex_sub.submit(mission)
 
         gc.collect()
         _time_ticks(bare_tick, warmup)
         _time_ticks(bt.tick, warmup)
         _time_ticks(ex.tick, warmup)
+        _time_ticks(ex_sub.tick, warmup)
         # Interleave blocks so all see the same machine load.
-        d_times, t_times, h_times = [], [], []
+        d_times, t_times, h_times, s_times = [], [], [], []
         block = 10
         for _ in range(ticks // block):
             d_times += _time_ticks(bare_tick, block)
             t_times += _time_ticks(bt.tick, block)
             h_times += _time_ticks(ex.tick, block)
-        handle.cancel("benchmark done")
-        ex.run_until_idle(100)
-        ex.shutdown()
+            s_times += _time_ticks(ex_sub.tick, block)
+        for h, e in ((handle, ex), (handle_sub, ex_sub)):
+            h.cancel("benchmark done")
+            e.run_until_idle(100)
+            e.shutdown()
         log_lines = sum(1 for _ in open(handle.log_path))
         # The same tree, exported and ticked by BehaviorTree.CPP (hearth/benchmarks/_btcpp.py).
         btcpp_times = _btcpp.tick_times(str(path), {"BenchWork": Work}, len(h_times), warmup)
@@ -161,6 +171,7 @@ def run(args) -> dict:
         "ticks": len(h_times),
         "tick_ms": round(h_med * 1e3, 4),
         "tick_ms_mean": round(h_mean * 1e3, 4),
+        "tick_ms_subscribed": round(statistics.median(s_times) * 1e3, 4),
         "py_trees_tick_ms": round(d_med * 1e3, 4),
         "py_trees_tick_ms_mean": round(d_mean * 1e3, 4),
         "py_trees_tree_tick_ms": round(t_med * 1e3, 4),

@@ -2,6 +2,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from executive.replay import read_log, replay
 from executive.testing import Script as S, load_case, run_case, test_skills
+from py_trees.common import Status
 
 
 def run(make_executive, path, scripts=(), max_ticks=10_000, **params):
@@ -769,3 +770,94 @@ def test_a_user_cancel_during_a_preempt_wins(make_executive, mission_file):
     ex.run_until_idle(1000)
     assert low.status == "cancelled" and low.result.reason == "user said stop"
     assert high.status == "succeeded"
+
+
+# -- the cancel promise: reported only once what the mission started has stopped ------------
+def _braking_skill(stops_on_robot_stop: bool, robot):
+    """A stand-in drive that keeps reporting is_halting() after it is halted: for ever, or
+    until ``robot.stop()`` is called."""
+    from executive.testing import Act
+
+    class Braking(Act):
+        HALT_TIMEOUT = 0.5
+
+        def update(self):
+            self.feedback_message = "driving"
+            return Status.RUNNING
+
+        def terminate(self, new_status):
+            self.stops_seen = robot.stops
+
+        def is_halting(self):
+            return not (stops_on_robot_stop and robot.stops > self.stops_seen)
+    return Braking
+
+
+def test_a_skill_that_never_confirms_it_stopped_ends_the_cancel_saying_so(make_executive,
+                                                                          mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    robot = FakeRobot()
+    ex = make_executive(robot=robot)
+    Braking = _braking_skill(False, robot)
+    ex.make_skill = lambda spec, b: Braking(name=spec.name, bindings=b)
+    h = ex.submit(path)
+    ex.tick(); ex.tick()
+    h.cancel("user said stop")
+    for _ in range(3):
+        ex.tick()
+    assert h.status == "halting" and robot.stops == 0      # waiting for the skill, not yet
+    ex.run_until_idle(100)
+    r = h.result
+    assert r.outcome == "cancelled" and r.robot_stopped is False and robot.stops == 1
+    assert r.reason == ("cancelled, robot not confirmed stopped (/drive still stopping "
+                        "after 0.5 s): user said stop")
+    _, events, end = read_log(h.log_path)
+    assert end["robot_stopped"] is False and end["reason"] == r.reason
+    assert events[-1]["e"] == "run" and events[-1]["robot_stopped"] is False
+    halted = next(e for e in events if e["e"] == "halted")
+    assert halted["timed_out"] == ["/drive"] and halted["waited"] == 0.5
+    assert replay(h.log_path, test_skills()).same
+
+
+def test_a_skill_that_robot_stop_stops_confirms_the_cancel(make_executive, mission_file):
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    robot = FakeRobot()
+    ex = make_executive(robot=robot)
+    Braking = _braking_skill(True, robot)
+    ex.make_skill = lambda spec, b: Braking(name=spec.name, bindings=b)
+    runs = []
+    ex.subscribe(lambda e: runs.append((e.run, e.data["state"])) if e.kind == "run" else None)
+    low = ex.submit(path)
+    ex.tick(); ex.tick()
+    high = ex.submit(path, priority=1)
+    ex.run_until_idle(20)
+    assert low.result.outcome == "preempted" and low.result.robot_stopped is True
+    assert low.result.reason == f"preempted by x ({high.id})"
+    _, events, end = read_log(low.log_path)
+    assert "robot_stopped" not in end and [e["e"] for e in events][-3:] == ["stopped", "halted",
+                                                                            "run"]
+    # the preempting mission started only after the preempted one had ended
+    assert runs == [(low.id, "running"), (low.id, "halting"), (low.id, "preempted"),
+                    (high.id, "running")]
+
+
+def test_a_failing_log_write_ends_the_run_instead_of_leaving_it_stuck(make_executive,
+                                                                      mission_file):
+    from executive.runlog import RunLog
+    path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
+    robot = FakeRobot()
+    ex = make_executive([S("*/drive", duration=1.0)], robot=robot)
+    h = ex.submit(path)
+    ex.tick()
+    real = RunLog.flush
+
+    def disk_full(self):
+        raise OSError(28, "No space left on device")
+    RunLog.flush = disk_full
+    try:
+        ex.run_until_idle(100)
+    finally:
+        RunLog.flush = real
+    assert h.done and h.status == "failed" and ex.idle()
+    assert h.result.reason.startswith("internal error: OSError: [Errno 28] No space left")
+    assert robot.stops == 1
