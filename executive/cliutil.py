@@ -2,17 +2,21 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from executive.errors import MissionError
 from hearth import demo_world_path
-from executive.missionfile import Mission, parse_param_text
+
+if TYPE_CHECKING:   # the mission loader (py_trees, jsonschema) is imported when a command runs
+    from executive.missionfile import Mission
 
 DEFAULT_WORLD = demo_world_path()
 
 
 def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
     """``["presence=away", ...]`` -> typed values for ``mission``'s parameters."""
+    from executive.missionfile import parse_param_text
+
     out: dict[str, Any] = {}
     for pair in pairs or []:
         name, sep, text = pair.partition("=")
