@@ -87,7 +87,7 @@ def _scale(text: Optional[str], el, name: str) -> tuple:
         values = tuple(float(p) for p in parts)
     except ValueError:
         raise WorldError(f"scale needs numbers, got {text!r}", file=name, line=el.sourceline) from None
-    if not all(v > 0 and v < float("inf") for v in values):
+    if not all(0 < v < float("inf") for v in values):
         raise WorldError(f"scale must be positive, got {text!r}", file=name, line=el.sourceline)
     return values * 3 if len(values) == 1 else values
 

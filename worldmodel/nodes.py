@@ -32,9 +32,9 @@ class Visual:
     box: ``size`` (x, y, z) centred on ``pose``; cylinder: ``radius``, ``length`` along the
     local z axis, centred; sphere: ``radius``; mesh: ``file`` (relative to the world file)
     scaled by ``scale`` (x, y, z factors in the mesh's own frame; one number given here or in
-    a file means the same factor on every axis). ``material`` drives the simulated sensor (dark and shiny surfaces
-    drop depth readings). ``name`` tags special parts ("marker" on a knob face, "face" of a
-    door).
+    a file means the same factor on every axis). ``material`` drives the simulated sensor
+    (dark and shiny surfaces drop depth readings). ``name`` tags special parts ("marker" on a
+    knob face, "face" of a door).
     """
     shape: str
     pose: Pose = field(default_factory=Pose)
