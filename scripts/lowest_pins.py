@@ -40,7 +40,8 @@ def requirements(pyproject: Path) -> list[Requirement]:
 
 
 def released_versions(name: str) -> list[Version]:
-    out = subprocess.run([sys.executable, "-m", "pip", "index", "versions", name],
+    out = subprocess.run([sys.executable, "-m", "pip", "index", "versions", "--retries", "1",
+                          "--timeout", "30", name],
                          capture_output=True, text=True)
     m = re.search(r"Available versions: (.*)", out.stdout)
     if out.returncode != 0 or not m:

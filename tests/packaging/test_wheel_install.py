@@ -42,8 +42,8 @@ pytestmark = pytest.mark.timeout(900)    # a wheel build and a fresh venv on a b
 def installed(tmp_path_factory):
     """(python, hearth script, environment) of a fresh venv with the wheel and robotframework."""
     tmp = tmp_path_factory.mktemp("wheel")
-    got = pip("download", "--no-deps", "--only-binary", ":all:", "-d", str(tmp / "dl"),
-              "robotframework")
+    got = pip("download", "--no-deps", "--only-binary", ":all:", "--retries", "1", "--timeout", "30",
+              "-d", str(tmp / "dl"), "robotframework")      # fail fast when offline
     if got.returncode != 0:
         last = (got.stderr.strip().splitlines() or ["no output"])[-1]
         pytest.skip(f"the package index cannot be reached for robotframework: {last}")
