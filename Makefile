@@ -4,15 +4,15 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.hearth-installed
 
-.PHONY: demo test install models bench clean
+.PHONY: demo test install models bench lowest-deps clean
 
-$(STAMP): pyproject.toml scripts/sysdeps.sh
+$(STAMP): pyproject.toml constraints.txt scripts/sysdeps.sh
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
 	  echo "make: could not create $(VENV); on Debian run: apt-get install -y python3-venv" >&2; exit 1; }
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev,btcpp]'
+	$(PY) -m pip install -q -c constraints.txt -e '.[dev,btcpp]'
 	scripts/sysdeps.sh $(VENV)
-	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, filterpy, transitions, zmq, behaviortreepy, btview"
+	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, transitions, joblib, zmq, behaviortreepy, btview"
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -31,6 +31,11 @@ test: models
 
 bench: $(STAMP)
 	$(VENV)/bin/hearth bench all --json
+
+# The oldest versions pyproject.toml allows, in a fresh venv: every module imports and the CLI
+# runs (downloads ~250 MB of old wheels; not part of `make test`).
+lowest-deps:
+	scripts/lowest-deps.sh
 
 clean:
 	rm -rf $(VENV) build *.egg-info runs out

@@ -12,13 +12,12 @@ import pkgutil
 import sys
 
 from executive import commands as _commands
-from executive.errors import MissionError
-from perception.errors import PerceptionError
-from hearth.robot.errors import RobotError
-from skills.errors import SkillError
-from worldmodel.errors import WorldError
+from hearth.errors import HearthError
 
-USER_ERRORS = (WorldError, MissionError, RobotError, PerceptionError, SkillError)
+# Every package's error family (WorldError, MissionError, RobotError, PerceptionError,
+# SkillError) subclasses HearthError. Only this light module is imported here, and each
+# command module imports its machinery when it runs, so `hearth --help` starts at once.
+USER_ERRORS = (HearthError,)
 
 
 def build_parser() -> argparse.ArgumentParser:

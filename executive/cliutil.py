@@ -2,17 +2,22 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from executive.errors import MissionError
-from hearth import demo_world_path
-from executive.missionfile import Mission, parse_param_text
+from hearth import demo_world_path, missions_dir
+
+if TYPE_CHECKING:   # the mission loader (py_trees, jsonschema) is imported when a command runs
+    from executive.missionfile import Mission
 
 DEFAULT_WORLD = demo_world_path()
 
 
 def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
     """``["presence=away", ...]`` -> typed values for ``mission``'s parameters."""
+    from executive.missionfile import parse_param_text
+
     out: dict[str, Any] = {}
     for pair in pairs or []:
         name, sep, text = pair.partition("=")
@@ -29,8 +34,24 @@ def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
     return out
 
 
+def mission_file(text: str) -> str:
+    """A mission argument as given, or, when no such file is here, the shipped mission it
+    names (``missions/go_to_rest.yaml`` or ``go_to_rest.yaml``): an installed Hearth runs its
+    own missions from any directory."""
+    path = Path(text)
+    if path.exists() or path.is_absolute():
+        return text
+    shipped = missions_dir()
+    for candidate in (shipped.parent / path, shipped / path):
+        if candidate.is_file():
+            return str(candidate)
+    return text
+
+
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mission", help="mission file (YAML)")
+    p.add_argument("mission", type=mission_file,
+                   help="mission file (YAML); one not found here is looked up among the shipped "
+                        "missions (missions/NAME.yaml)")
     p.add_argument("--param", action="append", metavar="NAME=VALUE", default=[],
                    help="mission parameter (repeatable)")
     p.add_argument("--world", default=str(DEFAULT_WORLD),

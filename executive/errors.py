@@ -1,28 +1,25 @@
 """The executive's exception family: mission files, parameters, running."""
 from __future__ import annotations
 
+from hearth.errors import HearthError
 
-class MissionError(Exception):
+
+class MissionError(HearthError):
     """A problem with a mission file, its parameters or a run.
 
     ``file``/``line`` locate a problem in a mission file, ``param`` names a bad parameter;
-    ``str(err)`` is the one line the CLI prints.
+    ``str(err)`` is the one line the CLI prints (``path:line: ...``, ``parameter P: ...``).
     """
 
     def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
                  param: str | None = None):
-        super().__init__(message)
-        self.message = message
-        self.file = file
-        self.line = line
+        super().__init__(message, file=file, line=line)
         self.param = param
 
-    def __str__(self) -> str:
-        if self.file is not None:
-            return f"{self.file}:{self.line if self.line is not None else 0}: {self.message}"
-        if self.param is not None:
-            return f"parameter {self.param}: {self.message}"
-        return self.message
+    def where(self) -> str | None:
+        if self.file is None and self.param is not None:
+            return f"parameter {self.param}"
+        return super().where()
 
 
 class MissionValidationError(MissionError):

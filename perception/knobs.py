@@ -202,13 +202,25 @@ ANGLE_HOG = dict(win=(WINDOW, WINDOW), block=(16, 16), stride=(8, 8), cell=(8, 8
 _HOGS: dict = {}
 
 
-def hog_descriptor(spec: dict) -> cv2.HOGDescriptor:
+def _hog_class():
+    """OpenCV's HOGDescriptor: in every OpenCV 4 wheel; OpenCV 5 moved it to the contrib
+    modules (opencv-contrib-python-headless 5.x binds it as ``cv2.HOGDescriptor`` again)."""
+    hog = getattr(cv2, "HOGDescriptor", None)
+    if hog is None:
+        from perception.errors import PerceptionError
+        raise PerceptionError(f"OpenCV {cv2.__version__} has no HOGDescriptor (OpenCV 5 moved it "
+                              "to the contrib modules): install opencv-contrib-python-headless "
+                              "or opencv-python-headless<5")
+    return hog
+
+
+def hog_descriptor(spec: dict) -> "cv2.HOGDescriptor":
     key = tuple(sorted((k, tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in spec.items()))
     if key not in _HOGS:
-        _HOGS[key] = cv2.HOGDescriptor(tuple(spec["win"]), tuple(spec["block"]), tuple(spec["stride"]),
-                                       tuple(spec["cell"]), int(spec["nbins"]), 1, -1.0,
-                                       cv2.HOGDescriptor_L2Hys, 0.2, False, 64,
-                                       bool(spec.get("signed", False)))
+        _HOGS[key] = _hog_class()(tuple(spec["win"]), tuple(spec["block"]), tuple(spec["stride"]),
+                                  tuple(spec["cell"]), int(spec["nbins"]), 1, -1.0,
+                                  cv2.HOGDescriptor_L2Hys, 0.2, False, 64,
+                                  bool(spec.get("signed", False)))
     return _HOGS[key]
 
 

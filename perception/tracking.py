@@ -4,7 +4,7 @@ State of one particle: position x, y, z and orientation roll, pitch, yaw of the 
 world frame (roll and pitch stay fixed unless ``TrackerConfig.full_pose``), plus velocities.
 Per frame:
 
-1. resample the previous weighted set with filterpy's ``systematic_resample``;
+1. resample the previous weighted set (systematic resampling on the tracker's own generator);
 2. propagate with a *mixed* motion model: a fraction ``velocity_ratio`` of the particles
    moves with its own constant velocity, the rest stays put (constant position); both get
    process noise, so the filter follows starts, stops and turns with few particles;
@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from filterpy.monte_carlo import systematic_resample
 from scipy.spatial import cKDTree
 
 from perception.camera import Intrinsics, project
@@ -211,6 +210,21 @@ def reference_from_view(points_world: np.ndarray, colors_rgb: np.ndarray,
 
 # -- the filter -------------------------------------------------------------------------------
 
+def systematic_resample(weights: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` ancestor indices into ``weights`` (any positive scale) by systematic resampling:
+    one uniform offset ``u`` from ``rng``, positions ``(u + i) / n``, each mapped to the
+    particle whose cumulative weight first exceeds it (index ``k`` is drawn ``n * w_k``
+    times, rounded up or down).
+
+    Written here rather than taken from filterpy, whose ``systematic_resample`` draws its
+    offset from NumPy's global generator: a tracker must be reproducible from its own seed.
+    """
+    cumulative = np.cumsum(np.asarray(weights, dtype=np.float64))
+    positions = (rng.random() + np.arange(n)) / n * cumulative[-1]
+    idx = np.searchsorted(cumulative, positions, side="right")
+    return np.minimum(idx, len(cumulative) - 1)     # rounding in the last cumulative sum
+
+
 class ParticleTracker:
     """A KLD-adaptive particle filter following one object.
 
@@ -238,11 +252,8 @@ class ParticleTracker:
     def _resample_order(self, n_max: int) -> np.ndarray:
         """``n_max`` ancestor indices by systematic resampling, in random order (so that any
         prefix is itself a fair sample: needed by the KLD stopping rule)."""
-        w = self.weights / self.weights.sum()
-        reps = int(math.ceil(n_max / len(w)))
-        # filterpy draws len(weights) samples: tile the weights to draw reps * N of them.
-        idx = systematic_resample(np.tile(w, reps) / reps) % len(w)
-        return self.rng.permutation(idx)[:n_max]
+        idx = systematic_resample(self.weights, n_max, self.rng)
+        return self.rng.permutation(idx)
 
     def _propagate(self, parts: np.ndarray, dt: float) -> np.ndarray:
         c = self.config

@@ -2,20 +2,44 @@
 
 ``load_world(path)`` gives a ``World``: typed nodes, queries, updates with history, and
 ``save_world`` writes it back atomically. See docs/world-format.md.
-"""
-from worldmodel.errors import UnknownNode, WorldError, WorldValidationError
-from worldmodel.io import load_world, parse_world, save_world, to_xml, validate_file
-from worldmodel.nodes import (
-    Apartment, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,
-    LargeObject, Model, ParkingPosition, Part, Room, SmallObject, Surface, Switch, Visual,
-)
-from worldmodel.pose import Pose
-from worldmodel.world import MapChange, Match, World
 
-__all__ = [
-    "Apartment", "DefaultPosition", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
-    "LargeArticulatedObject", "LargeObject", "MapChange", "Match", "Model", "ParkingPosition",
-    "Part", "Pose", "Room", "SmallObject", "Surface", "Switch", "UnknownNode", "Visual", "World",
-    "WorldError", "WorldValidationError", "load_world", "parse_world", "save_world", "to_xml",
-    "validate_file",
-]
+The names below are re-exported lazily (PEP 562 module ``__getattr__``): importing
+``worldmodel.errors`` or any one module does not load the whole package.
+"""
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "worldmodel.errors": ("UnknownNode", "WorldError", "WorldValidationError"),
+    "worldmodel.io": ("load_world", "parse_world", "save_world", "to_xml", "validate_file"),
+    "worldmodel.nodes": (
+        "Apartment", "DefaultPosition", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
+        "LargeArticulatedObject", "LargeObject", "Model", "ParkingPosition", "Part", "Room",
+        "SmallObject", "Surface", "Switch", "Visual",
+    ),
+    "worldmodel.pose": ("Pose",),
+    "worldmodel.world": ("MapChange", "Match", "World"),
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+
+__all__ = sorted(_WHERE)
+
+
+# The modules that importing the package used to load, still reachable as attributes.
+_SUBMODULES = ("errors", "io", "nodes", "pose", "validate", "world")
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"worldmodel.{name}")
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'worldmodel' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value          # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

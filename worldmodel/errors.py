@@ -1,29 +1,16 @@
 """The world model's exception family: every error says where the problem is."""
 from __future__ import annotations
 
+from hearth.errors import HearthError
 
-class WorldError(Exception):
+
+class WorldError(HearthError):
     """A problem with a world file or the map.
 
     ``file`` and ``line`` locate a problem in a file; ``node`` names a map node.
     ``str(err)`` is the one line the CLI prints: ``path:line: message`` or
-    ``node ID: message``.
+    ``node ID: message`` (formatted by ``hearth.errors.HearthError``).
     """
-
-    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
-                 node: str | None = None):
-        super().__init__(message)
-        self.message = message
-        self.file = file
-        self.line = line
-        self.node = node
-
-    def __str__(self) -> str:
-        if self.file is not None:
-            return f"{self.file}:{self.line if self.line is not None else 0}: {self.message}"
-        if self.node is not None:
-            return f"node {self.node}: {self.message}"
-        return self.message
 
 
 class WorldValidationError(WorldError):

@@ -69,8 +69,17 @@ def visual_mesh(v: Visual, base_dir: Optional[Path] = None) -> o3d.geometry.Tria
     else:
         path = Path(v.file) if base_dir is None else Path(base_dir) / v.file
         m = o3d.geometry.TriangleMesh(_mesh_file(str(path)))
-        if v.scale != 1.0:
-            m.scale(v.scale, center=(0, 0, 0))
+        sx, sy, sz = v.scale
+        if sx == sy == sz:
+            if sx != 1.0:
+                m.scale(sx, center=(0, 0, 0))
+        else:
+            # open3d scales uniformly only; normals of a stretched mesh are recomputed.
+            m.vertices = o3d.utility.Vector3dVector(np.asarray(m.vertices) * (sx, sy, sz))
+            if m.has_triangle_normals():
+                m.compute_triangle_normals()
+            if m.has_vertex_normals():
+                m.compute_vertex_normals()
     m.transform(v.pose.matrix())
     return m
 

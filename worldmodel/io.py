@@ -76,6 +76,22 @@ def _floats(text: str, n: int, el, name: str, attr: str) -> tuple:
     return tuple(float(p) for p in parts)
 
 
+def _scale(text: Optional[str], el, name: str) -> tuple:
+    """A mesh's ``scale``: one factor for every axis, or three (x y z); all positive."""
+    if text is None:
+        return (1.0, 1.0, 1.0)
+    parts = text.split()
+    if len(parts) not in (1, 3):
+        raise WorldError(f"scale needs 1 or 3 numbers, got {text!r}", file=name, line=el.sourceline)
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise WorldError(f"scale needs numbers, got {text!r}", file=name, line=el.sourceline) from None
+    if not all(0 < v < float("inf") for v in values):
+        raise WorldError(f"scale must be positive, got {text!r}", file=name, line=el.sourceline)
+    return values * 3 if len(values) == 1 else values
+
+
 def _b(v: Optional[str], default: bool) -> bool:
     if v is None:
         return default
@@ -112,7 +128,7 @@ class _Reader:
                 shape=v.tag, pose=_pose_of(v),
                 size=_floats(v.get("size"), 3, v, self.name, "size") if v.get("size") else (0.0, 0.0, 0.0),
                 radius=float(v.get("radius", 0)), length=float(v.get("length", 0)),
-                file=v.get("file"), scale=float(v.get("scale", 1)),
+                file=v.get("file"), scale=_scale(v.get("scale"), v, self.name),
                 color=self.rgb(v, "color", (0.7, 0.7, 0.7)), material=v.get("material", "matte"),
                 name=v.get("name", ""), line=v.sourceline))
         return Model(visuals=visuals, ref=el.get("ref"), line=el.sourceline)
@@ -325,8 +341,8 @@ def _write_model(parent, model: Model, tag: str = "model", extra: Optional[dict]
             ve.set("length", _num(v.length))
         if v.shape == "mesh":
             ve.set("file", v.file or "")
-            if v.scale != 1.0:
-                ve.set("scale", _num(v.scale))
+            if v.scale != (1.0, 1.0, 1.0):   # uniform: one number, as format 1 always had
+                ve.set("scale", _num(v.scale[0]) if len(set(v.scale)) == 1 else _vec(v.scale))
         ve.set("color", _vec(v.color))
         if v.material != "matte":
             ve.set("material", v.material)

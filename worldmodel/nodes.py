@@ -31,9 +31,10 @@ class Visual:
 
     box: ``size`` (x, y, z) centred on ``pose``; cylinder: ``radius``, ``length`` along the
     local z axis, centred; sphere: ``radius``; mesh: ``file`` (relative to the world file)
-    scaled by ``scale``. ``material`` drives the simulated sensor (dark and shiny surfaces
-    drop depth readings). ``name`` tags special parts ("marker" on a knob face, "face" of a
-    door).
+    scaled by ``scale`` (x, y, z factors in the mesh's own frame; one number given here or in
+    a file means the same factor on every axis). ``material`` drives the simulated sensor
+    (dark and shiny surfaces drop depth readings). ``name`` tags special parts ("marker" on a
+    knob face, "face" of a door).
     """
     shape: str
     pose: Pose = field(default_factory=Pose)
@@ -41,11 +42,17 @@ class Visual:
     radius: float = 0.0
     length: float = 0.0
     file: Optional[str] = None
-    scale: float = 1.0
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     color: RGB = (0.7, 0.7, 0.7)
     material: str = "matte"
     name: str = ""
     line: Optional[int] = _line()
+
+    def __post_init__(self) -> None:
+        if isinstance(self.scale, (int, float)):
+            self.scale = (float(self.scale),) * 3
+        else:
+            self.scale = tuple(float(s) for s in self.scale)
 
 
 @dataclass

@@ -11,7 +11,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+
+def _rotation():
+    # scipy.spatial takes about 0.4 s to import and loading or validating a world needs no
+    # rotation, so scipy is imported the first time one is computed (keeps `hearth validate`
+    # and the CLI quick).
+    from scipy.spatial.transform import Rotation
+    return Rotation
 
 
 @dataclass(frozen=True)
@@ -25,13 +32,13 @@ class Pose:
 
     def matrix(self) -> np.ndarray:
         T = np.eye(4)
-        T[:3, :3] = Rotation.from_euler("xyz", [self.roll, self.pitch, self.yaw]).as_matrix()
+        T[:3, :3] = _rotation().from_euler("xyz", [self.roll, self.pitch, self.yaw]).as_matrix()
         T[:3, 3] = (self.x, self.y, self.z)
         return T
 
     @staticmethod
     def from_matrix(T: np.ndarray) -> "Pose":
-        r, p, y = Rotation.from_matrix(np.asarray(T)[:3, :3]).as_euler("xyz")
+        r, p, y = _rotation().from_matrix(np.asarray(T)[:3, :3]).as_euler("xyz")
         t = np.asarray(T)[:3, 3]
         return Pose(float(t[0]), float(t[1]), float(t[2]), float(r), float(p), float(y))
 
@@ -80,7 +87,7 @@ def rotation_about_axis(axis, angle: float) -> np.ndarray:
     axis = np.asarray(axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_rotvec(axis * angle).as_matrix()
+    T[:3, :3] = _rotation().from_rotvec(axis * angle).as_matrix()
     return T
 
 

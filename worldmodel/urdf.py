@@ -11,9 +11,12 @@ Mapping (documented in docs/world-format.md):
   origin), except a child link whose name contains "handle", which becomes a ``Handle`` at the
   joint origin (bar length and radius from its cylinder or box visual);
 - visuals: box, cylinder (URDF cylinders are along z, as Hearth's), sphere, mesh (filename
-  kept relative; ``package://`` prefixes are stripped), material rgba -> colour.
+  kept relative; ``package://`` prefixes are stripped; ``scale`` x y z kept per axis),
+  material rgba -> colour.
 
-The URDF is parsed with the same safe parser as world files (no entities, no network).
+The URDF is parsed with the same safe parser as world files (no entities, no network). A
+problem (a joint without ``<parent>`` or ``<child>``, a bad number, a link with two parents)
+is a ``WorldError`` with the file and the line of the element at fault.
 """
 from __future__ import annotations
 
@@ -31,21 +34,51 @@ from worldmodel.nodes import (
 from worldmodel.pose import Pose
 
 
-def _vec(text: Optional[str], n: int, default: float = 0.0) -> tuple:
+class _Bad(ValueError):
+    """A bad value at ``el`` (turned into a WorldError with the file and el's line)."""
+
+    def __init__(self, message: str, el):
+        super().__init__(message)
+        self.line = getattr(el, "sourceline", None)
+
+
+def _vec(text: Optional[str], n: int, default: float = 0.0, el=None, attr: str = "") -> tuple:
     if not text:
         return tuple([default] * n)
-    vals = tuple(float(v) for v in text.split())
+    try:
+        vals = tuple(float(v) for v in text.split())
+    except ValueError:
+        vals = ()
     if len(vals) != n:
-        raise ValueError(f"expected {n} numbers, got {text!r}")
+        raise _Bad(f"{attr or 'value'}: expected {n} numbers, got {text!r}", el)
     return vals
+
+
+def _number(el, attr: str, default: Optional[float] = None) -> float:
+    text = el.get(attr)
+    if text is None and default is not None:
+        return default
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise _Bad(f"<{el.tag}> needs a number {attr}=, got {text!r}", el) from None
+
+
+def _link_of(joint, tag: str) -> str:
+    """The link named by the joint's ``<parent>`` or ``<child>`` element."""
+    el = joint.find(tag)
+    if el is None or not el.get("link"):
+        raise _Bad(f"joint {joint.get('name')!r} needs <{tag} link=\"...\"/>",
+                   joint if el is None else el)
+    return el.get("link")
 
 
 def _origin(el) -> Pose:
     o = el.find("origin") if el is not None else None
     if o is None:
         return Pose()
-    x, y, z = _vec(o.get("xyz"), 3)
-    r, p, yw = _vec(o.get("rpy"), 3)
+    x, y, z = _vec(o.get("xyz"), 3, el=o, attr="xyz")
+    r, p, yw = _vec(o.get("rpy"), 3, el=o, attr="rpy")
     return Pose(x, y, z, r, p, yw)
 
 
@@ -63,21 +96,24 @@ def _visuals(link, name: str, materials: dict) -> list[Visual]:
         if mat is not None:
             c = mat.find("color")
             if c is not None:
-                color = tuple(_vec(c.get("rgba"), 4)[:3])
+                color = tuple(_vec(c.get("rgba"), 4, el=c, attr="rgba")[:3])
             elif mat.get("name") in materials:
                 color = materials[mat.get("name")]
         if shape.tag == "box":
-            out.append(Visual("box", pose, size=_vec(shape.get("size"), 3), color=color))
+            out.append(Visual("box", pose, size=_vec(shape.get("size"), 3, el=shape, attr="size"),
+                              color=color))
         elif shape.tag == "cylinder":
-            out.append(Visual("cylinder", pose, radius=float(shape.get("radius")),
-                              length=float(shape.get("length")), color=color))
+            out.append(Visual("cylinder", pose, radius=_number(shape, "radius"),
+                              length=_number(shape, "length"), color=color))
         elif shape.tag == "sphere":
-            out.append(Visual("sphere", pose, radius=float(shape.get("radius")), color=color))
+            out.append(Visual("sphere", pose, radius=_number(shape, "radius"), color=color))
         elif shape.tag == "mesh":
             fn = shape.get("filename", "")
             if fn.startswith("package://"):
                 fn = fn.split("/", 3)[-1]
-            scale = _vec(shape.get("scale"), 3, 1.0)[0] if shape.get("scale") else 1.0
+            scale = _vec(shape.get("scale"), 3, 1.0, el=shape, attr="scale")
+            if not all(s > 0 for s in scale):
+                raise _Bad(f"scale must be positive, got {shape.get('scale')!r}", shape)
             out.append(Visual("mesh", pose, file=fn, scale=scale, color=color))
         else:
             raise WorldError(f"unsupported geometry {shape.tag!r}", file=name, line=shape.sourceline)
@@ -101,6 +137,9 @@ def import_urdf(source, object_id: str, object_type: str = "cupboard",
         raise WorldError("URDF root element must be <robot>", file=fname, line=root.sourceline)
     try:
         return _convert(root, fname, object_id, object_type, pose, name, parking)
+    except _Bad as err:
+        raise WorldError(f"bad URDF: {err}", file=fname,
+                         line=err.line if err.line is not None else root.sourceline) from None
     except (TypeError, ValueError) as err:
         raise WorldError(f"bad URDF value: {err}", file=fname, line=root.sourceline) from None
 
@@ -110,18 +149,26 @@ def _convert(root, fname, object_id, object_type, pose, name, parking):
     for m in root.findall("material"):
         c = m.find("color")
         if c is not None:
-            materials[m.get("name")] = tuple(_vec(c.get("rgba"), 4)[:3])
+            materials[m.get("name")] = tuple(_vec(c.get("rgba"), 4, el=c, attr="rgba")[:3])
     links = {l.get("name"): l for l in root.findall("link")}
     joints = root.findall("joint")
-    children = {j.find("child").get("link") for j in joints}
-    roots = [n for n in links if n not in children]
+    parent_joint: dict[str, object] = {}
+    for j in joints:
+        child = _link_of(j, "child")
+        _link_of(j, "parent")
+        if child in parent_joint:
+            # Also what stops a cycle of joints: every link but the root has one parent.
+            raise _Bad(f"link {child!r} is the child of two joints "
+                       f"({parent_joint[child].get('name')!r} and {j.get('name')!r})", j)
+        parent_joint[child] = j
+    roots = [n for n in links if n not in parent_joint]
     if len(roots) != 1:
         raise WorldError(f"URDF must have exactly one root link, found {roots}", file=fname,
                          line=root.sourceline)
     by_parent: dict[str, list] = {}
     for j in joints:
-        parent = j.find("parent").get("link")
-        child = j.find("child").get("link")
+        parent = _link_of(j, "parent")
+        child = _link_of(j, "child")
         if parent not in links or child not in links:
             raise WorldError(f"joint {j.get('name')!r} names an unknown link", file=fname,
                              line=j.sourceline)
@@ -133,7 +180,7 @@ def _convert(root, fname, object_id, object_type, pose, name, parking):
         part being built) and turning moving joints into parts."""
         for j in by_parent.get(link_name, []):
             jtype = j.get("type")
-            child = j.find("child").get("link")
+            child = _link_of(j, "child")
             origin = _origin(j)
             T_child = T_link_acc @ origin.matrix()
             if jtype == "fixed":
@@ -149,7 +196,8 @@ def _convert(root, fname, object_id, object_type, pose, name, parking):
                 raise WorldError(f"joint {j.get('name')!r}: unsupported type {jtype!r}",
                                  file=fname, line=j.sourceline)
             axis_el = j.find("axis")
-            axis = _vec(axis_el.get("xyz") if axis_el is not None else "1 0 0", 3)
+            axis = _vec(axis_el.get("xyz") if axis_el is not None else "1 0 0", 3,
+                        el=axis_el, attr="axis xyz")
             lim = j.find("limit")
             if jtype == "continuous":
                 lower, upper = -math.pi, math.pi
@@ -157,7 +205,7 @@ def _convert(root, fname, object_id, object_type, pose, name, parking):
                 if lim is None:
                     raise WorldError(f"joint {j.get('name')!r} needs <limit>", file=fname,
                                      line=j.sourceline)
-                lower, upper = float(lim.get("lower", 0)), float(lim.get("upper", 0))
+                lower, upper = _number(lim, "lower", 0.0), _number(lim, "upper", 0.0)
             state = min(max(0.0, lower), upper)
             part_visuals: list[Visual] = list(_visuals(links[child], fname, materials))
             sub_parts: list[Part] = []

@@ -12,9 +12,6 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
-
-from worldmodel.io import load_world
 from hearth import demo_world_path, missions_dir
 
 DEMO_WORLD = demo_world_path()
@@ -46,6 +43,8 @@ def register(sub) -> None:
 def perturbed_truth(world, seed: int = 0):
     """The demo's truth: a copy of ``world`` with the blue cup on the side table and oven knob
     2 on; and the localisation error (body frame, ~10 cm, 2 degrees)."""
+    import numpy as np
+
     from executive.scenarios import place_on
     from worldmodel.pose import Pose
     truth = world.copy()
@@ -102,6 +101,7 @@ def _run(args) -> int:
     from executive.executive import Executive
     from hearth.robot.clock import SimClock
     from hearth.robot.simulated import SimulatedRobot
+    from worldmodel.io import load_world
     from worldmodel.topdown import Overlay, draw, save_png
 
     out = Path(args.out)

@@ -1,8 +1,6 @@
 """`hearth log show RUN.jsonl`: print a run's timeline; `hearth log replay RUN.jsonl`."""
 from __future__ import annotations
 
-from executive.replay import format_event, read_log, replay
-
 
 def register(sub) -> None:
     p = sub.add_parser("log", help="read execution logs (runs/*.jsonl)",
@@ -21,6 +19,8 @@ def register(sub) -> None:
 
 
 def _show(args) -> int:
+    from executive.replay import format_event, read_log
+
     header, events, end = read_log(args.log)
     kinds = set(args.kinds.split(",")) if args.kinds else None
     print(format_event(header))
@@ -35,6 +35,8 @@ def _show(args) -> int:
 
 
 def _replay(args) -> int:
+    from executive.replay import replay
+
     report = replay(args.log)
     if report.same:
         print(f"replay matches: {len(report.original)} status changes, outcome "

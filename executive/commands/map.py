@@ -4,9 +4,6 @@ from __future__ import annotations
 import json
 import sys
 
-from worldmodel.describe import find_report, hierarchy_lines
-from worldmodel.io import load_world
-
 
 def register(sub) -> None:
     p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words",
@@ -31,12 +28,18 @@ def register(sub) -> None:
 
 
 def _show(args) -> int:
+    from worldmodel.describe import hierarchy_lines
+    from worldmodel.io import load_world
+
     world = load_world(args.world)
     print("\n".join(hierarchy_lines(world, args.node)))
     return 0
 
 
 def _find(args) -> int:
+    from worldmodel.describe import find_report
+    from worldmodel.io import load_world
+
     world = load_world(args.world)
     report = find_report(world, " ".join(args.words))
     if args.json:

@@ -6,8 +6,6 @@ import sys
 from pathlib import Path
 
 from executive.cliutil import DEFAULT_WORLD, add_run_arguments, make_clock, parse_params, run_to_end
-from executive.executive import Executive
-from executive.missionfile import load_mission
 
 
 def register(sub) -> None:
@@ -25,6 +23,8 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    from executive.executive import Executive
+    from executive.missionfile import load_mission
     from hearth import robot
     from hearth.robot.recording import RecordingRobot
     from worldmodel.io import load_world

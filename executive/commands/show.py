@@ -1,9 +1,6 @@
 """`hearth show MISSION [--format ascii|dot]`: draw a mission's tree."""
 from __future__ import annotations
 
-from executive.missionfile import load_mission
-from executive.render import ascii_tree, dot_tree
-
 
 def register(sub) -> None:
     p = sub.add_parser("show", help="draw a mission's behaviour tree",
@@ -15,6 +12,9 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    from executive.missionfile import load_mission
+    from executive.render import ascii_tree, dot_tree
+
     mission = load_mission(args.mission)
     if args.format == "dot":
         print(dot_tree(mission.root, mission.name))

@@ -8,11 +8,12 @@ times, printing events, then prints the tree and blackboard.
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from executive.cliutil import add_run_arguments, make_executive
-from executive.executive import Executive
-from executive.render import ascii_tree, blackboard_text
-from executive.replay import format_event
+
+if TYPE_CHECKING:
+    from executive.executive import Executive
 
 HELP = ("t [N]: tick N times | u NAME: tick until NAME runs | p: tree | b: blackboard | "
         "c: continue to the end | q: cancel and quit | h: help")
@@ -41,6 +42,7 @@ class Stepper:
 
     def _on_event(self, e) -> None:
         from executive.events import EventKind
+        from executive.replay import format_event
         if e.kind is EventKind.STATUS:
             self.statuses[e.path] = e.data["status"]
         elif e.kind is EventKind.FEEDBACK:
@@ -73,10 +75,13 @@ class Stepper:
         return False
 
     def tree(self) -> str:
+        from executive.render import ascii_tree
         return ascii_tree(self.handle.mission.root, self.statuses, self.feedback)
 
 
 def _run(args) -> int:
+    from executive.render import blackboard_text
+
     mission, params, ex = make_executive(args)
     handle = ex.submit(mission, **params)
     st = Stepper(ex, handle)

@@ -1,8 +1,6 @@
 """`hearth test-mission MISSION --substitute FILE`: run a scripted case, report coverage."""
 from __future__ import annotations
 
-from executive.testing import load_case, run_case
-
 
 def register(sub) -> None:
     p = sub.add_parser("test-mission", help="run a mission with scripted skills; report "
@@ -18,6 +16,8 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
+    from executive.testing import load_case, run_case
+
     case = load_case(args.substitute)
     report = run_case(args.mission, case, runs_dir=args.runs_dir)
     print(f"outcome: {report.outcome} ({report.reason}) after {report.ticks} ticks, "

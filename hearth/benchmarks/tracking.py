@@ -88,7 +88,6 @@ class PushScene:
 def run_scenario(seed: int, frames: int, config: TrackerConfig | None = None) -> dict:
     from worldmodel import load_world
     rng = np.random.default_rng(seed)
-    np.random.seed(seed)   # filterpy's resampling draws from numpy's global generator
     world = load_world(DEMO_WORLD)
     table = world.get("kitchen_table")
     T_table = world.T_world(table.id)

@@ -7,11 +7,27 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
-from hearth.robot.adapter import Action, DoneAction, FailedAction, RobotAdapter, TimedAction, wait
 from hearth.robot.errors import RobotError
 
 __all__ = ["Action", "DoneAction", "FailedAction", "RobotAdapter", "RobotError", "TimedAction",
            "create_adapter", "wait"]
+
+# The adapter protocol (numpy, the world model) is re-exported lazily (PEP 562), so importing
+# hearth.robot.errors or hearth.robot.clock stays cheap.
+_ADAPTER_NAMES = ("Action", "DoneAction", "FailedAction", "RobotAdapter", "TimedAction", "wait")
+
+
+def __getattr__(name: str):
+    if name in _ADAPTER_NAMES:
+        from hearth.robot import adapter
+        value = getattr(adapter, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'hearth.robot' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
 
 def create_adapter(world=None, scenario: Optional[str] = None, recording: Optional[str] = None,
