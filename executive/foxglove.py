@@ -195,6 +195,8 @@ class FoxgloveSink:
         with self._lock:
             if ev.run != self._run.get("run"):
                 self._new_run(ev.run)
+            elif not self._run.get("mission"):
+                self._name_run(ev.run)
             if kind == "status":
                 self._nodes.setdefault(ev.path, {"path": ev.path, "status": "INVALID",
                                                  "feedback": ""})["status"] = e["status"]
@@ -222,15 +224,20 @@ class FoxgloveSink:
                 pass
 
     def _new_run(self, run_id: str) -> None:
-        handle = getattr(self._ex, "current", None) if self._ex is not None else None
-        mission = handle.mission if handle is not None and handle.id == run_id else None
-        self._run = {"run": run_id, "state": "running",
-                     "mission": mission.name if mission is not None else "",
-                     "file": str(getattr(mission, "file", "") or "")}
+        self._run = {"run": run_id, "state": "running", "mission": "", "file": ""}
         self._nodes = {}
-        if mission is not None:
-            for n in mission.nodes():
-                self._nodes[n.path] = {"path": n.path, "status": "INVALID", "feedback": ""}
+        self._name_run(run_id)
+
+    def _name_run(self, run_id: str) -> None:
+        """The run's mission and its nodes, once the Executive says which it is (its first
+        events come while it is being started)."""
+        handle = getattr(self._ex, "current", None) if self._ex is not None else None
+        if handle is None or handle.id != run_id:
+            return
+        mission = handle.mission
+        self._run.update(mission=mission.name, file=str(getattr(mission, "file", "") or ""))
+        for n in mission.nodes():
+            self._nodes.setdefault(n.path, {"path": n.path, "status": "INVALID", "feedback": ""})
 
     # ---- the robot
     def publish_pose(self, pose, ns: Optional[int] = None) -> None:
