@@ -58,8 +58,9 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any
         create_adapter = robot.create_adapter
     except (ImportError, AttributeError):
         raise MissionError("no robot adapter: robot.create_adapter() does not exist yet") from None
+    extra = {"topics": args.topics} if getattr(args, "topics", None) else {}   # a bag's mapping
     adapter = create_adapter(world=world, scenario=args.scenario, recording=args.recording,
-                             clock=clock, topics=getattr(args, "topics", None))
+                             clock=clock, **extra)
     return world, adapter
 
 

@@ -95,12 +95,14 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
     z = _lateral(np.asarray(rendering.depth, dtype=np.float32), rng, model)
     H, W = z.shape
     # The random draws come first, from the one generator, in a fixed order (the same
-    # realisation for a given seed however the work is split): 16-bit uniform integers, one
-    # plane each for the depth Gaussian, the dropout uniform and the colour Gaussian, turned
-    # into Gaussians through a quantile table (_gaussian_table). That is 5x cheaper than
-    # numpy's float32 ziggurat, and this runs on every simulated frame. Then two row bands
-    # in threads: numpy releases the GIL on these array operations, so both cores work.
-    draws = rng.integers(0, 1 << 16, size=(3, H, W), dtype=np.uint16)
+    # realisation for a given seed however the work is split): the depth Gaussian and the
+    # dropout uniform as numpy draws them, then the colour noise as 16-bit uniform integers
+    # turned into Gaussians through a quantile table (_gaussian_table; 5x cheaper than
+    # numpy's float32 ziggurat). Then two row bands in threads: numpy and OpenCV release the
+    # GIL on these array operations, so both cores work.
+    gauss = rng.standard_normal((H, W), dtype=np.float32)
+    uniform = rng.random((H, W), dtype=np.float32)
+    u_color = rng.integers(0, 1 << 16, size=(H, W), dtype=np.uint16) if model.color_std > 0 else None
     depth = np.empty_like(z)
     color = np.empty_like(rendering.color)
     bands = row_bands(H)
@@ -113,9 +115,9 @@ def add_kinect_noise(rendering, rng: np.random.Generator | None = None,
 
     def band(i: int) -> None:
         rows = bands[i]
-        depth[rows] = _noisy_depth(rendering, z, rows, draws[0, rows], draws[1, rows], mats,
-                                   model)
-        color[rows] = _noisy_color(rendering.color[rows], draws[2, rows], model)
+        depth[rows] = _noisy_depth(rendering, z, rows, gauss[rows], uniform[rows], mats, model)
+        color[rows] = _noisy_color(rendering.color[rows],
+                                   None if u_color is None else u_color[rows], model)
 
     list(pool().map(band, range(BANDS)))
     return dataclasses.replace(rendering, depth=depth, color=color)
@@ -141,72 +143,43 @@ def _gaussian_table(scale: float = 1.0, dtype=np.float32) -> np.ndarray:
     return table
 
 
-def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, u_gauss: np.ndarray,
-                 u_drop: np.ndarray, mats, m: KinectNoise) -> np.ndarray:
+def _noisy_depth(rendering, z_all: np.ndarray, rows: slice, gauss: np.ndarray,
+                 uniform: np.ndarray, mats, m: KinectNoise) -> np.ndarray:
     """Axial noise, quantisation and dropouts for the rows ``rows`` of the (laterally
-    jittered) depth ``z_all``; ``u_gauss``, ``u_drop``: uniform 16-bit draws; ``mats``:
-    per label, the material's dropout probability and whether it is shiny (None: all matte).
-    float32 and in place where it can: this runs on every simulated frame."""
-    f32 = np.float32
+    jittered) depth ``z_all``; ``mats``: per label, the material's dropout probability and
+    whether it is shiny (None: all matte). float32 throughout: this runs on every simulated
+    frame."""
     z = z_all[rows]
     valid = z > 0
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
-    cos = np.clip(np.asarray(rendering.incidence[rows], dtype=f32), 1e-3, 1.0)
-    theta = np.arccos(cos)
-    np.minimum(theta, f32(math.radians(89.0)), out=theta)
-    ang = f32(math.pi / 2) - theta
-    np.divide(theta, ang, out=ang)
-    ang *= ang
-    zc = np.maximum(z, f32(1e-3))
-    sd = np.sqrt(zc)
-    np.divide(ang, sd, out=sd)                          # theta^2 / (pi/2 - theta)^2 / sqrt(z)
-    sd *= f32(m.axial_angle)
-    t = z - f32(m.axial_c)
-    t *= t
-    t *= f32(m.axial_b)
-    sd += t
-    sd += f32(m.axial_a)                                # sigma_z
+    cos = np.clip(np.asarray(rendering.incidence[rows], dtype=np.float32), 1e-3, 1.0)
+    theta = np.minimum(np.arccos(cos), np.float32(math.radians(89.0)))
+    zc = np.maximum(z, np.float32(1e-3))
+    ang = theta / (np.float32(math.pi / 2) - theta)
+    var = (np.float32(m.axial_a) + np.float32(m.axial_b) * (z - np.float32(m.axial_c)) ** 2
+           + np.float32(m.axial_angle) / np.sqrt(zc) * ang * ang) ** 2
     if m.quantise:
-        # var_g = max(sigma_z^2 - q^2 / 12, sigma_z^2 / 4), q = z^2 step / (f B)
-        var = sd * sd
-        q = zc * zc
-        q *= f32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m) / math.sqrt(12.0))
-        q *= q
-        np.subtract(var, q, out=q)
-        var *= f32(0.25)
-        np.maximum(var, q, out=var)
-        sd = np.sqrt(var, out=var)
-    noisy = np.take(_gaussian_table(), u_gauss)
-    noisy *= sd
-    noisy += z
+        q2 = (zc * zc * np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))) ** 2
+        var = np.maximum(var - q2 / np.float32(12.0), np.float32(0.25) * var)
+    noisy = z + np.sqrt(var) * gauss
     if m.quantise:
-        fb = f32(m.focal_ir_px * m.baseline_m / m.disparity_step_px)
-        steps = np.maximum(noisy, f32(1e-3), out=t)
-        np.divide(fb, steps, out=steps)
-        np.rint(steps, out=steps)
-        np.maximum(steps, f32(1), out=steps)
-        np.divide(fb, steps, out=noisy)
+        fb = np.float32(m.focal_ir_px * m.baseline_m / m.disparity_step_px)
+        steps = np.rint(fb / np.maximum(noisy, np.float32(1e-3)))
+        noisy = fb / np.maximum(steps, np.float32(1))
     # Dropouts.
-    drop = ~valid
-    drop |= noisy < m.min_range
-    drop |= noisy > m.max_range
+    drop = ~valid | (noisy < m.min_range) | (noisy > m.max_range)
     g0, g1 = math.cos(math.radians(m.grazing_start_deg)), math.cos(math.radians(m.grazing_full_deg))
-    p = f32(g0) - cos
-    p *= f32(1.0 / max(g0 - g1, 1e-6))
-    np.clip(p, 0.0, 1.0, out=p)
+    p = np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0)
     if mats is not None:
         p_label, shiny_label = mats
         labels = rendering.labels[rows]
-        pm = np.take(p_label, labels)
+        pm = np.take(p_label, labels)            # label -1 picks the trailing "matte"
         # Shiny surfaces reflect the pattern away except when seen nearly head-on.
         shiny = np.take(shiny_label, labels)
         if shiny.any():
-            pm[shiny] *= np.clip((1.0 - cos[shiny]) / f32(0.1), 0.3, 1.0)
-        np.maximum(p, pm, out=p)
-    # A 16-bit uniform u drops the reading with probability p: (u + 0.5) / 2^16 < p.
-    p *= f32(1 << 16)
-    p -= f32(0.5)
-    drop |= u_drop < p
+            pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
+        p = np.maximum(p, pm)
+    drop |= uniform < p
     noisy[drop] = 0
     return noisy
 
@@ -236,10 +209,10 @@ def _lateral(z: np.ndarray, rng: np.random.Generator, m: KinectNoise) -> np.ndar
     return out
 
 
-def _noisy_color(color: np.ndarray, u_gauss: np.ndarray, m: KinectNoise) -> np.ndarray:
+def _noisy_color(color: np.ndarray, u_gauss, m: KinectNoise) -> np.ndarray:
     """Grey-level Gaussian noise of ``color_std`` (rounded to integer levels) on every channel;
     ``u_gauss``: uniform 16-bit draws. OpenCV adds with saturation in one pass."""
-    if m.color_std <= 0:
+    if u_gauss is None or m.color_std <= 0:
         return color.copy()
     n = np.take(_gaussian_table(m.color_std, np.int16), u_gauss)
     return cv2.add(color, cv2.merge([n, n, n]), dtype=cv2.CV_8U)
