@@ -54,17 +54,25 @@ def _plane_std(z: float, rng) -> float:
 
 
 def _record_scaling(make_writer, frame, n: int) -> tuple[float, float]:
-    """Median ms per capture over the first and the last 100 of ``n`` captures written."""
-    with tempfile.TemporaryDirectory() as d:
-        w = make_writer(os.path.join(d, "rec"))
-        ts = []
-        for _ in range(n):
-            t = time.perf_counter()
-            w.add(frame)
-            ts.append(time.perf_counter() - t)
-        w.close()
+    """Median ms per capture of the first 100 and of the last 100 captures of an ``n``-capture
+    recording. The two are timed in turns (a capture into a new recording, then one into a
+    recording already ``n - 100`` long), so that a shared machine's changing load falls on
+    both alike and the ratio says how the cost grows with the length."""
     k = min(100, n // 2)
-    return (round(float(np.median(ts[:k])) * 1000, 3), round(float(np.median(ts[-k:])) * 1000, 3))
+    with tempfile.TemporaryDirectory() as d:
+        long = make_writer(os.path.join(d, "long"))
+        for _ in range(n - k):
+            long.add(frame)
+        new = make_writer(os.path.join(d, "new"))
+        first, last = [], []
+        for _ in range(k):
+            for w, ts in ((new, first), (long, last)):
+                t = time.perf_counter()
+                w.add(frame)
+                ts.append(time.perf_counter() - t)
+        new.close()
+        long.close()
+    return (round(float(np.median(first)) * 1000, 3), round(float(np.median(last)) * 1000, 3))
 
 
 def run(args) -> dict:
