@@ -3,10 +3,12 @@
 - ``RecordingWriter`` writes a recording directory, version 2: ``manifest.json`` (a small
   header: format, version, depth scale, intrinsics, provenance, start pose), then one JSON
   line per capture appended to ``captures.jsonl`` once its ``frames/NNNNNN_color.png`` (8-bit
-  RGB stored by OpenCV) and ``frames/NNNNNN_depth.png`` (16-bit, millimetres, 0 = no reading)
+  RGB stored by OpenCV) and ``frames/NNNNNN_depth.png`` (16-bit, millimetres, 0 = no reading;
+  in folders of 250 captures)
   are on disk, and one JSON line per robot request and per outcome appended to
   ``actions.jsonl``. Writing is append-only (linear in the recording's length); an
-  interrupted run leaves a readable recording (a torn last line is ignored).
+  interrupted run leaves a readable recording (a torn last line is ignored). Frames go in
+  folders of 250 captures (``frames/0000/000000_color.png``).
 - ``Recording`` reads version 1 (everything in ``manifest.json``) and version 2, and checks
   the whole recording when it is opened: every number finite (depth scale, intrinsics, poses,
   times), every frame file inside the folder, present, a complete PNG of the right bit depth
@@ -51,6 +53,7 @@ CAPTURES = "captures.jsonl"
 ACTIONS = "actions.jsonl"
 DEPTH_SCALE = 0.001          # metres per unit of the 16-bit depth PNG
 MAX_IMAGE_SIDE = 16384       # pixels; intrinsics beyond this are refused
+FRAMES_PER_FOLDER = 250      # frames/0000/, frames/0001/, ...
 
 
 # -- writing ---------------------------------------------------------------------------------
@@ -138,7 +141,12 @@ class RecordingWriter:
         if self.header["intrinsics"] is None and K is not None:
             self.header["intrinsics"] = K.as_dict()
             self._write_header()
-        color_name, depth_name = f"frames/{i:06d}_color.png", f"frames/{i:06d}_depth.png"
+        # Frames in folders of FRAMES_PER_FOLDER: creating a file in a folder of thousands
+        # costs measurably more, which would make a long recording slower per capture.
+        folder = f"frames/{i // FRAMES_PER_FOLDER:04d}"
+        if i % FRAMES_PER_FOLDER == 0:
+            (self.dir / folder).mkdir(parents=True, exist_ok=True)
+        color_name, depth_name = f"{folder}/{i:06d}_color.png", f"{folder}/{i:06d}_depth.png"
         color = np.asarray(frame.color, dtype=np.uint8)
         if not cv2.imwrite(str(self.dir / color_name), color[..., ::-1]):
             raise RobotError("cannot write frame", file=str(self.dir / color_name))

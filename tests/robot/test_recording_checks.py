@@ -78,7 +78,7 @@ def test_version_1_still_reads_and_replays(rec):
 
 def _damage(d: Path, case: str) -> str:
     """Break the recording the way ``case`` says; the file the error must name."""
-    depth1 = d / "frames" / "000001_depth.png"
+    depth1 = d / "frames" / "0000" / "000001_depth.png"
     manifest = d / "manifest.json"
     if case == "truncated_png":
         data = depth1.read_bytes()
@@ -171,7 +171,7 @@ def test_hearth_run_on_a_bad_recording_stops_before_the_mission_with_exit_2(rec,
                    "--runs-dir", str(tmp_path / "runs")])
     cap = capsys.readouterr()
     assert status == 2 and cap.out == "" and cap.err.count("\n") == 1
-    assert cap.err.startswith(f"{rec / 'frames' / '000001_depth.png'}: frame 1: truncated PNG")
+    assert cap.err.startswith(f"{rec / 'frames' / '0000' / '000001_depth.png'}: frame 1: truncated PNG")
     assert not (tmp_path / "runs").exists()                # no run was started
 
 
@@ -189,7 +189,7 @@ KILLED = textwrap.dedent("""
     w.add(f)
     w.add(f)
     if sys.argv[2] == "line":            # killed halfway through writing the third line
-        w._captures.write('{"index": 2, "color": "frames/000002_color.png", "dep')
+        w._captures.write('{"index": 2, "color": "frames/0000/000002_color.png", "dep')
         w._captures.flush()
     else:                                # killed while the header's temporary file is written
         os.replace = lambda *a: os.kill(os.getpid(), signal.SIGKILL)

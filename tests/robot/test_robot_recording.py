@@ -69,10 +69,10 @@ def test_missing_frame_corrupt_manifest_and_unknown_version_are_one_line_each(re
     import shutil
     d = tmp_path / "copy"
     shutil.copytree(recording[0], d)
-    (d / "frames" / "000001_depth.png").unlink()
+    (d / "frames" / "0000" / "000001_depth.png").unlink()
     with pytest.raises(RobotError) as err:
         Recording(d)                     # checked when opened, not when the frame is asked for
-    assert str(err.value) == f"{d / 'frames' / '000001_depth.png'}: frame 1 is missing"
+    assert str(err.value) == f"{d / 'frames' / '0000' / '000001_depth.png'}: frame 1 is missing"
     manifest = d / "manifest.json"
     good = manifest.read_text()
     manifest.write_text(good.replace('"info": {', '"info": {,', 1))
