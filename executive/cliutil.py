@@ -57,8 +57,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--world", default=str(DEFAULT_WORLD),
                    help="world file (default: data/demo_home/world.xml)")
     p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
-    p.add_argument("--recording", default=None, metavar="DIR",
-                   help="recording to replay instead of simulating")
+    p.add_argument("--recording", default=None, metavar="PATH",
+                   help="recording to replay instead of simulating: a Hearth recording "
+                        "directory, or a ROS 2 bag (.mcap file or rosbag2 directory)")
     p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
     p.add_argument("--wall-clock", action="store_true",
@@ -78,8 +79,9 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any
         create_adapter = robot.create_adapter
     except (ImportError, AttributeError):
         raise MissionError("no robot adapter: robot.create_adapter() does not exist yet") from None
+    extra = {"topics": args.topics} if getattr(args, "topics", None) else {}   # a bag's mapping
     adapter = create_adapter(world=world, scenario=args.scenario, recording=args.recording,
-                             clock=clock)
+                             clock=clock, **extra)
     return world, adapter
 
 

@@ -7,8 +7,10 @@ arrays out. The simulated robot adds sensor noise on top (robot/noise.py).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
+import cv2
 import numpy as np
 import open3d as o3d
 
@@ -18,14 +20,18 @@ from perception.camera import Intrinsics
 #: Light direction in the world frame (from above, slightly from the side), for shading.
 LIGHT_WORLD = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
 AMBIENT = 0.45
+_NO_HIT = np.uint32(0xFFFFFFFF)         # open3d's geometry and primitive id of a miss
 
 
 @dataclass
 class Rendering:
     """One rendered view. ``depth`` in metres along the optical axis (0: no surface),
     ``color`` uint8 RGB (H, W, 3), ``labels`` index into ``nodes`` (-1: nothing),
-    ``normals_camera`` unit normals in the camera frame, ``incidence`` cos of the angle
-    between the ray and the surface normal."""
+    ``normals_camera`` unit normals in the camera frame facing the camera (0 where nothing
+    was hit), ``incidence`` cos of the angle between the ray and the surface normal.
+    ``triangle``: per pixel, the row of ``triangle_normals_camera`` (the scene's triangles'
+    normals in this camera's frame, facing it; the last row, zeros, for no hit) from which
+    ``normals_camera`` is gathered when first asked for."""
     depth: np.ndarray
     color: np.ndarray
     labels: np.ndarray
@@ -33,8 +39,13 @@ class Rendering:
     owners: list[str]
     names: list[str]
     materials: list[str]
-    normals_camera: np.ndarray
     incidence: np.ndarray
+    triangle: np.ndarray
+    triangle_normals_camera: np.ndarray
+
+    @cached_property
+    def normals_camera(self) -> np.ndarray:
+        return np.take(self.triangle_normals_camera, self.triangle, axis=0)
 
     def mask(self, node_ids: Sequence[str]) -> np.ndarray:
         """Pixels that show any of the given nodes."""
@@ -48,7 +59,12 @@ class Rendering:
 
 
 class Scene:
-    """A ray-casting scene built once from labelled meshes (see worldmodel.geometry)."""
+    """A ray-casting scene built once from labelled meshes (see worldmodel.geometry).
+
+    Besides the Embree scene it keeps, per triangle, the unit normal and plane offset
+    (n . x = h) in the world frame and the mesh's label and colour: with flat triangles the
+    normal, the side the camera sees and the Lambertian term are the same over a whole
+    triangle, so a view computes them once per triangle and gathers them per pixel."""
 
     def __init__(self, meshes):
         self._scene = o3d.t.geometry.RaycastingScene()
@@ -56,114 +72,125 @@ class Scene:
         self.owners: list[str] = []
         self.names: list[str] = []
         self.materials: list[str] = []
-        colors = []
-        geom_ids = []
+        colors, normals, offsets, labels = [], [], [], []
+        first = {}                       # geometry id -> its first triangle's index
+        count = 0
         for lm in meshes:
             if len(lm.mesh.triangles) == 0:
                 continue
             gid = self._scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
-            geom_ids.append(gid)
+            i = len(self.nodes)
             self.nodes.append(lm.node)
             self.owners.append(lm.owner)
             self.names.append(lm.name)
             self.materials.append(lm.material)
             colors.append(lm.color)
+            v = np.asarray(lm.mesh.vertices, dtype=np.float64)
+            t = np.asarray(lm.mesh.triangles)
+            n = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+            norm = np.linalg.norm(n, axis=1, keepdims=True)
+            n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)   # Embree skips 0-area
+            normals.append(n)
+            offsets.append(np.einsum("ij,ij->i", n, v[t[:, 0]]))
+            labels.append(np.full(len(t), i, dtype=np.int32))
+            first[gid] = count
+            count += len(t)
         self._colors = np.asarray(colors, dtype=np.float32).reshape(-1, 3)
-        # geometry id -> our index (ids are consecutive from 0 in practice; keep a map anyway)
-        self._index = np.full(max(geom_ids, default=-1) + 2, -1, dtype=np.int32)
-        for i, gid in enumerate(geom_ids):
-            self._index[gid] = i
+        # Per-triangle tables with a trailing row for "nothing hit" (label -1, black, no normal).
+        self._tri_normals = np.vstack(normals + [np.zeros((1, 3))])
+        self._tri_offsets = np.concatenate(offsets + [np.zeros(1)])
+        self._tri_labels = np.concatenate(labels + [np.full(1, -1, np.int32)])
+        palette = np.vstack([self._colors, np.zeros((1, 3), np.float32)]) * np.float32(255.0)
+        self._tri_palette = np.ascontiguousarray(palette[self._tri_labels].T)   # (3, T + 1)
+        self._no_hit = count
+        # geometry id -> its first triangle (an unknown id, and the miss id, clip to the end).
+        self._first = np.full(max(first, default=-1) + 2, count, dtype=np.uint32)
+        for gid, f in first.items():
+            self._first[gid] = f
 
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         """Render the view of camera ``K`` at ``T_world_camera``."""
         H, W = K.height, K.width
         T = np.asarray(T_world_camera, dtype=np.float64)
-        R_wc = T[:3, :3].astype(np.float32)
-        dirs_camera, unit_camera = _pixel_rays(K)
-        # Rays in float32 (what Embree uses anyway): pixel directions cached per camera, rotated
-        # into the world; this is much cheaper than open3d's float64 create_rays_pinhole.
-        rays = np.empty((H, W, 6), dtype=np.float32)
-        rays[..., :3] = T[:3, 3]
-        _rotate(dirs_camera, R_wc.T, out=rays[..., 3:])
+        R_wc, c_world = T[:3, :3], T[:3, 3]
+        rays_camera, inv_length = _pixel_rays(K)
+        # Rays in float32 (what Embree uses anyway): pixel directions cached per camera,
+        # rotated into the world and interleaved with the origin by OpenCV (several times
+        # cheaper than open3d's float64 create_rays_pinhole or numpy's strided writes).
+        origin = np.zeros((3, 4), dtype=np.float32)
+        origin[:, 3] = c_world
+        rays = cv2.merge([cv2.transform(rays_camera, origin),
+                          cv2.transform(rays_camera, R_wc.astype(np.float32))])
         ans = self._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         # Directions have z = 1 in the camera frame, so t_hit is depth along the optical axis.
-        depth = ans["t_hit"].numpy()
-        gid = ans["geometry_ids"].numpy()
-        n_world = ans["primitive_normals"].numpy()
-        labels = np.empty((H, W), dtype=np.int32)
-        normals_camera = np.empty((H, W, 3), dtype=np.float32)
-        incidence = np.empty((H, W), dtype=np.float32)
-        color = np.empty((H, W, 3), dtype=np.uint8)
-        light_camera = (R_wc.T @ LIGHT_WORLD.astype(np.float32)).astype(np.float32)
-        palette = np.vstack([self._colors, np.zeros((1, 3), np.float32)]) * np.float32(255.0)
+        depth = ans["t_hit"].numpy().reshape(-1)
+        gid = ans["geometry_ids"].numpy().reshape(-1)
+        prim = ans["primitive_ids"].numpy().reshape(-1)
+        # Per triangle, for this camera: the plane's signed distance from the camera centre
+        # (n . c - h; the camera sees the side the normal points to when it is positive), the
+        # normal turned to face the camera, and the shade without the view-dependent term.
+        dist = self._tri_normals @ c_world - self._tri_offsets
+        facing = np.where(dist < 0, -1.0, 1.0)[:, None] * self._tri_normals
+        facing[self._no_hit] = 0
+        lit = np.clip(facing @ LIGHT_WORLD, 0, 1)
+        shade0 = (0.85 * (1 - AMBIENT) * lit + 0.85 * AMBIENT).astype(np.float32)
+        shade0[self._no_hit] = 0
+        # A ray along d (z = 1) meets the plane at depth t with n . d = -dist / t, so the cosine
+        # between ray and normal is |dist| / (t |d|).
+        abs_dist = np.abs(dist).astype(np.float32)
+        N = H * W
+        tri = np.empty(N, dtype=np.uint32)
+        labels = np.empty(N, dtype=np.int32)
+        incidence = np.empty(N, dtype=np.float32)
+        color = np.empty((N, 3), dtype=np.uint8)
 
-        def shade_rows(rows: slice) -> None:
+        def shade(rows: slice) -> None:
             d = depth[rows]
-            hit = (d <= max_range) & (d > 0)        # NaN and inf (no hit) compare False
-            miss = ~hit
+            miss = ~((d <= max_range) & (d > 0))        # NaN and inf (no hit) compare False
             d[miss] = 0
-            lab = np.take(self._index, gid[rows], mode="clip")   # no hit: the trailing -1
-            lab[miss] = -1
-            labels[rows] = lab
-            # Normals in the camera frame (n_camera = R_cw n_world), turned to face the camera.
-            nc = _rotate(n_world[rows], R_wc)
-            cos = np.einsum("hwk,hwk->hw", nc, unit_camera[rows])
-            nc *= np.where(cos > 0, np.float32(-1), np.float32(1))[..., None]
-            nc[miss] = 0
-            inc = np.abs(cos)
-            inc[miss] = 0
-            normals_camera[rows] = nc
-            incidence[rows] = inc
-            lit = nc[..., 0] * light_camera[0]
-            lit += nc[..., 1] * light_camera[1]
-            lit += nc[..., 2] * light_camera[2]
-            np.clip(lit, 0, 1, out=lit)
+            t = np.take(self._first, gid[rows], mode="clip", out=tri[rows])
+            t += prim[rows]                             # a miss wraps around: reset next
+            np.copyto(t, self._no_hit, where=miss)
+            np.take(self._tri_labels, t, out=labels[rows])
+            inc = np.take(abs_dist, t, out=incidence[rows])
+            inv_t = np.divide(inv_length[rows], d, where=~miss, out=np.zeros(len(d), np.float32))
+            inc *= inv_t
+            np.minimum(inc, 1, out=inc)
             # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
-            shade = (np.float32(0.85 * (1 - AMBIENT)) * lit + np.float32(0.85 * AMBIENT)
-                     + np.float32(0.15) * inc)
-            c = palette[lab] * shade[..., None]            # label -1: the trailing black
-            np.clip(c, 0, 255, out=c)
-            color[rows] = c
+            s = np.take(shade0, t)
+            s += np.float32(0.15) * inc
+            out = color[rows]
+            for ch in range(3):                         # label -1: the trailing black
+                c = np.take(self._tri_palette[ch], t)
+                c *= s
+                np.minimum(c, 255, out=c)
+                out[:, ch] = c
 
         # Row bands in threads: numpy releases the GIL on these array operations, so the
         # per-pixel shading runs on every core like the ray casting does.
-        bands = row_bands(H)
-        list(pool().map(shade_rows, bands))
-        return Rendering(depth=depth, color=color, labels=labels,
-                         nodes=self.nodes, owners=self.owners, names=self.names,
-                         materials=self.materials, normals_camera=normals_camera,
-                         incidence=incidence)
-
-
-def _rotate(v: np.ndarray, M: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """``v @ M`` for (..., 3) float32 vectors and a 3x3 ``M``, written as element-wise
-    products on purpose: a BLAS matmul from several threads at once (the shading bands) can
-    stall badly when BLAS's own threads compete for a busy machine's cores."""
-    if out is None:
-        out = np.empty(v.shape, dtype=np.float32)
-    for j in range(3):
-        col = out[..., j]
-        np.multiply(v[..., 0], M[0, j], out=col)
-        col += v[..., 1] * M[1, j]
-        col += v[..., 2] * M[2, j]
-    return out
+        list(pool().map(shade, [slice(b.start * W, b.stop * W) for b in row_bands(H)]))
+        normals = np.vstack([(facing[:-1] @ R_wc).astype(np.float32), np.zeros((1, 3), np.float32)])
+        return Rendering(depth=depth.reshape(H, W), color=color.reshape(H, W, 3),
+                         labels=labels.reshape(H, W), nodes=self.nodes, owners=self.owners,
+                         names=self.names, materials=self.materials,
+                         incidence=incidence.reshape(H, W), triangle=tri.reshape(H, W),
+                         triangle_normals_camera=normals)
 
 
 _RAYS_CACHE: dict = {}
 
 
 def _pixel_rays(K: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """(H, W, 3) float32 camera-frame ray directions with z = 1 through every pixel centre
-    (integer pixel coordinates, camera.py's convention), and the same normalised. Cached per
-    intrinsics: they do not depend on the pose."""
+    """Camera-frame ray directions with z = 1 through every pixel centre (integer pixel
+    coordinates, camera.py's convention), (H, W, 3) float32, and the inverse of their lengths,
+    (H*W,) float32. Cached per intrinsics: they do not depend on the pose."""
     key = (K.fx, K.fy, K.cx, K.cy, K.width, K.height)
     hit = _RAYS_CACHE.get(key)
     if hit is None:
         u, v = np.meshgrid(np.arange(K.width, dtype=np.float64),
                            np.arange(K.height, dtype=np.float64))
         d = np.stack([(u - K.cx) / K.fx, (v - K.cy) / K.fy, np.ones_like(u)], axis=-1)
-        unit = d / np.linalg.norm(d, axis=-1, keepdims=True)
-        hit = (d.astype(np.float32), unit.astype(np.float32))
+        hit = (d.astype(np.float32), (1.0 / np.linalg.norm(d, axis=-1)).reshape(-1).astype(np.float32))
         if len(_RAYS_CACHE) > 16:
             _RAYS_CACHE.clear()
         _RAYS_CACHE[key] = hit

@@ -14,11 +14,16 @@ def register(sub) -> None:
                                    "recording), printing the mission's progress. Exit 0 when "
                                    "it succeeds, 1 when it fails or is cancelled.")
     add_run_arguments(p)
+    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
+                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
+                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
     p.add_argument("--quiet", action="store_true", help="print only the outcome")
     add_groot2_arguments(p)
     p.add_argument("--groot2-linger", type=float, default=0.0, metavar="SECONDS",
                    help="with --groot2: keep publishing the ended mission this long (a "
                         "simulated run may end before a viewer attaches)")
+    from executive.foxglove import add_arguments
+    add_arguments(p)
     p.set_defaults(func=_run)
 
 
@@ -43,7 +48,14 @@ def start_groot2(args, executive):
 
 
 def _run(args) -> int:
+    from executive.foxglove import sink_from_args
     mission, params, ex = make_executive(args)
+    sink = sink_from_args(args, world=ex.world, clock=ex.clock)
+    simulated = bool(getattr(ex.clock, "simulated", False))
+    if sink is not None:
+        sink.attach(ex)
+        if simulated:                      # a simulated run is over in seconds: wait for a viewer
+            sink.wait_for_viewer(args.foxglove_wait)
     pub = start_groot2(args, ex)
     try:
         result = run_to_end(ex, mission, params, quiet=args.quiet)
@@ -52,6 +64,9 @@ def _run(args) -> int:
     finally:
         if pub is not None:
             pub.close()
+        if sink is not None:
+            sink.wait_for_viewers_to_leave(args.foxglove_wait)
+            sink.close()
     print(f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
           f"{result.duration:.2f} s; log {result.log_path}", file=sys.stderr if args.quiet else sys.stdout)
     return 0 if result.outcome == "succeeded" else 1

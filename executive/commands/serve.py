@@ -41,7 +41,10 @@ def register(sub) -> None:
                         "default: missions/)")
     p.add_argument("--world", default=str(DEFAULT_WORLD), help="world file (the belief map)")
     p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
-    p.add_argument("--recording", default=None, metavar="DIR", help="recording to replay")
+    p.add_argument("--recording", default=None, metavar="PATH",
+                   help="recording to replay (a Hearth recording or a ROS 2 bag)")
+    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
+                   help="with a ROS 2 bag: its topics and tf frames (docs/ros2-foxglove.md)")
     p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
     p.add_argument("--autonomy", type=int, default=3, choices=range(4),
@@ -51,6 +54,8 @@ def register(sub) -> None:
     p.add_argument("--approval-timeout", type=float, default=120.0,
                    help="seconds to wait for an approval before the skill fails")
     add_groot2_arguments(p)
+    from executive.foxglove import add_arguments
+    add_arguments(p, wait=False)
     p.set_defaults(func=_serve)
 
 
@@ -93,6 +98,10 @@ def _serve(args: argparse.Namespace) -> int:
     service = make_service(world, robot, args.missions or [str(DEFAULT_MISSIONS)], clock=clock,
                            tick_hz=args.tick_hz, runs_dir=args.runs_dir, granted=args.autonomy,
                            approval_timeout=args.approval_timeout)
+    from executive.foxglove import sink_from_args
+    sink = sink_from_args(args, world=world, clock=clock)
+    if sink is not None:
+        sink.attach(service.executive)     # live while hearth serve runs
     for line in service.catalogue_problems:
         print(f"hearth serve: skipped {line}", file=sys.stderr)
     names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
@@ -117,4 +126,6 @@ def _serve(args: argparse.Namespace) -> int:
             pub.close()
         service.executive.shutdown()
         service.close()
+        if sink is not None:
+            sink.close()
     return 0

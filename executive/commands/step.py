@@ -23,6 +23,9 @@ def register(sub) -> None:
     p = sub.add_parser("step", help="step a mission tick by tick",
                        description=__doc__.split("\n\n", 1)[1])
     add_run_arguments(p)
+    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
+                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
+                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
     p.add_argument("--ticks", type=int, default=None,
                    help="tick N times without asking, then print tree and blackboard")
     p.set_defaults(func=_run)

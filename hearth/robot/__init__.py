@@ -31,11 +31,13 @@ def __dir__() -> list[str]:
 
 
 def create_adapter(world=None, scenario: Optional[str] = None, recording: Optional[str] = None,
-                   clock: Any = None, **kw):
+                   clock: Any = None, topics: Any = None, **kw):
     """The robot adapter for a run.
 
-    - ``recording`` (a directory): a ``ReplayRobot`` serving its frames (keywords go to it,
-      e.g. ``position_tolerance``, ``yaw_tolerance``).
+    - ``recording`` (a Hearth recording directory, or a ROS 2 bag: an ``.mcap`` file or a
+      rosbag2 directory, with ``topics`` its topic and frame mapping, see
+      ``hearth.robot.rosbag.TopicMap``): a ``ReplayRobot`` serving its frames, checked whole
+      before it starts (keywords go to it, e.g. ``position_tolerance``, ``yaw_tolerance``).
     - ``scenario`` (a directory from ``hearth scenario make`` / ``robot.scenario``): a
       ``SimulatedRobot`` on the scenario's truth, start pose, localisation error, stuck knobs
       and locked doors.
@@ -47,8 +49,10 @@ def create_adapter(world=None, scenario: Optional[str] = None, recording: Option
     if recording is not None and scenario is not None:
         raise RobotError("give a scenario or a recording, not both")
     if recording is not None:
-        from hearth.robot.recording import ReplayRobot
-        return ReplayRobot(recording, clock=clock, **kw)
+        from hearth.robot.recording import ReplayRobot, open_recording
+        return ReplayRobot(open_recording(recording, topics=topics), clock=clock, **kw)
+    if topics is not None:
+        raise RobotError("--topics maps the topics of a ROS 2 bag given with --recording")
     from hearth.robot.simulated import SimulatedRobot
     if scenario is not None:
         from hearth.robot.scenario import load_scenario

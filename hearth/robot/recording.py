@@ -1,21 +1,34 @@
 """Recordings of RGB-D captures (docs/recording-format.md), the recorder and the replay robot.
 
-- ``RecordingWriter`` writes a recording directory: ``manifest.json`` (versioned) and
-  ``frames/NNNNNN_color.png`` (8-bit RGB stored by OpenCV) + ``frames/NNNNNN_depth.png``
-  (16-bit, millimetres, 0 = no reading). The manifest is rewritten atomically after every
-  capture and action, so an interrupted run leaves a readable recording.
-- ``Recording`` reads one; every problem is one RobotError line naming the file.
-- ``RecordingRobot`` wraps any adapter and records every capture and every action it is asked.
+- ``RecordingWriter`` writes a recording directory, version 2: ``manifest.json`` (a small
+  header: format, version, depth scale, intrinsics, provenance, start pose), then one JSON
+  line per capture appended to ``captures.jsonl`` once its ``frames/NNNNNN_color.png`` (8-bit
+  RGB stored by OpenCV) and ``frames/NNNNNN_depth.png`` (16-bit, millimetres, 0 = no reading;
+  in folders of 250 captures)
+  are on disk, and one JSON line per robot request and per outcome appended to
+  ``actions.jsonl``. Writing is append-only (linear in the recording's length); an
+  interrupted run leaves a readable recording (a torn last line is ignored). Frames go in
+  folders of 250 captures (``frames/0000/000000_color.png``).
+- ``Recording`` reads version 1 (everything in ``manifest.json``) and version 2, and checks
+  the whole recording when it is opened: every number finite (depth scale, intrinsics, poses,
+  times), every frame file inside the folder, present, a complete PNG of the right bit depth
+  and size. Every problem is one RobotError line naming the file (and line), so a bad
+  recording is refused before a mission starts, never halfway through it.
+- ``RecordingRobot`` wraps any adapter and records every capture and every action it is asked
+  (into this format, or a ROS 2 bag: ``hearth.robot.rosbag.BagWriter``).
 - ``ReplayRobot`` is an adapter that serves, for a capture, the recorded frame taken nearest
   to its believed base pose within position and yaw tolerances; arm actions and speech are
-  logged and succeed (or fail as they did in the recording).
+  logged and succeed (or fail as they did in the recording). It replays anything shaped like
+  ``Recording`` (``open_recording`` also opens ROS 2 bags).
 """
 from __future__ import annotations
 
+import glob
 import json
 import math
 import os
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
@@ -27,13 +40,20 @@ from perception.camera import Intrinsics
 from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
+from hearth.robot.frames import (FrameFileError, check_color_png, check_depth_png, decode_color,
+                                 decode_depth, inside)
 from hearth.robot.sim import HEAD, Frame, HeadMount, pan_tilt_to
 from worldmodel.pose import Pose, wrap_angle
 
 FORMAT = "hearth-recording"
-VERSION = 1
+VERSION = 2
+VERSIONS = (1, 2)
 MANIFEST = "manifest.json"
+CAPTURES = "captures.jsonl"
+ACTIONS = "actions.jsonl"
 DEPTH_SCALE = 0.001          # metres per unit of the 16-bit depth PNG
+MAX_IMAGE_SIDE = 16384       # pixels; intrinsics beyond this are refused
+FRAMES_PER_FOLDER = 250      # frames/0000/, frames/0001/, ...
 
 
 # -- writing ---------------------------------------------------------------------------------
@@ -51,68 +71,125 @@ def _matrix(T) -> Optional[list]:
 
 def _atomic_write_text(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def frame_entry(frame, goal=None) -> dict:
+    """The fields of a capture a recording keeps (poses, head, provenance), JSON-ready."""
+    truth = None
+    if getattr(frame, "T_world_camera_true", None) is not None:
+        truth = dict(base_pose=_pose_dict(getattr(frame, "base_pose_true", None)),
+                     T_world_camera=_matrix(frame.T_world_camera_true))
+    return dict(timestamp=float(getattr(frame, "timestamp", 0.0)),
+                base_pose=_pose_dict(getattr(frame, "base_pose", None)),
+                T_world_camera=_matrix(frame.T_world_camera),
+                pan=float(getattr(frame, "pan", 0.0)), tilt=float(getattr(frame, "tilt", 0.0)),
+                parking=getattr(frame, "parking", None), goal=_pose_dict(goal), truth=truth)
+
+
+def depth_to_mm(depth) -> np.ndarray:
+    """float metres (0 or NaN: no reading) -> uint16 millimetres (0: no reading)."""
+    mm = np.nan_to_num(np.asarray(depth, dtype=np.float64) / DEPTH_SCALE, nan=0.0)
+    return np.clip(np.rint(mm), 0, 65535).astype(np.uint16)
 
 
 class RecordingWriter:
     """Writes captures into ``directory`` (created; an existing recording there is replaced).
-    ``info``: free-form provenance (world, scenario, mission) kept in the manifest."""
+    ``info``: free-form provenance (world, scenario, mission) kept in the header.
+
+    Append-only: the header is written (atomically) when the recording starts and again only
+    when the intrinsics or the start pose become known; each capture and each action is one
+    appended line. ``len(writer)`` is the number of captures written."""
 
     def __init__(self, directory, intrinsics: Optional[Intrinsics] = None, info: Optional[dict] = None):
         self.dir = Path(directory)
         (self.dir / "frames").mkdir(parents=True, exist_ok=True)
-        self.intrinsics = intrinsics
-        self.manifest: dict[str, Any] = dict(format=FORMAT, version=VERSION,
-                                             depth_scale=DEPTH_SCALE, info=dict(info or {}),
-                                             intrinsics=intrinsics.as_dict() if intrinsics else None,
-                                             captures=[], actions=[])
-        self.flush()
+        for stale in glob.glob(glob.escape(str(self.dir / MANIFEST)) + "*.tmp"):
+            os.unlink(stale)                   # left by a writer killed mid-rename
+        self.header: dict[str, Any] = dict(format=FORMAT, version=VERSION,
+                                           depth_scale=DEPTH_SCALE, info=dict(info or {}),
+                                           intrinsics=intrinsics.as_dict() if intrinsics else None,
+                                           start_pose=None, captures=CAPTURES, actions=ACTIONS)
+        self._write_header()
+        self._captures = open(self.dir / CAPTURES, "w", encoding="utf-8")  # noqa: SIM115
+        self._actions = open(self.dir / ACTIONS, "w", encoding="utf-8")    # noqa: SIM115
+        self._n = 0
+        self._n_actions = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def _write_header(self) -> None:
+        _atomic_write_text(self.dir / MANIFEST, json.dumps(self.header, indent=1) + "\n")
+
+    def set_start_pose(self, pose) -> None:
+        self.header["start_pose"] = _pose_dict(pose)
+        self._write_header()
 
     def add(self, frame, goal=None) -> dict:
         """Write one frame (robot.sim.Frame or alike); ``goal``: the navigation goal the robot
         was sent to before it (the base pose it was "taken at" in the plan)."""
-        i = len(self.manifest["captures"])
+        i = self._n
         K = getattr(frame, "intrinsics", None) or getattr(frame, "K", None)
-        if self.manifest["intrinsics"] is None and K is not None:
-            self.manifest["intrinsics"] = K.as_dict()
-        color_name, depth_name = f"frames/{i:06d}_color.png", f"frames/{i:06d}_depth.png"
+        if self.header["intrinsics"] is None and K is not None:
+            self.header["intrinsics"] = K.as_dict()
+            self._write_header()
+        # Frames in folders of FRAMES_PER_FOLDER: creating a file in a folder of thousands
+        # costs measurably more, which would make a long recording slower per capture.
+        folder = f"frames/{i // FRAMES_PER_FOLDER:04d}"
+        if i % FRAMES_PER_FOLDER == 0:
+            (self.dir / folder).mkdir(parents=True, exist_ok=True)
+        color_name, depth_name = f"{folder}/{i:06d}_color.png", f"{folder}/{i:06d}_depth.png"
         color = np.asarray(frame.color, dtype=np.uint8)
         if not cv2.imwrite(str(self.dir / color_name), color[..., ::-1]):
             raise RobotError("cannot write frame", file=str(self.dir / color_name))
-        mm = np.nan_to_num(np.asarray(frame.depth, dtype=np.float64) / DEPTH_SCALE, nan=0.0)
-        mm = np.clip(np.rint(mm), 0, 65535).astype(np.uint16)
-        if not cv2.imwrite(str(self.dir / depth_name), mm):
+        if not cv2.imwrite(str(self.dir / depth_name), depth_to_mm(frame.depth)):
             raise RobotError("cannot write frame", file=str(self.dir / depth_name))
-        truth = None
-        if getattr(frame, "T_world_camera_true", None) is not None:
-            truth = dict(base_pose=_pose_dict(getattr(frame, "base_pose_true", None)),
-                         T_world_camera=_matrix(frame.T_world_camera_true))
-        entry = dict(index=i, timestamp=float(getattr(frame, "timestamp", 0.0)),
-                     color=color_name, depth=depth_name,
-                     base_pose=_pose_dict(getattr(frame, "base_pose", None)),
-                     T_world_camera=_matrix(frame.T_world_camera),
-                     pan=float(getattr(frame, "pan", 0.0)), tilt=float(getattr(frame, "tilt", 0.0)),
-                     parking=getattr(frame, "parking", None), goal=_pose_dict(goal), truth=truth)
-        self.manifest["captures"].append(entry)
-        self.flush()
+        entry = dict(index=i, color=color_name, depth=depth_name) | frame_entry(frame, goal)
+        # One write per line, flushed, after the frames are on disk: a line is only ever
+        # there with its frames, and a kill leaves at most a torn last line.
+        self._captures.write(json.dumps(entry) + "\n")
+        self._captures.flush()
+        self._n += 1
         return entry
 
-    def log_action(self, entry: dict) -> dict:
-        self.manifest["actions"].append(entry)
-        self.flush()
-        return entry
+    def log_action(self, entry: dict) -> int:
+        """Append a robot request (``time``, ``action``, ``args``); its number for
+        ``action_done``."""
+        k = self._n_actions
+        self._n_actions += 1
+        self._actions.write(json.dumps(dict(i=k) | entry, default=repr) + "\n")
+        self._actions.flush()
+        return k
+
+    def action_done(self, k: int, status: str, reason: str = "") -> None:
+        """Append the outcome of request ``k``."""
+        self._actions.write(json.dumps(dict(i=k, status=status, reason=reason)) + "\n")
+        self._actions.flush()
 
     def flush(self) -> None:
-        _atomic_write_text(self.dir / MANIFEST, json.dumps(self.manifest, indent=1) + "\n")
+        self._captures.flush()
+        self._actions.flush()
+
+    def close(self) -> None:
+        for f in (self._captures, self._actions):
+            if not f.closed:
+                f.close()
 
 
 # -- reading ---------------------------------------------------------------------------------
 
 @dataclass
 class Capture:
-    """One manifest entry (poses as Pose / 4x4 arrays; truth None when unknown)."""
+    """One recorded capture (poses as Pose / 4x4 arrays; truth None when unknown). ``index``
+    is its position in the recording."""
     index: int
     timestamp: float
     color: str
@@ -127,102 +204,285 @@ class Capture:
     T_world_camera_true: Optional[np.ndarray]
 
 
-class Recording:
-    """A recording directory, read and checked (``captures``, ``actions``, ``intrinsics``)."""
+class _Bad(ValueError):
+    """A field of a recording that is missing or wrong (the message says which)."""
 
-    def __init__(self, directory):
+
+def _number(x, what: str, positive: bool = False) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise _Bad(f"{what} must be a number")
+    v = float(x)
+    if not math.isfinite(v):
+        raise _Bad(f"{what} is not finite ({x!r})")
+    if positive and v <= 0:
+        raise _Bad(f"{what} must be positive (is {x!r})")
+    return v
+
+
+def _planar(d, what: str) -> Optional[Pose]:
+    if d is None:
+        return None
+    if not isinstance(d, dict):
+        raise _Bad(f"{what} must be an object with x, y, yaw")
+    return Pose.planar(*(_number(d.get(k), f"{what}.{k}") for k in ("x", "y", "yaw")))
+
+
+def _transform(m, what: str) -> np.ndarray:
+    try:
+        T = np.asarray(m, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise _Bad(f"{what} must be a 4x4 matrix of numbers") from None
+    if T.shape != (4, 4):
+        raise _Bad(f"{what} must be a 4x4 matrix")
+    if not np.isfinite(T).all():
+        raise _Bad(f"{what} has numbers that are not finite")
+    R = T[:3, :3]
+    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-4) and np.allclose(T[3], (0, 0, 0, 1))
+            and np.linalg.det(R) > 0):
+        raise _Bad(f"{what} is not a rigid transform")
+    return T
+
+
+def check_intrinsics(d, what: str = "intrinsics") -> Intrinsics:
+    """Intrinsics from a mapping, refused unless fx, fy > 0 and finite, cx, cy finite and the
+    image size a positive whole number of pixels (at most MAX_IMAGE_SIDE)."""
+    if not isinstance(d, dict):
+        raise _Bad(f"{what} must be an object with fx, fy, cx, cy, width, height")
+    fx, fy = (_number(d.get(k), f"{what}.{k}", positive=True) for k in ("fx", "fy"))
+    cx, cy = (_number(d.get(k), f"{what}.{k}") for k in ("cx", "cy"))
+    size = []
+    for k in ("width", "height"):
+        v = _number(d.get(k), f"{what}.{k}", positive=True)
+        if v != int(v) or v > MAX_IMAGE_SIDE:
+            raise _Bad(f"{what}.{k} must be a whole number of pixels up to {MAX_IMAGE_SIDE}")
+        size.append(int(v))
+    return Intrinsics(fx, fy, cx, cy, size[0], size[1])
+
+
+def _capture(c, i: int) -> Capture:
+    if not isinstance(c, dict):
+        raise _Bad("a capture must be a JSON object")
+    for k in ("color", "depth"):
+        if not isinstance(c.get(k), str):
+            raise _Bad(f"{k} must be the path of a frame file")
+    truth = c.get("truth") or {}
+    if not isinstance(truth, dict):
+        raise _Bad("truth must be an object or null")
+    Tt = truth.get("T_world_camera")
+    parking = c.get("parking")
+    if parking is not None and not isinstance(parking, str):
+        raise _Bad("parking must be a string or null")
+    return Capture(index=i, timestamp=_number(c.get("timestamp", 0.0), "timestamp"),
+                   color=c["color"], depth=c["depth"], base_pose=_planar(c.get("base_pose"), "base_pose"),
+                   T_world_camera=_transform(c.get("T_world_camera"), "T_world_camera"),
+                   pan=_number(c.get("pan", 0.0), "pan"), tilt=_number(c.get("tilt", 0.0), "tilt"),
+                   parking=parking, goal=_planar(c.get("goal"), "goal"),
+                   base_pose_true=_planar(truth.get("base_pose"), "truth.base_pose"),
+                   T_world_camera_true=None if Tt is None else _transform(Tt, "truth.T_world_camera"))
+
+
+def _json_lines(path: Path) -> list[tuple[int, Any]]:
+    """(line number, value) of a JSON-lines file; a torn last line (no newline, not JSON:
+    a writer killed mid-line) is left out."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RobotError("missing (a version 2 recording has it beside manifest.json)",
+                         file=str(path)) from None
+    except UnicodeDecodeError:
+        raise RobotError("not UTF-8 text", file=str(path)) from None
+    except OSError as err:
+        raise RobotError(f"unreadable ({err.strerror})", file=str(path)) from None
+    lines = text.split("\n")
+    out = []
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            out.append((n, json.loads(line)))
+        except (json.JSONDecodeError, RecursionError) as err:
+            if n == len(lines):           # the last line, not newline-terminated: torn
+                break
+            msg = err.msg if isinstance(err, json.JSONDecodeError) else "nested too deeply"
+            raise RobotError(f"corrupt line: {msg}", file=str(path), line=n) from None
+    return out
+
+
+class Recording:
+    """A recording directory, read and checked whole (``captures``, ``actions``,
+    ``intrinsics``, ``depth_scale``, ``start_pose``, ``info``). ``check_frames=False`` skips
+    the frame files (for tools that only read the manifest)."""
+
+    def __init__(self, directory, check_frames: bool = True):
         self.dir = Path(directory)
         self.path = self.dir / MANIFEST
         if not self.path.is_file():
             raise RobotError("not a recording: manifest.json is missing", file=str(self.path))
         try:
-            data = json.loads(self.path.read_text())
+            data = json.loads(self.path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as err:
             raise RobotError(f"corrupt manifest: {err.msg} (column {err.colno})",
                              file=str(self.path), line=err.lineno) from None
         except UnicodeDecodeError:
             raise RobotError("corrupt manifest: not UTF-8 text", file=str(self.path)) from None
+        except RecursionError:
+            raise RobotError("corrupt manifest: nested too deeply", file=str(self.path)) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise RobotError(f"corrupt manifest: not a {FORMAT} manifest", file=str(self.path))
-        if data.get("version") != VERSION:
+        self.version = data.get("version")
+        if self.version not in VERSIONS or isinstance(self.version, bool):
             raise RobotError(f"unknown recording version {data.get('version')!r} (this Hearth "
-                             f"reads version {VERSION})", file=str(self.path))
+                             f"reads versions {', '.join(map(str, VERSIONS))})",
+                             file=str(self.path))
         try:
-            self.depth_scale = float(data.get("depth_scale", DEPTH_SCALE))
-            self.intrinsics = (Intrinsics.from_dict(data["intrinsics"])
-                               if data.get("intrinsics") else None)
-            self.captures = [self._capture(c) for c in data["captures"]]
-            self.actions = list(data.get("actions", []))
-            self.info = dict(data.get("info", {}))
-            sp = data.get("start_pose")
-            self.start_pose = (None if sp is None else
-                               Pose.planar(float(sp["x"]), float(sp["y"]), float(sp["yaw"])))
-        except (KeyError, TypeError, ValueError) as err:
-            raise RobotError(f"corrupt manifest: bad or missing field {err}",
-                             file=str(self.path)) from None
+            self.depth_scale = _number(data.get("depth_scale", DEPTH_SCALE), "depth_scale",
+                                       positive=True)
+            self.intrinsics = (check_intrinsics(data["intrinsics"])
+                               if data.get("intrinsics") is not None else None)
+            info = data.get("info") or {}
+            if not isinstance(info, dict):
+                raise _Bad("info must be an object")
+            self.info = dict(info)
+            self.start_pose = _planar(data.get("start_pose"), "start_pose")
+        except _Bad as err:
+            raise RobotError(f"corrupt manifest: {err}", file=str(self.path)) from None
+        if self.version == 1:
+            self.captures, self.actions = self._version1(data)
+        else:
+            self.captures = []
+            for n, c in _json_lines(self.dir / CAPTURES):
+                try:
+                    self.captures.append(_capture(c, len(self.captures)))
+                except _Bad as err:
+                    raise RobotError(f"capture {len(self.captures)}: {err}",
+                                     file=str(self.dir / CAPTURES), line=n) from None
+            self.actions = self._actions_v2(_json_lines(self.dir / ACTIONS))
         if self.captures and self.intrinsics is None:
             raise RobotError("corrupt manifest: captures without intrinsics", file=str(self.path))
+        if check_frames:
+            self._check_frames()
 
-    @staticmethod
-    def _capture(c: dict) -> Capture:
-        def pose(d):
-            return None if d is None else Pose.planar(float(d["x"]), float(d["y"]), float(d["yaw"]))
-        truth = c.get("truth") or {}
-        T = np.asarray(c["T_world_camera"], dtype=float)
-        if T.shape != (4, 4):
-            raise ValueError("T_world_camera")
-        Tt = truth.get("T_world_camera")
-        return Capture(index=int(c["index"]), timestamp=float(c.get("timestamp", 0.0)),
-                       color=str(c["color"]), depth=str(c["depth"]), base_pose=pose(c.get("base_pose")),
-                       T_world_camera=T, pan=float(c.get("pan", 0.0)), tilt=float(c.get("tilt", 0.0)),
-                       parking=c.get("parking"), goal=pose(c.get("goal")),
-                       base_pose_true=pose(truth.get("base_pose")),
-                       T_world_camera_true=None if Tt is None else np.asarray(Tt, dtype=float))
+    def _version1(self, data: dict):
+        captures = data.get("captures")
+        actions = data.get("actions", [])
+        if not isinstance(captures, list) or not isinstance(actions, list):
+            raise RobotError("corrupt manifest: captures and actions must be lists",
+                             file=str(self.path))
+        out = []
+        for c in captures:
+            try:
+                out.append(_capture(c, len(out)))
+            except _Bad as err:
+                raise RobotError(f"corrupt manifest: capture {len(out)}: {err}",
+                                 file=str(self.path)) from None
+        if not all(isinstance(a, dict) for a in actions):
+            raise RobotError("corrupt manifest: every action must be an object",
+                             file=str(self.path))
+        return out, [dict(a) for a in actions]
+
+    def _actions_v2(self, lines) -> list[dict]:
+        path = str(self.dir / ACTIONS)
+        actions: dict[int, dict] = {}
+        for n, a in lines:
+            k = a.get("i") if isinstance(a, dict) else None
+            if isinstance(k, bool) or not isinstance(k, int):
+                raise RobotError("corrupt line: an action needs its number i", file=path, line=n)
+            if "action" in a:
+                if not isinstance(a["action"], str):
+                    raise RobotError("corrupt line: action must be a name", file=path, line=n)
+                actions[k] = {key: v for key, v in a.items() if key != "i"}
+            elif k in actions:
+                actions[k]["status"] = a.get("status")
+                actions[k]["reason"] = a.get("reason", "")
+            else:
+                raise RobotError(f"corrupt line: outcome of unknown action {k}", file=path, line=n)
+        return [actions[k] for k in sorted(actions)]
+
+    def _check_frames(self) -> None:
+        """Every frame file present, inside the folder, a complete PNG of the right kind and
+        size (in two threads: zlib releases the GIL)."""
+        K = self.intrinsics
+
+        def one(c: Capture) -> None:
+            for name, check in ((c.color, check_color_png), (c.depth, check_depth_png)):
+                where = str(self.dir / name)
+                try:
+                    info = check(inside(self.dir, name).read_bytes())
+                except FrameFileError as err:
+                    raise RobotError(f"frame {c.index} is missing" if str(err) == "missing"
+                                     else f"frame {c.index}: {err}", file=where) from None
+                except OSError as err:
+                    raise RobotError(f"frame {c.index}: unreadable ({err.strerror})",
+                                     file=where) from None
+                if (info.width, info.height) != (K.width, K.height):
+                    raise RobotError(f"frame {c.index}: image is {info.width}x{info.height}, the "
+                                     f"intrinsics say {K.width}x{K.height}", file=where)
+
+        if len(self.captures) <= 4:
+            for c in self.captures:
+                one(c)
+            return
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            list(pool.map(one, self.captures))      # the first problem (in order) is raised
 
     def __len__(self) -> int:
         return len(self.captures)
 
     def frame(self, i: int) -> Frame:
-        """Capture ``i`` as a Frame (colour and depth loaded from their PNGs)."""
+        """Capture ``i`` (its position) as a Frame (colour and depth loaded from their PNGs)."""
         c = self.captures[i]
-        color_path, depth_path = self.dir / c.color, self.dir / c.depth
-        for p in (color_path, depth_path):
-            if not p.is_file():
-                raise RobotError(f"frame {c.index} is missing", file=str(p))
-        bgr = cv2.imread(str(color_path), cv2.IMREAD_COLOR)
-        if bgr is None:
-            raise RobotError(f"frame {c.index}: unreadable colour PNG", file=str(color_path))
-        raw = cv2.imread(str(depth_path), cv2.IMREAD_UNCHANGED)
-        if raw is None or raw.dtype != np.uint16 or raw.ndim != 2:
-            raise RobotError(f"frame {c.index}: depth must be a 16-bit single-channel PNG",
-                             file=str(depth_path))
+        images = []
+        for name, decode in ((c.color, decode_color), (c.depth, decode_depth)):
+            try:
+                images.append(decode(inside(self.dir, name).read_bytes()))
+            except FrameFileError as err:
+                raise RobotError(f"frame {c.index} is missing" if str(err) == "missing"
+                                 else f"frame {c.index}: {err}", file=str(self.dir / name)) from None
+            except OSError as err:
+                raise RobotError(f"frame {c.index}: unreadable ({err.strerror})",
+                                 file=str(self.dir / name)) from None
+        rgb, raw = images
         K = self.intrinsics
-        if raw.shape != (K.height, K.width) or bgr.shape[:2] != (K.height, K.width):
+        if raw.shape != (K.height, K.width) or rgb.shape[:2] != (K.height, K.width):
             raise RobotError(f"frame {c.index}: image size differs from the intrinsics "
-                             f"({K.width}x{K.height})", file=str(depth_path))
-        return Frame(color=np.ascontiguousarray(bgr[..., ::-1]),
-                     depth=(raw.astype(np.float32) * np.float32(self.depth_scale)),
+                             f"({K.width}x{K.height})", file=str(self.dir / c.depth))
+        return Frame(color=rgb, depth=(raw.astype(np.float32) * np.float32(self.depth_scale)),
                      intrinsics=K, T_world_camera=c.T_world_camera.copy(), timestamp=c.timestamp,
                      pan=c.pan, tilt=c.tilt, base_pose=c.base_pose,
                      T_world_camera_true=c.T_world_camera_true, base_pose_true=c.base_pose_true,
                      parking=c.parking)
 
 
+def open_recording(path, topics=None, check_frames: bool = True):
+    """A recording to replay: a Hearth recording directory (``Recording``), or a ROS 2 bag
+    (an ``.mcap`` file, or a rosbag2 directory with ``metadata.yaml``:
+    ``hearth.robot.rosbag.BagRecording``, with the topic and frame mapping ``topics``)."""
+    p = Path(path)
+    if p.suffix in (".mcap", ".db3") or (p.is_dir() and (p / "metadata.yaml").is_file()) \
+            or (p.is_dir() and not (p / MANIFEST).exists() and any(p.glob("*.mcap"))):
+        from hearth.robot.rosbag import BagRecording
+        return BagRecording(p, topics=topics)
+    if topics is not None:
+        raise RobotError("--topics maps a ROS 2 bag's topics; this is a Hearth recording",
+                         file=str(p))
+    return Recording(p, check_frames=check_frames)
+
+
 # -- recording any adapter -------------------------------------------------------------------
 
 class _LoggedAction(Action):
-    """An action proxy that writes its outcome into the recording's action log."""
+    """An action proxy that appends its outcome to the recording's action log."""
 
-    def __init__(self, inner: Action, entry: dict, writer: RecordingWriter):
-        self._inner, self._entry, self._writer = inner, entry, writer
-        self.name = getattr(inner, "name", entry["action"])
+    def __init__(self, inner: Action, k: int, writer):
+        self._inner, self._k, self._writer = inner, k, writer
+        self._logged = False
+        self.name = getattr(inner, "name", "action")
 
     def status(self) -> str:
         s = self._inner.status()
-        if s != "running" and self._entry.get("status") != s:
-            self._entry["status"] = s
-            self._entry["reason"] = getattr(self._inner, "reason", "")
-            self._writer.flush()
+        if s != "running" and not self._logged:
+            self._logged = True
+            self._writer.action_done(self._k, s, getattr(self._inner, "reason", ""))
         return s
 
     def cancel(self) -> None:
@@ -244,18 +504,28 @@ class _LoggedAction(Action):
 
 _LOGGED = ("navigate_to", "open_articulated", "close_articulated", "turn_knob", "grasp", "place",
            "hand_over", "say", "set_head", "look_at", "apply_correction")
+FORMATS = ("hearth", "mcap")
 
 
 class RecordingRobot:
-    """Any adapter, with every capture written to a recording and every action logged."""
+    """Any adapter, with every capture written to a recording and every action logged.
 
-    def __init__(self, inner, directory, info: Optional[dict] = None):
+    ``format``: ``hearth`` (a recording directory, docs/recording-format.md) or ``mcap``
+    (a ROS 2 bag, docs/ros2-foxglove.md; needs the ``ros`` extra)."""
+
+    def __init__(self, inner, directory, info: Optional[dict] = None, format: str = "hearth"):
         self.inner = inner
-        self.writer = RecordingWriter(directory, getattr(inner, "intrinsics", None), info)
+        K = getattr(inner, "intrinsics", None)
+        if format == "hearth":
+            self.writer = RecordingWriter(directory, K, info)
+        elif format == "mcap":
+            from hearth.robot.rosbag import BagWriter
+            self.writer = BagWriter(directory, K, info)
+        else:
+            raise RobotError(f"unknown recording format {format!r} (known: {', '.join(FORMATS)})")
         self._goal = None
         try:
-            self.writer.manifest["start_pose"] = _pose_dict(inner.base_pose())
-            self.writer.flush()
+            self.writer.set_start_pose(inner.base_pose())
         except (AttributeError, RobotError):
             pass
 
@@ -268,7 +538,10 @@ class RecordingRobot:
         self.inner.stop()
         self._log("stop", {})
 
-    def _log(self, name: str, args: dict) -> dict:
+    def close(self) -> None:
+        self.writer.close()
+
+    def _log(self, name: str, args: dict) -> int:
         clock = getattr(self.inner, "clock", None)
         t = clock.now() if clock is not None else None
         return self.writer.log_action(dict(time=t, action=name, args=args))
@@ -279,12 +552,14 @@ class RecordingRobot:
             return attr
 
         def call(*args, **kwargs):
-            entry = self._log(name, _jsonable(dict(enumerate(args)) | kwargs))
+            k = self._log(name, _jsonable(dict(enumerate(args)) | kwargs))
             if name == "navigate_to" and args:
                 self._goal = args[0]
             out = attr(*args, **kwargs)
             if isinstance(out, Action) or hasattr(out, "status"):
-                return _LoggedAction(out, entry, self.writer)
+                logged = _LoggedAction(out, k, self.writer)
+                logged.status()           # refused or instant requests end at once
+                return logged
             return out
         return call
 
@@ -319,7 +594,8 @@ class ReplayRobot:
                  yaw_tolerance: float = math.radians(10), speed: float = 0.5,
                  turn_speed: float = 1.0, action_time: float = 2.0, start_pose=None,
                  mount: HeadMount = HEAD):
-        self.recording = recording if isinstance(recording, Recording) else Recording(recording)
+        self.recording = (recording if hasattr(recording, "captures")
+                          else open_recording(recording))
         self.clock = clock if clock is not None else SimClock()
         self.position_tolerance, self.yaw_tolerance = float(position_tolerance), float(yaw_tolerance)
         self.speed, self.turn_speed, self.action_time = speed, turn_speed, action_time
@@ -476,4 +752,4 @@ class ReplayRobot:
 
 
 __all__ = ["Capture", "Recording", "RecordingRobot", "RecordingWriter", "ReplayRobot",
-           "FailedAction", "VERSION"]
+           "FailedAction", "VERSION", "open_recording"]

@@ -16,9 +16,11 @@ def test_record_a_simulated_oven_mission_and_replay_it(tmp_path, capsys):
     assert status == 0, err
     assert "turn_off_oven: succeeded (completed); recorded 4 captures to" in err
     manifest = json.loads((rec / "manifest.json").read_text())
-    assert manifest["version"] == 1 and len(manifest["captures"]) == 4
-    assert all(c["truth"]["T_world_camera"] for c in manifest["captures"])
-    assert [a["action"] for a in manifest["actions"]].count("turn_knob") == 1
+    captures = [json.loads(line) for line in (rec / "captures.jsonl").read_text().splitlines()]
+    actions = [json.loads(line) for line in (rec / "actions.jsonl").read_text().splitlines()]
+    assert manifest["version"] == 2 and len(captures) == 4
+    assert all(c["truth"]["T_world_camera"] for c in captures)
+    assert [a.get("action") for a in actions].count("turn_knob") == 1
     status = main(["run", "missions/turn_off_oven.yaml", "--recording", str(rec),
                    "--world", str(sc / "belief.xml"), "--runs-dir", str(runs)])
     out = capsys.readouterr().out
@@ -29,8 +31,8 @@ def test_record_a_simulated_oven_mission_and_replay_it(tmp_path, capsys):
 def test_run_on_a_recording_of_unknown_version_is_one_clear_line(tmp_path, capsys):
     rec = tmp_path / "rec"
     rec.mkdir()
-    (rec / "manifest.json").write_text('{"format": "hearth-recording", "version": 2}')
+    (rec / "manifest.json").write_text('{"format": "hearth-recording", "version": 3}')
     assert main(["run", "missions/turn_off_oven.yaml", "--recording", str(rec),
                  "--runs-dir", str(tmp_path)]) == 2
     assert capsys.readouterr().err.strip() == (
-        f"{rec / 'manifest.json'}: unknown recording version 2 (this Hearth reads version 1)")
+        f"{rec / 'manifest.json'}: unknown recording version 3 (this Hearth reads versions 1, 2)")

@@ -69,13 +69,13 @@ def test_missing_frame_corrupt_manifest_and_unknown_version_are_one_line_each(re
     import shutil
     d = tmp_path / "copy"
     shutil.copytree(recording[0], d)
-    (d / "frames" / "000001_depth.png").unlink()
+    (d / "frames" / "0000" / "000001_depth.png").unlink()
     with pytest.raises(RobotError) as err:
-        Recording(d).frame(1)
-    assert str(err.value) == f"{d / 'frames' / '000001_depth.png'}: frame 1 is missing"
+        Recording(d)                     # checked when opened, not when the frame is asked for
+    assert str(err.value) == f"{d / 'frames' / '0000' / '000001_depth.png'}: frame 1 is missing"
     manifest = d / "manifest.json"
     good = manifest.read_text()
-    manifest.write_text(good.replace('"captures": [', '"captures": [,', 1))
+    manifest.write_text(good.replace('"info": {', '"info": {,', 1))
     with pytest.raises(RobotError) as err:
         Recording(d)
     msg = str(err.value)
@@ -85,7 +85,8 @@ def test_missing_frame_corrupt_manifest_and_unknown_version_are_one_line_each(re
     manifest.write_text(json.dumps(data))
     with pytest.raises(RobotError) as err:
         Recording(d)
-    assert str(err.value) == f"{manifest}: unknown recording version 7 (this Hearth reads version 1)"
+    assert str(err.value) == (f"{manifest}: unknown recording version 7 (this Hearth reads "
+                              "versions 1, 2)")
     with pytest.raises(RobotError, match="manifest.json is missing"):
         Recording(tmp_path)
 
