@@ -24,7 +24,7 @@ def test_export_writes_one_behaviortree_per_mission_and_included_subtree():
     assert root.get("main_tree_to_execute") == "fetch_object"
     ids = [t.get("ID") for t in root.iter("BehaviorTree")]
     assert ids == ["fetch_object", "find_object", "search_known_places", "search_at", "note",
-                   "open_closed_parts", "look_here", "search_places"]
+                   "localise_here", "open_closed_parts", "look_here", "search_places"]
     calls = {s.get("ID") for s in root.iter("SubTree") if s.getparent().tag != "TreeNodesModel"}
     assert calls == set(ids) - {"fetch_object"}
 
