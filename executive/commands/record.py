@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from executive.cliutil import DEFAULT_WORLD, add_run_arguments, make_clock, parse_params, run_to_end
+from executive.cliutil import (DEFAULT_WORLD, add_run_arguments, make_clock, output_dir,
+                               parse_params, run_to_end, seed)
 from executive.executive import Executive
 from executive.missionfile import load_mission
 
@@ -18,8 +19,9 @@ def register(sub) -> None:
                                    "and no --world, the scenario's belief.xml is the map. Exit "
                                    "0 when the mission succeeds, 1 when it fails.")
     add_run_arguments(p)
-    p.add_argument("--out", required=True, metavar="DIR", help="recording directory to write")
-    p.add_argument("--seed", type=int, default=0, help="sensor noise seed")
+    p.add_argument("--out", type=output_dir, required=True, metavar="DIR",
+                   help="recording directory to write")
+    p.add_argument("--seed", type=seed, default=0, help="sensor noise seed")
     p.add_argument("--quiet", action="store_true", help="print only the outcome")
     p.set_defaults(func=_run)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from executive.cliutil import add_run_arguments, make_executive
+from executive.cliutil import add_run_arguments, integer_in, make_executive
 from executive.executive import Executive
 from executive.render import ascii_tree, blackboard_text
 from executive.replay import format_event
@@ -22,7 +22,7 @@ def register(sub) -> None:
     p = sub.add_parser("step", help="step a mission tick by tick",
                        description=__doc__.split("\n\n", 1)[1])
     add_run_arguments(p)
-    p.add_argument("--ticks", type=int, default=None,
+    p.add_argument("--ticks", type=integer_in(0, 10**9, "--ticks"), default=None,
                    help="tick N times without asking, then print tree and blackboard")
     p.set_defaults(func=_run)
 
