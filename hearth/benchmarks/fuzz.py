@@ -359,8 +359,9 @@ def check_mission(root: Path, entry: Path) -> Verdict:
         why = _one_line_each(str(err))
         if why:
             return Verdict("traceback", why)
-        try:   # `hearth validate` must agree that it is bad
-            if not validate_file(entry, skills):
+        try:   # `hearth validate` must agree that it is bad (a library of subtrees aside)
+            library = str(err).startswith(f"{entry}:") and "has subtrees but no tree" in str(err)
+            if not validate_file(entry, skills) and not library:
                 return Verdict("unloadable", "load_mission refuses what validate_file accepts")
         except Exception as err2:  # noqa: BLE001
             return Verdict("traceback", "validate_file: " + _describe(err2))
