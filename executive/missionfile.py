@@ -233,8 +233,9 @@ def _construct_int(loader: _Loader, node: yaml.ScalarNode) -> int:
     except ValueError:     # more digits than Python converts
         value = None
     if value is None or abs(value) > MAX_INT:
-        raise MissionError(f"integer {node.value[:20]!r}{'...' if len(node.value) > 20 else ''} "
-                           "is too large (at most 2^63 - 1)", line=node.start_mark.line + 1)
+        shown = repr(node.value) if len(node.value) <= 30 else f"of {len(node.value)} digits"
+        raise MissionError(f"integer {shown} is too large (at most 2^63 - 1)",
+                           line=node.start_mark.line + 1)
     return value
 
 
