@@ -33,6 +33,7 @@ Targets: ``tracebacks``, ``hangs``, ``crashes``, ``accepted_then_unloadable``,
 from __future__ import annotations
 
 import copy
+import itertools
 import json
 import math
 import multiprocessing
@@ -44,11 +45,10 @@ import stat
 import statistics
 import tempfile
 import time
-from collections import deque
 from dataclasses import dataclass, field
 from multiprocessing.connection import wait
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any, Iterable, Iterator, Optional
 
 LOADERS = ("world", "mission", "recording")
 FAILURES = ("tracebacks", "hangs", "crashes", "accepted_then_unloadable",
@@ -630,6 +630,14 @@ def _mission_value(rng: random.Random):
     return value
 
 
+def _yaml_classes():
+    import yaml
+    return (getattr(yaml, "CSafeLoader", yaml.SafeLoader),
+            getattr(yaml, "CSafeDumper", yaml.SafeDumper))
+
+
+_YAML_LOADER, _YAML_DUMPER = _yaml_classes()
+
 _KINDS = ["sequence", "selector", "parallel", "retry", "timeout", "repeat", "inverter",
           "force_success", "force_failure", "for_each", "guard", "watch", "skill", "condition",
           "succeed", "fail", "include", "state_machine"]
@@ -663,7 +671,7 @@ def mutate_mission(rng: random.Random, files: dict[str, bytes]) -> tuple[str, di
     out = dict(files)
     done = []
     if rng.random() < 0.75:
-        data = yaml.safe_load(files[target])
+        data = yaml.load(files[target], Loader=_YAML_LOADER)
         for _ in range(rng.choice((1, 1, 2, 3))):
             spots = _paths(data)
             if not spots:
@@ -708,7 +716,8 @@ def mutate_mission(rng: random.Random, files: dict[str, bytes]) -> tuple[str, di
                                                     f"{entry}#x", entry])}
                 done.append("include")
         try:
-            text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+            text = yaml.dump(data, Dumper=_YAML_DUMPER, sort_keys=False, allow_unicode=True,
+                             width=1000)
         except (yaml.YAMLError, RecursionError):
             text = files[target].decode()
         raw = text.encode("utf-8", "surrogatepass")
@@ -753,7 +762,10 @@ def mutate_recording(rng: random.Random, base: dict[str, Any]) -> tuple[str, dic
                 del cont[key]
                 done.append(f"del {key!r}")
         else:
-            frames = sorted(k for k in files if k.startswith("rec/frames/"))
+            frames = sorted(k for k, v in files.items()
+                            if k.startswith("rec/frames/") and isinstance(v, bytes))
+            if not frames:
+                continue
             f = rng.choice(frames)
             kind = rng.random()
             if kind < 0.2:
@@ -923,25 +935,25 @@ def fixed_cases() -> list[Case]:
 # ---------------------------------------------------------------------------------------------
 # Generated cases
 
-def generated_cases(loader: str, n: int, seed: int) -> list[Case]:
+def generated_cases(loader: str, n: int, seed: int) -> Iterator[Case]:
+    """``n`` mutated cases for ``loader``, the same ones for the same seed (made one at a time:
+    some are megabytes)."""
     rng = random.Random(f"{loader}:{seed}")
-    out = []
     if loader == "world":
         base = _demo_world()
-        for i in range(n):
+        for _ in range(n):
             what, data = mutate_world(rng, base)
-            out.append(Case("world", what, {**WORLD_NEIGHBOURS, "world.xml": data}, "world.xml"))
+            yield Case("world", what, {**WORLD_NEIGHBOURS, "world.xml": data}, "world.xml")
     elif loader == "mission":
         base = _missions()
-        for i in range(n):
+        for _ in range(n):
             what, files, entry = mutate_mission(rng, base)
-            out.append(Case("mission", what, files, entry))
+            yield Case("mission", what, files, entry)
     else:
         base = _recording_files()
-        for i in range(n):
+        for _ in range(n):
             what, files = mutate_recording(rng, base)
-            out.append(Case("recording", what, files, "rec"))
-    return out
+            yield Case("recording", what, files, "rec")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1004,52 +1016,59 @@ class _Worker:
             self.proc.kill()
 
 
-def run_cases(cases: list[Case], jobs: int = 1, timeout: float = 30.0) -> list[Verdict]:
-    """Every case's verdict, cases run in ``jobs`` worker processes."""
+def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
+              ) -> list[tuple[Case, Verdict]]:
+    """(case, verdict) for every case, run in ``jobs`` worker processes; a case's files are
+    dropped once it has run."""
     ctx = multiprocessing.get_context("spawn")
     workers = [_Worker(ctx, timeout) for _ in range(max(1, jobs))]
-    todo = deque(enumerate(cases))
-    results: list[Optional[Verdict]] = [None] * len(cases)
-    busy: dict[int, tuple[int, float]] = {}
+    todo = iter(cases)
+    results: list[tuple[Case, Verdict]] = []
+    busy: dict[int, tuple[Case, float]] = {}
+    more = True
+
+    def done(wi: int, verdict: Verdict) -> None:
+        case, _ = busy.pop(wi)
+        case.files = {}
+        results.append((case, verdict))
     try:
-        while todo or busy:
+        while more or busy:
             for wi, w in enumerate(workers):
-                if wi not in busy and todo:
-                    i, case = todo.popleft()
+                if wi not in busy and more:
+                    case = next(todo, None)
+                    if case is None:
+                        more = False
+                        break
                     w.conn.send(case)
-                    busy[wi] = (i, time.monotonic())
-            ready = wait([workers[wi].conn for wi in busy], timeout=0.5)
+                    busy[wi] = (case, time.monotonic())
+            ready = wait([workers[wi].conn for wi in busy], timeout=0.5) if busy else []
             for wi in list(busy):
                 w = workers[wi]
-                i, t0 = busy[wi]
                 if w.conn in ready:
                     try:
-                        results[i] = w.conn.recv()
+                        done(wi, w.conn.recv())
                     except (EOFError, OSError):
-                        results[i] = Verdict("crash", f"worker died (exit {w.proc.exitcode})")
+                        done(wi, Verdict("crash", f"worker died (exit {w.proc.exitcode})"))
                         w.restart()
-                    del busy[wi]
                 elif not w.proc.is_alive():
-                    results[i] = Verdict("crash", f"worker died (exit {w.proc.exitcode})")
+                    done(wi, Verdict("crash", f"worker died (exit {w.proc.exitcode})"))
                     w.restart()
-                    del busy[wi]
-                elif time.monotonic() - t0 > timeout + 15:   # stuck where no alarm reaches
-                    results[i] = Verdict("hang", f"over {timeout + 15:g} s (worker killed)")
+                elif time.monotonic() - busy[wi][1] > timeout + 15:   # where no alarm reaches
+                    done(wi, Verdict("hang", f"over {timeout + 15:g} s (worker killed)"))
                     w.restart()
-                    del busy[wi]
     finally:
         for w in workers:
             w.close()
-    return results  # type: ignore[return-value]
+    return results
 
 
 # ---------------------------------------------------------------------------------------------
 # Report
 
-def summarise(cases: list[Case], verdicts: list[Verdict]) -> dict:
-    counts = {"cases": len(cases), "accepted": 0, "refused": 0, **{k: 0 for k in FAILURES}}
+def summarise(results: list[tuple[Case, Verdict]]) -> dict:
+    counts = {"cases": len(results), "accepted": 0, "refused": 0, **{k: 0 for k in FAILURES}}
     ms = []
-    for v in verdicts:
+    for _, v in results:
         if v.outcome in ("accepted", "refused"):
             counts[v.outcome] += 1
         else:
@@ -1061,9 +1080,9 @@ def summarise(cases: list[Case], verdicts: list[Verdict]) -> dict:
     return counts
 
 
-def failures(cases: list[Case], verdicts: list[Verdict], limit: int = 12) -> list[dict]:
+def failures(results: list[tuple[Case, Verdict]], limit: int = 12) -> list[dict]:
     out = []
-    for c, v in zip(cases, verdicts):
+    for c, v in results:
         if v.outcome not in ("accepted", "refused") or v.outside:
             out.append({"loader": c.loader, "case": c.name[:120], "outcome": v.outcome,
                         "detail": v.detail[:240], "paths_outside": v.outside})
@@ -1077,33 +1096,29 @@ def run(args) -> dict:
     jobs = max(1, getattr(args, "jobs", 1) or 1)
     timeout = getattr(args, "timeout", 30.0) or 30.0
     t0 = time.perf_counter()
-    gen = {"world": generated_cases("world", n, seed),
-           "mission": generated_cases("mission", n, seed),
-           "recording": generated_cases("recording", max(50, n // 4), seed)}
+    sizes = {"world": n, "mission": n, "recording": max(50, n // 4)}
     fixed = fixed_cases()
-    all_cases = [c for loader in LOADERS for c in gen[loader]] + fixed
-    verdicts = run_cases(all_cases, jobs=jobs, timeout=timeout)
-    by_case = dict(zip(map(id, all_cases), verdicts))
+    cases = itertools.chain(*(generated_cases(l, sizes[l], seed) for l in LOADERS), fixed)
+    results = run_cases(cases, jobs=jobs, timeout=timeout)
     out: dict[str, Any] = {"seed": seed, "timeout_s": timeout}
     for loader in LOADERS:
-        cs = gen[loader] + [c for c in fixed if c.loader == loader]
-        out[loader] = summarise(cs, [by_case[id(c)] for c in cs])
-    total = {k: sum(out[l][k] for l in LOADERS) for k in ("cases", "accepted", "refused", *FAILURES)}
-    out["total"] = total
+        out[loader] = summarise([(c, v) for c, v in results if c.loader == loader])
+        out[loader]["fixed_cases"] = sum(c.loader == loader and c.expect is not None
+                                         for c, _ in results)
+    out["total"] = {k: sum(out[l][k] for l in LOADERS)
+                    for k in ("cases", "accepted", "refused", *FAILURES)}
     out["world_and_mission"] = {k: out["world"][k] + out["mission"][k] for k in FAILURES}
-    fixed_report = {}
-    fixed_failed = []
-    for c in fixed:
-        v = by_case[id(c)]
-        ok = (v.outcome == c.expect) and not v.outside
+    fixed_report, fixed_failed = {}, []
+    for c, v in results:
+        if c.expect is None:
+            continue
         fixed_report[f"{c.loader}/{c.name}"] = {"expected": c.expect, "outcome": v.outcome,
-                                                "ms": round(v.ms, 1),
-                                                "message": v.detail[:160]}
-        if not ok:
+                                                "ms": round(v.ms, 1), "message": v.detail[:160]}
+        if v.outcome != c.expect or v.outside:
             fixed_failed.append(f"{c.loader}/{c.name}")
     out["fixed"] = fixed_report
     out["fixed_failed"] = fixed_failed
-    out["failures"] = failures(all_cases, verdicts, limit=40)
+    out["failures"] = failures(results, limit=40)
     out["targets"] = {k: 0 for k in FAILURES}
     out["seconds"] = round(time.perf_counter() - t0, 1)
     return out

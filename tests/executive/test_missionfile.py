@@ -415,3 +415,12 @@ def test_validating_is_linear_in_the_number_of_siblings(mission_file):
     names = [n.name for n in load_mission(path, test_skills()).root.children]
     assert names[:3] == ["succeed", "succeed_2", "succeed_3"] and names[-1] == "succeed_10000"
     assert len(set(names)) == 10_000
+
+
+def test_the_schemas_maxima_are_the_documented_limits():
+    from executive import missionfile as mf
+    defs = mf.schema()["$defs"]
+    assert defs["retry"]["properties"]["times"]["maximum"] == mf.MAX_RETRY_TIMES
+    assert defs["repeat"]["properties"]["times"]["maximum"] == mf.MAX_REPEAT_TIMES
+    assert defs["timeout"]["properties"]["seconds"]["maximum"] == mf.MAX_TIMEOUT_SECONDS
+    assert defs["parallel"]["properties"]["threshold"]["maximum"] == mf.MAX_TREE_NODES
