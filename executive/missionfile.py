@@ -740,6 +740,9 @@ class _Compiler:
         for err in jsonschema.Draft202012Validator(sub).iter_errors(top):
             self.error(_schema_message(err), path, line_of(data, list(err.absolute_path)))
         subtrees = data.get("subtrees")
+        if subtrees is not None and not isinstance(subtrees, dict):
+            self.error("subtrees: expected a mapping of NAME: {tree: ...}", path,
+                       data.key_lines.get("subtrees", data.line))
         if isinstance(subtrees, dict):
             for name, st in subtrees.items():
                 if not _IDENT_RE.match(str(name)):
@@ -765,11 +768,15 @@ class _Compiler:
             line = section.key_lines.get(name, 0)
             if not isinstance(spec, dict) or "type" not in spec or spec["type"] not in TYPES:
                 continue  # the schema check has reported it
+            # A malformed enum or items has been reported by the schema check too; leave it
+            # out rather than compare values with it.
+            enum, items = spec.get("enum"), spec.get("items")
             p = ParamSpec(name=name, type=spec["type"], default=plain(spec.get("default")),
                           required=bool(spec.get("required", spec.get("default") is None)),
-                          runtime=bool(spec.get("runtime", False)), enum=plain(spec.get("enum")),
-                          items=spec.get("items"), description=spec.get("description", ""),
-                          line=line)
+                          runtime=bool(spec.get("runtime", False)),
+                          enum=plain(enum) if isinstance(enum, list) else None,
+                          items=items if items in TYPES else None,
+                          description=str(spec.get("description", "")), line=line)
             if p.runtime and not allow_runtime:
                 self.error(f"subtree parameter {name}: only mission parameters can be runtime",
                            file, line)
@@ -1167,7 +1174,9 @@ class _Compiler:
         if sub is None:
             body, params_section = doc, doc.get("parameters")
         else:
-            subtrees = doc.get("subtrees") or {}
+            subtrees = doc.get("subtrees")
+            if not isinstance(subtrees, dict):   # a malformed section: reported by check_top
+                subtrees = {}
             if sub not in subtrees or not isinstance(subtrees[sub], LineDict):
                 known = ", ".join(sorted(subtrees)) or "none"
                 self.error(f"include: no subtree {sub!r} in {Path(file).name} (subtrees: {known})",

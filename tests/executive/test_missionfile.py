@@ -424,3 +424,16 @@ def test_the_schemas_maxima_are_the_documented_limits():
     assert defs["repeat"]["properties"]["times"]["maximum"] == mf.MAX_REPEAT_TIMES
     assert defs["timeout"]["properties"]["seconds"]["maximum"] == mf.MAX_TIMEOUT_SECONDS
     assert defs["parallel"]["properties"]["threshold"]["maximum"] == mf.MAX_TREE_NODES
+
+
+def test_a_malformed_enum_in_an_included_subtree_is_one_line(mission_file):
+    path = mission_file("""
+        name: x
+        tree: {include: s, params: {p: 1}}
+        subtrees:
+          s:
+            parameters: {p: {type: integer, enum: 3, default: 1, items: 7}}
+            tree: {succeed: ok}
+    """)
+    errs = errors(path)
+    assert errs and all(e.startswith(f"{path}:6: ") for e in errs), errs
