@@ -33,16 +33,14 @@ from worldmodel.validate import MAX_TEXT_CHARS, semantic_problems
 SCHEMA_PATH = Path(__file__).with_name("schema") / "world.xsd"
 FORMAT_VERSION = "1"
 
-# Limits (docs/world-format.md, "Limits"). The map with 10,000 small objects of
-# `hearth bench worldmodel` is 5 MB, about 80,000 elements and 11 levels deep.
+# Limits (docs/world-format.md, "Limits"); the length of strings and the bounds of numbers
+# are the schema's, the number of rooms and of nodes worldmodel.validate's. The map with
+# 10,000 small objects of `hearth bench worldmodel` is 5 MB, about 80,000 elements and 11
+# levels deep.
 #: Largest world file.
 MAX_FILE_BYTES = 32 * 1024 * 1024
 #: Most XML elements in a file (history entries included).
 MAX_ELEMENTS = 1_000_000
-#: Most elements with an id (rooms, objects, parts, handles, knobs, switches, ...).
-MAX_NODES = 100_000
-#: Most rooms.
-MAX_ROOMS = 1_000
 #: Deepest element nesting (the apartment is level 1; each nested part adds one).
 MAX_DEPTH = 32
 
@@ -79,40 +77,46 @@ def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
         raise WorldError("DOCTYPE declarations (DTDs and entities) are not allowed in world "
                          "files", file=name, line=line)
     _check_limits(tree.getroot(), name)
+    _check_lengths(data, tree.getroot(), name)
     return tree
 
 
+# Counted by libxml2 (a Python walk over the 80,000 elements of a 10,000-object map cost
+# more than the schema).
+_COUNT_ELEMENTS = etree.XPath("count(//*)")
+_TOO_DEEP = etree.XPath("/*" + "/*" * MAX_DEPTH)
+
+
 def _check_limits(root, name: str) -> None:
-    """One WorldError at the first element past a limit (size of text, count, depth)."""
-    elements = nodes = rooms = depth = 0
-    for event, el in etree.iterwalk(root, events=("start", "end")):
-        if event == "end":
-            depth -= 1
-            continue
-        depth += 1
-        elements += 1
-        if depth > MAX_DEPTH:
-            raise WorldError(f"elements nest more than {MAX_DEPTH} levels deep", file=name,
-                             line=el.sourceline)
-        if elements > MAX_ELEMENTS:
-            raise WorldError(f"more than {MAX_ELEMENTS} elements", file=name, line=el.sourceline)
+    """One WorldError at the first element past the element count or the nesting depth."""
+    if _COUNT_ELEMENTS(root) > MAX_ELEMENTS:
+        raise WorldError(f"more than {MAX_ELEMENTS} elements", file=name,
+                         line=root.xpath(f"(//*)[{MAX_ELEMENTS + 1}]")[0].sourceline)
+    deep = _TOO_DEEP(root)
+    if deep:
+        raise WorldError(f"elements nest more than {MAX_DEPTH} levels deep", file=name,
+                         line=deep[0].sourceline)
+
+
+def _check_lengths(data: bytes, root, name: str) -> None:
+    """One WorldError at the first attribute value or text longer than MAX_TEXT_CHARS.
+
+    The schema's types say the same, but libxml2 quotes a 10 MB value whole (and cuts the
+    message); this says it in one short line. Neither an attribute value nor text holds a
+    '<', so a file without a run of more than MAX_TEXT_CHARS bytes between two '<' has none
+    (the common case: checked in C, without looking at every element).
+    """
+    if max(map(len, data.split(b"<"))) <= MAX_TEXT_CHARS:
+        return
+    for el in root.iter():
         for attr, value in el.attrib.items():
             if len(value) > MAX_TEXT_CHARS:
                 raise WorldError(f"attribute {attr} is {len(value)} characters long (at most "
                                  f"{MAX_TEXT_CHARS})", file=name, line=el.sourceline)
         for text in (el.text, el.tail):
-            if text is not None and len(text) > MAX_TEXT_CHARS:
+            if text is not None and len(text) > MAX_TEXT_CHARS and text.strip():
                 raise WorldError(f"<{el.tag}> holds {len(text)} characters of text (at most "
                                  f"{MAX_TEXT_CHARS})", file=name, line=el.sourceline)
-        if "id" in el.attrib:
-            nodes += 1
-            if nodes > MAX_NODES:
-                raise WorldError(f"more than {MAX_NODES} elements with an id", file=name,
-                                 line=el.sourceline)
-        if el.tag == "room":
-            rooms += 1
-            if rooms > MAX_ROOMS:
-                raise WorldError(f"more than {MAX_ROOMS} rooms", file=name, line=el.sourceline)
 
 
 def _doctype_line(data: bytes) -> int:
@@ -307,10 +311,15 @@ def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = N
 _FACET = re.compile(r"\[facet '(?:min|max)(?:In|Ex)clusive'\] The value '(NaN|-?INF)' .*$")
 
 
+_LONG_VALUE = re.compile(r"'([^']{40})[^']{20,}'")
+
+
 def _clean_schema_message(msg: str) -> str:
     # lxml prefixes "Element 'x', attribute 'y': ..." -- already readable; drop schema URIs,
-    # and say what is wrong with NaN and INF (libxml2 calls NaN "greater than the maximum").
+    # say what is wrong with NaN and INF (libxml2 calls NaN "greater than the maximum"), and
+    # shorten quoted values (libxml2 quotes a 10 MB attribute whole).
     msg = _FACET.sub(r"'\1' is not a finite number", msg)
+    msg = _LONG_VALUE.sub(r"'\1...'", msg)
     return msg.replace("{http://www.w3.org/2001/XMLSchema}", "xs:")
 
 

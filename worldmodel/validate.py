@@ -30,6 +30,9 @@ MAX_COORD = 1e4
 MAX_COUNT = 10**9
 #: Longest attribute value or element text, in characters.
 MAX_TEXT_CHARS = 4096
+#: Most rooms, and most nodes with an id (rooms, objects, parts, handles, knobs, switches).
+MAX_ROOMS = 1_000
+MAX_NODES = 100_000
 
 # XML 1.0 can hold these characters and no others (control characters, lone surrogates and
 # U+FFFE/U+FFFF cannot be written, so a name holding one can never be saved).
@@ -305,8 +308,14 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
         else:
             problems.append(WorldError(msg, file=name, line=getattr(node, "line", None) or 0))
 
+    if len(apartment.rooms) > MAX_ROOMS:
+        bad(f"more than {MAX_ROOMS} rooms", apartment.rooms[MAX_ROOMS])
+        return problems
     seen: dict[str, object] = {}
-    for node, _parent in iter_nodes(apartment):
+    for i, (node, _parent) in enumerate(iter_nodes(apartment)):
+        if i == MAX_NODES:
+            bad(f"more than {MAX_NODES} nodes with an id", node)
+            return problems
         if node.id in seen:
             first = seen[node.id]
             bad(f"duplicate id {node.id!r} (first used at line {getattr(first, 'line', '?')})", node)

@@ -19,11 +19,10 @@ from worldmodel import (
     Apartment, LargeObject, Model, ParkingPosition, Pose, Room, SmallObject, Visual, WorldError,
     load_world, save_world,
 )
-from worldmodel.io import (MAX_DEPTH, MAX_ROOMS, SCHEMA_PATH, clean_stale_temporaries,
-                           parse_world)
+from worldmodel.io import MAX_DEPTH, SCHEMA_PATH, clean_stale_temporaries, parse_world
 from worldmodel.nodes import (Handle, HistoryEntry, Joint, Knob, KnobState, LargeArticulatedObject,
                               Part, SearchStat, Surface, Switch)
-from worldmodel.validate import MAX_COORD, MAX_TEXT_CHARS
+from worldmodel.validate import MAX_COORD, MAX_ROOMS, MAX_TEXT_CHARS
 
 DEMO = (Path(__file__).resolve().parents[2] / "data/demo_home/world.xml").read_text()
 
@@ -154,6 +153,8 @@ def test_schema_bounds_are_the_semantic_checks_bounds():
     assert facet("coord", "maxInclusive") == MAX_COORD
     assert facet("positive", "maxInclusive") == MAX_COORD
     assert facet("positive", "minExclusive") == 0
+    for string_type in ("text", "id", "idref"):
+        assert facet(string_type, "maxLength") == MAX_TEXT_CHARS
 
 
 # -- saving ------------------------------------------------------------------------------------
