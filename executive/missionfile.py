@@ -20,6 +20,7 @@ import json
 import math
 import os
 import re
+import reprlib
 import stat
 from dataclasses import dataclass, field
 from importlib import resources
@@ -415,7 +416,7 @@ def parse_param_text(name: str, type_name: str, text: str) -> Any:
     if _alternatives(type_name) == ["number"] and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if not check_value(type_name, value):
-        raise MissionError(f"expected {type_name}, got {text!r}", param=name)
+        raise MissionError(f"expected {type_name}, got {_short(text)}", param=name)
     return value
 
 
@@ -519,14 +520,15 @@ class ParamSpec:
     def check(self, value: Any) -> None:
         """Raise MissionError(param=name) unless ``value`` fits this parameter."""
         if not check_value(self.type, value):
-            raise MissionError(f"expected {self.type}, got {value!r}", param=self.name)
+            raise MissionError(f"expected {self.type}, got {_short(value)}", param=self.name)
         if self.items and isinstance(value, (list, tuple)):
             for item in value:
                 if not check_value(self.items, item):
-                    raise MissionError(f"expected a list of {self.items}, got item {item!r}",
+                    raise MissionError(f"expected a list of {self.items}, got item {_short(item)}",
                                        param=self.name)
         if self.enum is not None and value not in self.enum:
-            raise MissionError(f"expected one of {self.enum}, got {value!r}", param=self.name)
+            raise MissionError(f"expected one of {_short(self.enum)}, got {_short(value)}",
+                               param=self.name)
 
 
 @dataclass
@@ -714,6 +716,8 @@ class _Compiler:
 
     # -- errors ------------------------------------------------------------------------
     def error(self, message: str, file: str, line: int) -> None:
+        if len(message) > 300:      # a problem is one line a person reads
+            message = message[:280] + " ..."
         self.errors.append(MissionError(message, file=file, line=line))
 
     # -- files -------------------------------------------------------------------------
@@ -872,7 +876,7 @@ class _Compiler:
         """Record/check that ``ref`` is read where ``type_name`` is expected."""
         if isinstance(ref, Lit):
             if not check_value(type_name, ref.value):
-                self.error(f"{what}: expected {type_name}, got {ref.value!r}", file, line)
+                self.error(f"{what}: expected {type_name}, got {_short(ref.value)}", file, line)
         elif isinstance(ref, Param):
             ptype = self.params[ref.name].type
             if not compatible(ptype, type_name):
@@ -1133,7 +1137,8 @@ class _Compiler:
                            else "{" + value + "}", scope, line, f"{name}.{port_name}")
             if ref is None or not _IDENT_RE.match(value.strip("{}$")):
                 if ref is not None:
-                    self.error(f"output {port_name}: {value!r} is not a key name", spec.file, line)
+                    self.error(f"output {port_name}: {_short(value)} is not a key name", spec.file,
+                               line)
                 ok = False
                 continue
             if not isinstance(ref, BBKey):
@@ -1304,20 +1309,35 @@ def _display_path(path: str) -> str:
         return path
 
 
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlist = _REPR.maxdict = 4
+_REPR.maxlevel = 2
+
+
+def _short(value: Any) -> str:
+    """``repr`` cut to a readable length (a node pasted 2,500 times is one line, not 300 kB)."""
+    return _REPR.repr(value)
+
+
 def _schema_message(err: jsonschema.ValidationError) -> str:
     where = ".".join(str(p) for p in err.absolute_path)
     if err.validator == "additionalProperties":
-        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
-        msg = f"unknown attribute {extra[0]!r}" if extra else err.message
+        extra = sorted(set(map(str, err.instance)) - set(err.schema.get("properties", {})))
+        msg = f"unknown attribute {_short(extra[0])}" if extra else err.message
     elif err.validator == "required":
         msg = err.message.replace("is a required property", "is required")
     elif err.validator == "pattern":
-        msg = f"{err.instance!r} is not a valid name"
+        msg = f"{_short(err.instance)} is not a valid name"
     elif err.validator in ("enum", "const"):
         allowed = err.schema.get("enum", [err.schema.get("const")])
-        msg = f"{err.instance!r} is not one of {allowed}"
+        msg = f"{_short(err.instance)} is not one of {_short(allowed)}"
+    elif err.validator == "type":
+        msg = f"{_short(err.instance)} is not of type {_short(err.validator_value)}"
     else:
         msg = err.message
+    if len(msg) > 240:
+        msg = msg[:200] + " ..."
     return f"{where}: {msg}" if where else msg
 
 

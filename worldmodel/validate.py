@@ -302,6 +302,8 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
     problems: list[WorldError] = []
 
     def bad(msg: str, node) -> None:
+        if len(msg) > 300:          # a problem is one line a person reads
+            msg = msg[:280] + " ..."
         if name is None:
             node_id = getattr(node, "id", None)
             problems.append(WorldError(msg, node=node_id if isinstance(node_id, str) else None))

@@ -59,13 +59,15 @@ _OUTCOME_KEY = {"traceback": "tracebacks", "hang": "hangs", "crash": "crashes",
 #: The world format's bound on coordinates, lengths and angles (worldmodel.validate.MAX_COORD),
 #: restated here so the check is independent of the loader.
 WORLD_MAX_COORD = 1e4
+#: A refusal is a line a person reads: longer than this, it counts as a traceback.
+MAX_LINE = 500
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--cases", type=int, default=None,
                         help="mutated cases per world and mission loader (default 2000; "
                              "--quick 200); recordings get a quarter")
-    parser.add_argument("--timeout", type=float, default=30.0,
+    parser.add_argument("--timeout", type=float, default=60.0,
                         help="seconds a case may take before it counts as a hang")
 
 
@@ -175,6 +177,8 @@ def _one_line_each(message: str) -> Optional[str]:
     for line in lines:
         if "Traceback" in line or not line.strip():
             return f"not one line per problem: {message[:200]!r}"
+        if len(line) > MAX_LINE:
+            return f"a line of {len(line)} characters: {line[:160]!r}"
     return None
 
 
@@ -1094,7 +1098,7 @@ def run(args) -> dict:
     n = getattr(args, "cases", None) or (200 if quick else 2000)
     seed = getattr(args, "seed", 0) or 0
     jobs = max(1, getattr(args, "jobs", 1) or 1)
-    timeout = getattr(args, "timeout", 30.0) or 30.0
+    timeout = getattr(args, "timeout", 60.0) or 60.0
     t0 = time.perf_counter()
     sizes = {"world": n, "mission": n, "recording": max(50, n // 4)}
     fixed = fixed_cases()
