@@ -437,3 +437,11 @@ def test_a_malformed_enum_in_an_included_subtree_is_one_line(mission_file):
     """)
     errs = errors(path)
     assert errs and all(e.startswith(f"{path}:6: ") for e in errs), errs
+
+
+def test_a_huge_wrong_value_is_reported_in_a_short_line(mission_file):
+    path = mission_file("name: x\ntree:\n  skill: Navigate\n  inputs: {target: [" + "1, " * 3000
+                        + "1]}\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:4: input target of Navigate: expected node_id|pose, got [1, ")
+    assert len(err) < 300 + len(path)
