@@ -627,7 +627,7 @@ def _mission_value(rng: random.Random):
             {"inverter": {"succeed": "x"}}, 3, 1000, 1001, 86400, 86401, 1e-300, "1e400",
             "{x} < .nan", "$presence == home", "not {x}", "[1, 2", "{a: [}", 0.0, -0.0]
     if r < 0.9:
-        return rng.choice(pool)
+        return copy.deepcopy(rng.choice(pool))
     value: Any = "x"
     for _ in range(rng.randint(20, 250)):
         value = [value]
@@ -760,7 +760,7 @@ def mutate_recording(rng: random.Random, base: dict[str, Any]) -> tuple[str, dic
             spots = _paths(manifest)
             cont, key = rng.choice(spots)
             if rng.random() < 0.8:
-                cont[key] = rng.choice(_REC_VALUES)
+                cont[key] = copy.deepcopy(rng.choice(_REC_VALUES))
                 done.append(f"{key!r} := {str(cont[key])[:30]!r}")
             else:
                 del cont[key]
