@@ -28,7 +28,7 @@ The hand-made cases of issue 19 run as fixed cases with an expected outcome (``f
 Targets: ``tracebacks``, ``hangs``, ``crashes``, ``accepted_then_unloadable``,
 ``accepted_out_of_bounds``, ``paths_outside_world`` all 0, per loader and in total.
 
-``tests/test_fuzz_loaders.py`` runs the same generators in-process on a few hundred cases.
+``tests/fuzz/test_fuzz_loaders.py`` runs the same generators in-process on a few hundred cases.
 """
 from __future__ import annotations
 
@@ -39,13 +39,12 @@ import math
 import multiprocessing
 import os
 import random
-import shutil
 import signal
 import stat
 import statistics
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Optional
