@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import math
+import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 from executive.errors import MissionError
 from hearth import demo_world_path, missions_dir
@@ -48,6 +50,60 @@ def mission_file(text: str) -> str:
     return text
 
 
+# -- argument types: a bad value is argparse's one error line and exit 2, never a traceback --
+
+#: Tick rates `hearth run/step/record/serve` accept (Hz).
+MIN_TICK_HZ, MAX_TICK_HZ = 0.1, 1000.0
+#: Seeds: what numpy's and Python's generators all take.
+MAX_SEED = 2**32 - 1
+
+
+def number_in(lo: float, hi: float, what: str = "a number", lo_open: bool = False
+              ) -> Callable[[str], float]:
+    """An argparse type: a finite float in [lo, hi] (or (lo, hi] with ``lo_open``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        low_ok = value > lo if lo_open else value >= lo
+        if not (math.isfinite(value) and low_ok and value <= hi):
+            raise argparse.ArgumentTypeError(
+                f"{what} must be a number {'>' if lo_open else '>='} {lo:g} and <= {hi:g}, "
+                f"got {text!r}")
+        return value
+    parse.__name__ = what
+    return parse
+
+
+def integer_in(lo: int, hi: int, what: str = "an integer") -> Callable[[str], int]:
+    """An argparse type: an integer in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{what} must be an integer from {lo} to {hi}, "
+                                             f"got {text!r}")
+        return value
+    parse.__name__ = what
+    return parse
+
+
+tick_rate = number_in(MIN_TICK_HZ, MAX_TICK_HZ, "the tick rate")
+seed = integer_in(0, MAX_SEED, "a seed")
+
+
+def output_dir(text: str) -> str:
+    """An argparse type: a directory to write into (it may exist, or be made), not a file."""
+    if not text:
+        raise argparse.ArgumentTypeError("an output directory must be named")
+    if os.path.lexists(text) and not os.path.isdir(text):
+        raise argparse.ArgumentTypeError(f"{text!r} exists and is not a directory")
+    return text
+
+
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("mission", type=mission_file,
                    help="mission file (YAML); one not found here is looked up among the shipped "
@@ -60,7 +116,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--recording", default=None, metavar="PATH",
                    help="recording to replay instead of simulating: a Hearth recording "
                         "directory, or a ROS 2 bag (.mcap file or rosbag2 directory)")
-    p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
+    p.add_argument("--tick-hz", type=tick_rate, default=10.0,
+                   help=f"tick rate (Hz, {MIN_TICK_HZ:g} to {MAX_TICK_HZ:g}; default 10)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
     p.add_argument("--wall-clock", action="store_true",
                    help="run in real time (default: simulated time, as fast as possible)")

@@ -10,19 +10,29 @@ Problems are :class:`~executive.errors.MissionError` with file and line; ``load_
 raises :class:`~executive.errors.MissionValidationError` carrying all of them, and
 ``validate_file`` returns them. The file format is documented in docs/missions.md.
 
-YAML is read with a ``SafeLoader`` subclass: no Python objects, no tags beyond plain data.
+YAML is read with a ``SafeLoader`` subclass: no Python objects, no tags beyond plain data,
+finite numbers only, and aliases, nesting and tree size bounded (the limits below;
+docs/missions.md, "Limits"), so that no file makes validation slow, deep or large.
 """
 from __future__ import annotations
 
 import json
+import math
+import os
 import re
+import reprlib
+import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Callable
 
+import fastjsonschema
 import jsonschema
 import yaml
+import yaml.composer
+import yaml.constructor
+import yaml.resolver
 
 from executive.errors import MissionError, MissionValidationError
 
@@ -40,6 +50,25 @@ IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
 _KEY_RE = re.compile(r"^\{(" + IDENT + r")\}$")
 _PARAM_RE = re.compile(r"^\$(" + IDENT + r")$")
 _IDENT_RE = re.compile(r"^" + IDENT + r"$")
+
+# Limits (docs/missions.md, "Limits").
+#: Longest mission file, in characters.
+MAX_FILE_CHARS = 1_000_000
+#: Deepest YAML nesting (mappings and lists, counted through aliases).
+MAX_YAML_DEPTH = 150
+#: Most YAML values a file may stand for, counting what its aliases repeat (an 880-byte
+#: alias bomb stands for hundreds of millions).
+MAX_YAML_VALUES = 250_000
+#: Most nodes in a compiled tree (includes counted each time they are included).
+MAX_TREE_NODES = 20_000
+#: Deepest compiled tree (the root is at depth 1).
+MAX_TREE_DEPTH = 64
+#: Largest ``retry: times``, ``repeat: times`` and ``timeout: seconds`` (also in the schema).
+MAX_RETRY_TIMES = 1_000
+MAX_REPEAT_TIMES = 1_000_000
+MAX_TIMEOUT_SECONDS = 86_400
+#: Integers a mission value may hold (what a 64-bit integer holds).
+MAX_INT = 2**63 - 1
 
 
 # ---------------------------------------------------------------------------------------
@@ -63,8 +92,110 @@ class LineList(list):
         self.item_lines: list[int] = []
 
 
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that records lines and refuses duplicate keys."""
+if yaml.__with_libyaml__:
+    # libyaml scans and parses (ten times faster than PyYAML's Python parser on a 10,000-node
+    # mission); composing stays in Python, where nesting can be bounded (the C composer
+    # recurses without a limit).
+    _BASES: tuple = (yaml.cyaml.CParser, yaml.composer.Composer, yaml.constructor.SafeConstructor,
+                     yaml.resolver.Resolver)
+else:  # pragma: no cover - PyYAML built without libyaml
+    _BASES = (yaml.SafeLoader,)
+
+
+class _Loader(*_BASES):
+    """A safe loader (PyYAML's SafeConstructor: plain data only) that records lines, refuses
+    duplicate keys and non-finite numbers, and bounds nesting and what aliases expand to
+    (``MAX_YAML_DEPTH``, ``MAX_YAML_VALUES``)."""
+
+    _depth = 0
+
+    def __init__(self, stream):
+        if _BASES[0] is yaml.SafeLoader:  # pragma: no cover
+            yaml.SafeLoader.__init__(self, stream)
+            return
+        yaml.cyaml.CParser.__init__(self, stream)
+        yaml.composer.Composer.__init__(self)
+        yaml.constructor.SafeConstructor.__init__(self)
+        yaml.resolver.Resolver.__init__(self)
+
+    check_node = yaml.composer.Composer.check_node
+    get_node = yaml.composer.Composer.get_node
+    get_single_node = yaml.composer.Composer.get_single_node
+
+    _aliases = 0
+    _values = 0
+
+    def compose_node(self, parent, index):
+        # PyYAML composes recursively: refuse deep nesting before Python's stack runs out.
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                mark = self.peek_event().start_mark
+                raise MissionError(f"YAML nests more than {MAX_YAML_DEPTH} levels deep",
+                                   line=mark.line + 1)
+            if self.check_event(yaml.AliasEvent):
+                self._aliases += 1
+            else:
+                self._values += 1
+                if self._values > MAX_YAML_VALUES:
+                    raise MissionError(f"more than {MAX_YAML_VALUES} YAML values",
+                                       line=self.peek_event().start_mark.line + 1)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_document(self, node):
+        # Without aliases a document holds what composing counted and is as deep as composing
+        # allowed; with them, count what they expand to.
+        if self._aliases:
+            _check_expansion(node)
+        return super().construct_document(node)
+
+
+def _yaml_children(node: yaml.Node) -> list:
+    if isinstance(node, yaml.MappingNode):
+        return [n for pair in node.value for n in pair]
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    return []
+
+
+def _check_expansion(root: yaml.Node) -> None:
+    """Refuse a document whose aliases make it stand for more than MAX_YAML_VALUES values or
+    nest deeper than MAX_YAML_DEPTH, or refer to themselves.
+
+    Aliases make the composed graph a DAG whose expansion can be exponential in its size;
+    this counts the expansion in one pass over the distinct nodes (iterative, so a long chain
+    of aliases cannot exhaust the stack), never building it.
+    """
+    info: dict[int, tuple[int, int]] = {}       # id(node) -> (expanded size, depth)
+    open_: set[int] = set()                     # nodes on the current path (cycle check)
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if done:
+            kids = [info[id(c)] for c in _yaml_children(node)]
+            size = 1 + sum(k[0] for k in kids)
+            depth = 1 + max((k[1] for k in kids), default=0)
+            open_.discard(key)
+            line = node.start_mark.line + 1
+            if size > MAX_YAML_VALUES:
+                raise MissionError(f"YAML aliases expand this to more than {MAX_YAML_VALUES} "
+                                   "values", line=line)
+            if depth > MAX_YAML_DEPTH:
+                raise MissionError(f"YAML aliases nest this more than {MAX_YAML_DEPTH} levels "
+                                   "deep", line=line)
+            info[key] = (size, depth)
+            continue
+        if key in info:
+            continue
+        if key in open_:
+            raise MissionError("a YAML alias refers to the value it is in",
+                               line=node.start_mark.line + 1)
+        open_.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in _yaml_children(node) if id(c) not in info)
 
 
 def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> LineDict:
@@ -90,23 +221,67 @@ def _construct_sequence(loader: _Loader, node: yaml.SequenceNode) -> LineList:
     return out
 
 
+def _construct_float(loader: _Loader, node: yaml.ScalarNode) -> float:
+    value = loader.construct_yaml_float(node)
+    if not math.isfinite(value):
+        raise MissionError(f"{node.value!r} is not a finite number", line=node.start_mark.line + 1)
+    return value
+
+
+def _construct_int(loader: _Loader, node: yaml.ScalarNode) -> int:
+    try:
+        value = loader.construct_yaml_int(node)
+    except ValueError:     # more digits than Python converts
+        value = None
+    if value is None or abs(value) > MAX_INT:
+        shown = repr(node.value) if len(node.value) <= 30 else f"of {len(node.value)} digits"
+        raise MissionError(f"integer {shown} is too large (at most 2^63 - 1)",
+                           line=node.start_mark.line + 1)
+    return value
+
+
+def _refuse(what: str):
+    def construct(loader: _Loader, node: yaml.Node):
+        raise MissionError(f"{what} values are not allowed in a mission file (quote it to make "
+                           "it a string)", line=node.start_mark.line + 1)
+    return construct
+
+
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_sequence)
+_Loader.add_constructor("tag:yaml.org,2002:float", _construct_float)
+_Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
+for _tag, _what in (("timestamp", "date and time"), ("binary", "binary"), ("set", "set"),
+                    ("omap", "ordered map"), ("pairs", "pairs")):
+    _Loader.add_constructor(f"tag:yaml.org,2002:{_tag}", _refuse(_what))
 
 
 def load_yaml(path: str | Path) -> Any:
-    """Parse a YAML file into LineDict/LineList/scalars; errors carry file and line."""
+    """Parse a YAML file into LineDict/LineList/scalars; errors carry file and line.
+
+    Only a regular file is read (a device, FIFO or directory is refused before reading), and
+    no more of it than MAX_FILE_CHARS allows."""
     path = str(path)
+    limit = 4 * MAX_FILE_CHARS + 4          # UTF-8 takes at most 4 bytes a character
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)   # a FIFO must not block the open
+        with os.fdopen(fd, "rb") as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                raise MissionError("not a regular file", file=path, line=0)
+            data = f.read(limit + 1)
     except FileNotFoundError:
         raise MissionError("no such file", file=path, line=0) from None
+    except IsADirectoryError:
+        raise MissionError("not a regular file (a directory)", file=path, line=0) from None
+    except OSError as err:
+        raise MissionError(f"cannot read: {err.strerror or err}", file=path, line=0) from None
+    if len(data) > limit:
+        raise MissionError(f"file is larger than {MAX_FILE_CHARS} characters", file=path, line=0)
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise MissionError("not a UTF-8 text file", file=path, line=0) from None
     return load_yaml_text(text, path)
-
-
-MAX_FILE_CHARS = 1_000_000
 
 
 def load_yaml_text(text: str, path: str = "<string>") -> Any:
@@ -123,6 +298,8 @@ def load_yaml_text(text: str, path: str = "<string>") -> Any:
         raise MissionError(f"YAML syntax error: {what}", file=path, line=line) from None
     except yaml.YAMLError as err:
         raise MissionError(f"YAML error: {err}", file=path, line=0) from None
+    except RecursionError:  # pragma: no cover - MAX_YAML_DEPTH keeps well below the limit
+        raise MissionError("YAML nests too deeply", file=path, line=0) from None
 
 
 def line_of(data: Any, path: list | tuple) -> int:
@@ -154,7 +331,13 @@ def _alternatives(type_name: str) -> list[str]:
 
 
 def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A finite float, or an int that fits in 64 bits (NaN and infinities are not numbers
+    here: a ``timeout`` of NaN never fires, a pose of NaN breaks every solver)."""
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int):
+        return -MAX_INT - 1 <= v <= MAX_INT
+    return isinstance(v, float) and math.isfinite(v)
 
 
 def check_value(type_name: str, value: Any) -> bool:
@@ -170,7 +353,7 @@ def check_value(type_name: str, value: Any) -> bool:
             return True
         if t == "number" and _is_number(value):
             return True
-        if t == "integer" and isinstance(value, int) and not isinstance(value, bool):
+        if t == "integer" and isinstance(value, int) and _is_number(value):
             return True
         if t == "boolean" and isinstance(value, bool):
             return True
@@ -226,13 +409,14 @@ def parse_param_text(name: str, type_name: str, text: str) -> Any:
     if any(t in ("string", "node_id") for t in _alternatives(type_name)):
         return text
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
-        raise MissionError(f"cannot read {text!r} as {type_name}", param=name) from None
+        value = plain(load_yaml_text(text, "<parameter>"))
+    except MissionError as err:
+        raise MissionError(f"cannot read {text[:80]!r} as {type_name}: {err.message}",
+                           param=name) from None
     if _alternatives(type_name) == ["number"] and isinstance(value, int) and not isinstance(value, bool):
         value = float(value)
     if not check_value(type_name, value):
-        raise MissionError(f"expected {type_name}, got {text!r}", param=name)
+        raise MissionError(f"expected {type_name}, got {_short(text)}", param=name)
     return value
 
 
@@ -295,7 +479,7 @@ def parse_operand(token: str) -> Ref:
     m = _PARAM_RE.match(token)
     if m:
         return Param(m.group(1))
-    return Lit(plain(yaml.safe_load(token)))
+    return Lit(plain(load_yaml_text(token, "<condition>")))
 
 
 def parse_expression(text: str) -> Expr:
@@ -310,8 +494,8 @@ def parse_expression(text: str) -> Expr:
     try:
         lref = parse_operand(left)
         rref = parse_operand(right) if right is not None else None
-    except yaml.YAMLError:
-        raise ValueError(f"cannot read a value in condition {text!r}") from None
+    except MissionError as err:
+        raise ValueError(f"cannot read a value in condition {text!r}: {err.message}") from None
     if isinstance(lref, Lit) and (rref is None or isinstance(rref, Lit)):
         raise ValueError(f"condition {text!r} compares constants only; name a {{key}} or $param")
     op = " ".join(op.split()) if op else None
@@ -336,14 +520,15 @@ class ParamSpec:
     def check(self, value: Any) -> None:
         """Raise MissionError(param=name) unless ``value`` fits this parameter."""
         if not check_value(self.type, value):
-            raise MissionError(f"expected {self.type}, got {value!r}", param=self.name)
+            raise MissionError(f"expected {self.type}, got {_short(value)}", param=self.name)
         if self.items and isinstance(value, (list, tuple)):
             for item in value:
                 if not check_value(self.items, item):
-                    raise MissionError(f"expected a list of {self.items}, got item {item!r}",
+                    raise MissionError(f"expected a list of {self.items}, got item {_short(item)}",
                                        param=self.name)
         if self.enum is not None and value not in self.enum:
-            raise MissionError(f"expected one of {self.enum}, got {value!r}", param=self.name)
+            raise MissionError(f"expected one of {_short(self.enum)}, got {_short(value)}",
+                               param=self.name)
 
 
 @dataclass
@@ -442,17 +627,44 @@ def schema() -> dict:
     return _SCHEMA
 
 
-_VALIDATORS: dict[str, jsonschema.Draft202012Validator] = {}
+class _NodeValidator:
+    """One node kind's schema: fastjsonschema (compiled to Python, some thirty times faster)
+    lets a valid node through; jsonschema, the reference, finds the errors of any other, so
+    the messages are jsonschema's. A node the fast check cannot handle goes to jsonschema."""
+
+    def __init__(self, node_schema: dict):
+        self.slow = jsonschema.Draft202012Validator(node_schema)
+        try:
+            self.fast = fastjsonschema.compile(node_schema)
+        except Exception:  # noqa: BLE001 - a schema it cannot compile: jsonschema alone
+            self.fast = None
+
+    def valid_fast(self, data: Any) -> bool:
+        if self.fast is None:
+            return False
+        try:
+            self.fast(data)
+        except Exception:  # noqa: BLE001 - JsonSchemaException, or data it cannot handle
+            return False
+        return True
+
+    def iter_errors(self, data: Any):
+        if self.valid_fast(data):
+            return iter(())
+        return self.slow.iter_errors(data)
 
 
-def _validator(ref: str) -> jsonschema.Draft202012Validator:
+_VALIDATORS: dict[str, _NodeValidator] = {}
+
+
+def _validator(ref: str) -> _NodeValidator:
     """A validator for one node kind whose children are only checked to be mappings (the
     compiler checks each child itself, so every error points at its own node)."""
     if ref not in _VALIDATORS:
         defs = dict(schema()["$defs"])
         defs["child"] = {"type": "object"}
         defs["children"] = {"type": "array", "minItems": 1, "items": {"type": "object"}}
-        _VALIDATORS[ref] = jsonschema.Draft202012Validator({"$ref": ref, "$defs": defs})
+        _VALIDATORS[ref] = _NodeValidator({"$ref": ref, "$defs": defs})
     return _VALIDATORS[ref]
 
 
@@ -468,9 +680,32 @@ class _Scope:
     data: Any                          # this file's loaded YAML
 
 
+class _Siblings:
+    """The names taken among one node's children. ``claim`` makes a name unique by appending
+    ``_2``, ``_3``, ...; a counter per base name keeps a wide tree linear (trying ``_2``
+    upwards afresh for every ``skill: Say`` among 10,000 made validation quadratic)."""
+
+    def __init__(self):
+        self.taken: set[str] = set()
+        self.next: dict[str, int] = {}
+
+    def claim(self, name: str) -> str:
+        if name in self.taken:
+            base, n = name, self.next.get(name, 2)
+            while f"{base}_{n}" in self.taken:
+                n += 1
+            name = f"{base}_{n}"
+            self.next[base] = n + 1
+        self.taken.add(name)
+        return name
+
+
 class _Compiler:
     def __init__(self, skills: dict[str, type], resolve_file: Callable[[str], str] | None = None):
         self.skills = skills
+        self.root_dir: str | None = None    # includes stay inside the mission file's folder
+        self.depth = 0
+        self.count = 0
         self.errors: list[MissionError] = []
         self.writers: dict[str, tuple[str, str, int]] = {}
         self.readers: list[tuple[str, str, str, int]] = []
@@ -481,6 +716,8 @@ class _Compiler:
 
     # -- errors ------------------------------------------------------------------------
     def error(self, message: str, file: str, line: int) -> None:
+        if len(message) > 300:      # a problem is one line a person reads
+            message = message[:280] + " ..."
         self.errors.append(MissionError(message, file=file, line=line))
 
     # -- files -------------------------------------------------------------------------
@@ -507,6 +744,9 @@ class _Compiler:
         for err in jsonschema.Draft202012Validator(sub).iter_errors(top):
             self.error(_schema_message(err), path, line_of(data, list(err.absolute_path)))
         subtrees = data.get("subtrees")
+        if subtrees is not None and not isinstance(subtrees, dict):
+            self.error("subtrees: expected a mapping of NAME: {tree: ...}", path,
+                       data.key_lines.get("subtrees", data.line))
         if isinstance(subtrees, dict):
             for name, st in subtrees.items():
                 if not _IDENT_RE.match(str(name)):
@@ -532,11 +772,15 @@ class _Compiler:
             line = section.key_lines.get(name, 0)
             if not isinstance(spec, dict) or "type" not in spec or spec["type"] not in TYPES:
                 continue  # the schema check has reported it
+            # A malformed enum or items has been reported by the schema check too; leave it
+            # out rather than compare values with it.
+            enum, items = spec.get("enum"), spec.get("items")
             p = ParamSpec(name=name, type=spec["type"], default=plain(spec.get("default")),
                           required=bool(spec.get("required", spec.get("default") is None)),
-                          runtime=bool(spec.get("runtime", False)), enum=plain(spec.get("enum")),
-                          items=spec.get("items"), description=spec.get("description", ""),
-                          line=line)
+                          runtime=bool(spec.get("runtime", False)),
+                          enum=plain(enum) if isinstance(enum, list) else None,
+                          items=items if items in TYPES else None,
+                          description=str(spec.get("description", "")), line=line)
             if p.runtime and not allow_runtime:
                 self.error(f"subtree parameter {name}: only mission parameters can be runtime",
                            file, line)
@@ -550,6 +794,7 @@ class _Compiler:
 
     # -- entry -------------------------------------------------------------------------
     def compile(self, path: str) -> Mission | None:
+        self.root_dir = os.path.realpath(os.path.dirname(os.path.abspath(path)))
         data = self.load_doc(path)
         self.params = self.parse_params(data.get("parameters"), path, allow_runtime=True)
         blackboard: dict[str, Any] = {}
@@ -631,7 +876,7 @@ class _Compiler:
         """Record/check that ``ref`` is read where ``type_name`` is expected."""
         if isinstance(ref, Lit):
             if not check_value(type_name, ref.value):
-                self.error(f"{what}: expected {type_name}, got {ref.value!r}", file, line)
+                self.error(f"{what}: expected {type_name}, got {_short(ref.value)}", file, line)
         elif isinstance(ref, Param):
             ptype = self.params[ref.name].type
             if not compatible(ptype, type_name):
@@ -650,8 +895,26 @@ class _Compiler:
 
     # -- nodes -------------------------------------------------------------------------
     def node(self, data: Any, scope: _Scope, parent_path: str, line: int,
-             siblings: set[str] | None = None, default_name: str | None = None
+             siblings: _Siblings | None = None, default_name: str | None = None
              ) -> NodeSpec | None:
+        file = scope.file
+        self.count += 1
+        if self.count > MAX_TREE_NODES:
+            # Stop compiling at once: an include bomb would go on doubling.
+            raise MissionError(f"the tree has more than {MAX_TREE_NODES} nodes (includes counted "
+                               "each time they are included)", file=file,
+                               line=getattr(data, "line", 0) or line)
+        if self.depth >= MAX_TREE_DEPTH:
+            raise MissionError(f"the tree is more than {MAX_TREE_DEPTH} nodes deep", file=file,
+                               line=getattr(data, "line", 0) or line)
+        self.depth += 1
+        try:
+            return self._node(data, scope, parent_path, line, siblings, default_name)
+        finally:
+            self.depth -= 1
+
+    def _node(self, data: Any, scope: _Scope, parent_path: str, line: int,
+              siblings: _Siblings | None, default_name: str | None) -> NodeSpec | None:
         file = scope.file
         if not isinstance(data, LineDict):
             self.error(f"a tree node is a mapping with one kind ({', '.join(KINDS)}), "
@@ -682,10 +945,7 @@ class _Compiler:
             default = str(default).rsplit("#", 1)[-1].rsplit("/", 1)[-1].removesuffix(".yaml")
         name = str(data.get("name") or default_name or default)
         if siblings is not None:
-            base, n = name, 2
-            while name in siblings:
-                name, n = f"{base}_{n}", n + 1
-            siblings.add(name)
+            name = siblings.claim(name)
         path = f"{parent_path}/{name}"
         spec = NodeSpec(kind=kind, name=name, path=path, file=file, line=line)
         handler = getattr(self, f"node_{kind}")
@@ -699,7 +959,7 @@ class _Compiler:
         return spec
 
     def children(self, spec: NodeSpec, data: LineDict, scope: _Scope) -> NodeSpec | None:
-        seen: set[str] = set()
+        seen = _Siblings()
         items = data[spec.kind]
         out = []
         for i, item in enumerate(items):
@@ -877,7 +1137,8 @@ class _Compiler:
                            else "{" + value + "}", scope, line, f"{name}.{port_name}")
             if ref is None or not _IDENT_RE.match(value.strip("{}$")):
                 if ref is not None:
-                    self.error(f"output {port_name}: {value!r} is not a key name", spec.file, line)
+                    self.error(f"output {port_name}: {_short(value)} is not a key name", spec.file,
+                               line)
                 ok = False
                 continue
             if not isinstance(ref, BBKey):
@@ -896,6 +1157,10 @@ class _Compiler:
         if "#" in target or target.endswith((".yaml", ".yml")):
             fpart, _, sub = target.partition("#")
             file = str((Path(scope.file).parent / fpart).resolve()) if fpart else scope.file
+            if fpart and not self.inside_root(file):
+                self.error(f"include {target!r}: the file is outside the mission's folder "
+                           f"({_display_path(self.root_dir)})", scope.file, line)
+                return None
             file = _display_path(file)
             sub = sub or None
             try:
@@ -914,7 +1179,9 @@ class _Compiler:
         if sub is None:
             body, params_section = doc, doc.get("parameters")
         else:
-            subtrees = doc.get("subtrees") or {}
+            subtrees = doc.get("subtrees")
+            if not isinstance(subtrees, dict):   # a malformed section: reported by check_top
+                subtrees = {}
             if sub not in subtrees or not isinstance(subtrees[sub], LineDict):
                 known = ", ".join(sorted(subtrees)) or "none"
                 self.error(f"include: no subtree {sub!r} in {Path(file).name} (subtrees: {known})",
@@ -964,6 +1231,12 @@ class _Compiler:
         spec.children = [c]
         return spec
 
+    def inside_root(self, file: str) -> bool:
+        """Whether ``file`` (symbolic links followed) is inside the top mission file's folder:
+        a mission from elsewhere must not make Hearth read ``/etc/passwd`` or ``/proc``."""
+        real = os.path.realpath(file)
+        return self.root_dir is not None and os.path.commonpath([self.root_dir, real]) == self.root_dir
+
     def node_state_machine(self, spec, data, scope):
         sm = data["state_machine"]
         states: LineDict = sm["states"]
@@ -979,7 +1252,7 @@ class _Compiler:
                            outcomes.key_lines[name])
                 ok = False
         table = []
-        seen: set[str] = set()
+        seen = _Siblings()
         for sname, sdata in states.items():
             sline = states.key_lines[sname]
             child = self.node(sdata["do"], scope, spec.path, sdata.key_lines["do"], seen)
@@ -1036,20 +1309,35 @@ def _display_path(path: str) -> str:
         return path
 
 
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = 60
+_REPR.maxlist = _REPR.maxdict = 4
+_REPR.maxlevel = 2
+
+
+def _short(value: Any) -> str:
+    """``repr`` cut to a readable length (a node pasted 2,500 times is one line, not 300 kB)."""
+    return _REPR.repr(value)
+
+
 def _schema_message(err: jsonschema.ValidationError) -> str:
     where = ".".join(str(p) for p in err.absolute_path)
     if err.validator == "additionalProperties":
-        extra = sorted(set(err.instance) - set(err.schema.get("properties", {})))
-        msg = f"unknown attribute {extra[0]!r}" if extra else err.message
+        extra = sorted(set(map(str, err.instance)) - set(err.schema.get("properties", {})))
+        msg = f"unknown attribute {_short(extra[0])}" if extra else err.message
     elif err.validator == "required":
         msg = err.message.replace("is a required property", "is required")
     elif err.validator == "pattern":
-        msg = f"{err.instance!r} is not a valid name"
+        msg = f"{_short(err.instance)} is not a valid name"
     elif err.validator in ("enum", "const"):
         allowed = err.schema.get("enum", [err.schema.get("const")])
-        msg = f"{err.instance!r} is not one of {allowed}"
+        msg = f"{_short(err.instance)} is not one of {_short(allowed)}"
+    elif err.validator == "type":
+        msg = f"{_short(err.instance)} is not of type {_short(err.validator_value)}"
     else:
         msg = err.message
+    if len(msg) > 240:
+        msg = msg[:200] + " ..."
     return f"{where}: {msg}" if where else msg
 
 

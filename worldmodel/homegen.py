@@ -45,7 +45,7 @@ from worldmodel.errors import WorldError
 from worldmodel.frames import planar_T, transform_xy
 from worldmodel.homegen_geometry import (
     box_mesh, convex_hull_xy, disc_clear, extrude, merge, ply_bytes,
-    polygon_inside_rect, polygons_overlap, rect, rounded_rect, transform_polygon, transformed,
+    polygon_inside_rect, polygons_overlap, rounded_rect, transform_polygon, transformed,
 )
 from worldmodel.nodes import (
     Apartment, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,

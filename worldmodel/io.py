@@ -2,13 +2,19 @@
 
 The parser never resolves entities, never loads a DTD and never touches the network; a file
 with a DOCTYPE at all is rejected, which stops external-entity and billion-laughs files before
-any expansion. Problems are reported as ``WorldError`` with file and line.
+any expansion. Size, length, count and depth limits (below; docs/world-format.md, "Limits")
+bound the work a file can ask for. Problems are reported as ``WorldError`` with file and line.
+
+``save_world`` writes only what ``load_world`` would read back: it checks the map in memory
+(naming nodes), then parses what it is about to write with the loader itself.
 """
 from __future__ import annotations
 
+import fcntl
 import os
 import re
-import tempfile
+import secrets
+import stat
 from functools import lru_cache
 from pathlib import Path
 from typing import Optional
@@ -22,10 +28,21 @@ from worldmodel.nodes import (
     SmallObject, Surface, Switch, Visual,
 )
 from worldmodel.pose import Pose
+from worldmodel.validate import MAX_TEXT_CHARS, semantic_problems
 
 SCHEMA_PATH = Path(__file__).with_name("schema") / "world.xsd"
 FORMAT_VERSION = "1"
-MAX_FILE_BYTES = 512 * 1024 * 1024
+
+# Limits (docs/world-format.md, "Limits"); the length of strings and the bounds of numbers
+# are the schema's, the number of rooms and of nodes worldmodel.validate's. The map with
+# 10,000 small objects of `hearth bench worldmodel` is 5 MB, about 80,000 elements and 11
+# levels deep.
+#: Largest world file.
+MAX_FILE_BYTES = 32 * 1024 * 1024
+#: Most XML elements in a file (history entries included).
+MAX_ELEMENTS = 1_000_000
+#: Deepest element nesting (the apartment is level 1; each nested part adds one).
+MAX_DEPTH = 32
 
 
 def _parser() -> etree.XMLParser:
@@ -59,7 +76,47 @@ def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
         line = _doctype_line(data)
         raise WorldError("DOCTYPE declarations (DTDs and entities) are not allowed in world "
                          "files", file=name, line=line)
+    _check_limits(tree.getroot(), name)
+    _check_lengths(data, tree.getroot(), name)
     return tree
+
+
+# Counted by libxml2 (a Python walk over the 80,000 elements of a 10,000-object map cost
+# more than the schema).
+_COUNT_ELEMENTS = etree.XPath("count(//*)")
+_TOO_DEEP = etree.XPath("/*" + "/*" * MAX_DEPTH)
+
+
+def _check_limits(root, name: str) -> None:
+    """One WorldError at the first element past the element count or the nesting depth."""
+    if _COUNT_ELEMENTS(root) > MAX_ELEMENTS:
+        raise WorldError(f"more than {MAX_ELEMENTS} elements", file=name,
+                         line=root.xpath(f"(//*)[{MAX_ELEMENTS + 1}]")[0].sourceline)
+    deep = _TOO_DEEP(root)
+    if deep:
+        raise WorldError(f"elements nest more than {MAX_DEPTH} levels deep", file=name,
+                         line=deep[0].sourceline)
+
+
+def _check_lengths(data: bytes, root, name: str) -> None:
+    """One WorldError at the first attribute value or text longer than MAX_TEXT_CHARS.
+
+    The schema's types say the same, but libxml2 quotes a 10 MB value whole (and cuts the
+    message); this says it in one short line. Neither an attribute value nor text holds a
+    '<', so a file without a run of more than MAX_TEXT_CHARS bytes between two '<' has none
+    (the common case: checked in C, without looking at every element).
+    """
+    if max(map(len, data.split(b"<"))) <= MAX_TEXT_CHARS:
+        return
+    for el in root.iter():
+        for attr, value in el.attrib.items():
+            if len(value) > MAX_TEXT_CHARS:
+                raise WorldError(f"attribute {attr} is {len(value)} characters long (at most "
+                                 f"{MAX_TEXT_CHARS})", file=name, line=el.sourceline)
+        for text in (el.text, el.tail):
+            if text is not None and len(text) > MAX_TEXT_CHARS and text.strip():
+                raise WorldError(f"<{el.tag}> holds {len(text)} characters of text (at most "
+                                 f"{MAX_TEXT_CHARS})", file=name, line=el.sourceline)
 
 
 def _doctype_line(data: bytes) -> int:
@@ -236,11 +293,14 @@ def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = N
                 clock=None):
     """Parse, schema-validate and semantically check world XML; return a ``World``.
 
-    Raises ``WorldValidationError`` listing every problem (each with file and line).
+    Raises ``WorldValidationError`` listing every problem (each with file and line). Mesh and
+    point-cloud files are looked for in ``base_dir`` (the world file's folder); without one, a
+    map that names such a file is refused (nothing tells where to look).
     """
     from worldmodel.world import World
-    from worldmodel.validate import semantic_problems
 
+    if len(data) > MAX_FILE_BYTES:
+        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
     tree = _parse_tree(data, name)
     root = tree.getroot()
     schema = _schema()
@@ -264,22 +324,50 @@ def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = N
     return World(apartment, path=None, base_dir=base_dir, clock=clock)
 
 
+_FACET = re.compile(r"\[facet '(?:min|max)(?:In|Ex)clusive'\] The value '(NaN|-?INF)' .*$")
+
+
+_LONG_VALUE = re.compile(r"'([^']{40})[^']{20,}'")
+
+
 def _clean_schema_message(msg: str) -> str:
-    # lxml prefixes "Element 'x', attribute 'y': ..." -- already readable; drop schema URIs.
+    # lxml prefixes "Element 'x', attribute 'y': ..." -- already readable; drop schema URIs,
+    # say what is wrong with NaN and INF (libxml2 calls NaN "greater than the maximum"), and
+    # shorten quoted values (libxml2 quotes a 10 MB attribute whole).
+    msg = _FACET.sub(r"'\1' is not a finite number", msg)
+    msg = _LONG_VALUE.sub(r"'\1...'", msg)
     return msg.replace("{http://www.w3.org/2001/XMLSchema}", "xs:")
+
+
+def read_limited(path: Path, name: str) -> bytes:
+    """The bytes of a regular file of at most MAX_FILE_BYTES (a device, a directory or a FIFO
+    is refused before anything is read, so ``/dev/zero`` cannot hang a load)."""
+    try:
+        # O_NONBLOCK: opening a FIFO must not wait for a writer; no effect on regular files.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        with os.fdopen(fd, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise WorldError("not a regular file", file=name, line=0)
+            if st.st_size > MAX_FILE_BYTES:
+                raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
+            data = f.read(MAX_FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise WorldError("no such file", file=name, line=0) from None
+    except IsADirectoryError:
+        raise WorldError("not a regular file (a directory)", file=name, line=0) from None
+    except OSError as err:
+        raise WorldError(f"cannot read: {err.strerror or err}", file=name, line=0) from None
+    if len(data) > MAX_FILE_BYTES:
+        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
+    return data
 
 
 def load_world(path, clock=None):
     """Load a world file. Raises ``WorldError`` (with file and line) on any problem."""
     path = Path(path)
     name = str(path)
-    try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise WorldError("no such file", file=name, line=0) from None
-    if size > MAX_FILE_BYTES:
-        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
-    data = path.read_bytes()
+    data = read_limited(path, name)
     world = parse_world(data, name, base_dir=path.parent.resolve(), clock=clock)
     world.path = path
     return world
@@ -469,38 +557,156 @@ def to_xml(apartment: Apartment) -> bytes:
     return etree.tostring(root, pretty_print=True, xml_declaration=True, encoding="UTF-8")
 
 
-def atomic_write(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that readers see the old file or the new one, never a
-    half-written one: a temporary file in the same directory, fsync, rename, fsync the dir."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+def _temporary_names(target: Path) -> tuple[str, str]:
+    return f".{target.name}.", ".tmp"
+
+
+def clean_stale_temporaries(target: Path) -> list[Path]:
+    """Remove the temporary files that killed saves of ``target`` left next to it; returns them.
+
+    A save holds an exclusive ``flock`` on its temporary file while it writes it, and the
+    kernel drops the lock when the process dies: a temporary file that no one holds locked is
+    stale, one that is held belongs to a save in progress and is left alone.
+    """
+    prefix, suffix = _temporary_names(target)
+    removed = []
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
+        names = os.listdir(target.parent)
+    except OSError:
+        return removed
+    for n in names:
+        if not (n.startswith(prefix) and n.endswith(suffix)):
+            continue
+        p = target.parent / n
         try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:
+            continue
+        try:
+            st = os.fstat(fd)
+            if not stat.S_ISREG(st.st_mode):
+                continue
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                continue
+            try:
+                if os.stat(p, follow_symlinks=False).st_ino == st.st_ino:
+                    os.unlink(p)
+                    removed.append(p)
+            except FileNotFoundError:
+                pass
+        finally:
+            os.close(fd)
+    return removed
+
+
+def atomic_write(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` so that readers see the old file or the new one, never a
+    half-written one: a temporary file in the same directory, fsync, rename, fsync the dir.
+    Returns the file written.
+
+    A symbolic link stays a link: the file it names is replaced (its temporary file is made
+    next to it). An existing file keeps its permission bits (and owner, where allowed); a new
+    one gets the usual ``0666 & ~umask``. Temporary files of killed saves are removed first
+    (``clean_stale_temporaries``).
+    """
+    target = Path(os.path.realpath(path))
+    target.parent.mkdir(parents=True, exist_ok=True)
     try:
-        dfd = os.open(path.parent, os.O_RDONLY)
+        old = os.stat(target)
+    except FileNotFoundError:
+        old = None
+    clean_stale_temporaries(target)
+    prefix, suffix = _temporary_names(target)
+    for attempt in range(2):
+        tmp = target.parent / f"{prefix}{secrets.token_hex(6)}{suffix}"
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW,
+                     0o666 if old is None else 0o600)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)   # marks it as in use (clean_stale_temporaries)
+            if old is not None:
+                os.fchmod(fd, stat.S_IMODE(old.st_mode))
+                if (old.st_uid, old.st_gid) != (os.geteuid(), os.getegid()):
+                    try:
+                        os.fchown(fd, old.st_uid, old.st_gid)
+                    except OSError:
+                        pass
+            with os.fdopen(fd, "wb", closefd=False) as f:
+                f.write(data)
+                f.flush()
+            os.fsync(fd)
+            os.replace(tmp, target)
+        except FileNotFoundError as err:
+            # Another process's clean-up can only take our file in the instant between its
+            # creation and the lock: write again once.
+            if attempt == 0 and err.filename == str(tmp) and not os.path.lexists(tmp):
+                continue
+            _unlink_quietly(tmp)
+            raise
+        except BaseException:
+            _unlink_quietly(tmp)
+            raise
+        finally:
+            os.close(fd)
+        break
+    try:
+        dfd = os.open(target.parent, os.O_RDONLY)
         try:
             os.fsync(dfd)
         finally:
             os.close(dfd)
     except OSError:  # pragma: no cover - some filesystems refuse directory fsync
         pass
+    return target
+
+
+def _unlink_quietly(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
+def checked_xml(apartment: Apartment, name: str = "<world>",
+                base_dir: Optional[Path] = None) -> bytes:
+    """``to_xml(apartment)`` after checking that ``load_world`` would read it back: the map in
+    memory is checked (problems name their node), then the bytes go through the loader itself
+    (schema, limits, semantics, files relative to ``base_dir``). Raises WorldError; nothing
+    is written here."""
+    problems = semantic_problems(apartment, None, base_dir)
+    if problems:
+        raise WorldValidationError([WorldError(f"not saved: {p.message.removeprefix(f'{p.node}: ')}",
+                                               node=p.node) for p in problems])
+    try:
+        data = to_xml(apartment)
+    except (TypeError, ValueError) as err:
+        raise WorldError(f"not saved: the map cannot be written as XML ({err})", file=name,
+                         line=0) from None
+    try:
+        parse_world(data, name, base_dir=base_dir)
+    except WorldValidationError as err:
+        raise WorldValidationError([_would_not_load(p, name) for p in err.problems]) from None
+    except WorldError as err:
+        raise _would_not_load(err, name) from None
+    return data
+
+
+def _would_not_load(err: WorldError, name: str) -> WorldError:
+    return WorldError(f"not saved, it would not load back: {err.message} (line {err.line} of "
+                      "the file it would write)", file=name, line=0)
 
 
 def save_world(world, path=None) -> Path:
-    """Save atomically (see ``atomic_write``); returns the path written."""
+    """Save atomically (see ``atomic_write``); returns the path written (``path``, or the
+    world's own path; through a symbolic link, the link).
+
+    Refuses, with WorldError and nothing written, a map that ``load_world`` would refuse
+    (``checked_xml``): a NaN pose, a zero radius, a mesh outside the target's folder.
+    """
     path = Path(path or world.path)
+    base_dir = Path(os.path.realpath(path)).parent
     with world.lock:
-        data = to_xml(world.apartment)
+        data = checked_xml(world.apartment, str(path), base_dir)
     atomic_write(path, data)
     return path

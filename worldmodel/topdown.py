@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-from worldmodel.frames import room_corners, transform_xy
+from worldmodel.frames import room_corners
 from worldmodel.geometry import object_meshes
 from worldmodel.nodes import LargeArticulatedObject
 

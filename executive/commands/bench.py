@@ -12,6 +12,7 @@ import json
 import pkgutil
 import sys
 
+from executive.cliutil import integer_in, seed
 from hearth import benchmarks
 
 
@@ -25,11 +26,13 @@ def _common(p: argparse.ArgumentParser, default=None) -> None:
         return argparse.SUPPRESS if default is argparse.SUPPRESS else value
     p.add_argument("--json", action="store_true", default=d(False),
                    help="print compact JSON on one line (default: indented)")
-    p.add_argument("--seed", type=int, default=d(0), help="base random seed")
+    p.add_argument("--seed", type=seed, default=d(0), help="base random seed")
     p.add_argument("--quick", action="store_true", default=d(False),
                    help="fewer repetitions (smoke run)")
-    p.add_argument("--scenarios", type=int, default=d(None), help="scenarios per figure, where used")
-    p.add_argument("--jobs", type=int, default=d(1), help="parallel worker processes, where used")
+    p.add_argument("--scenarios", type=integer_in(1, 100_000, "--scenarios"), default=d(None),
+                   help="scenarios per figure, where used")
+    p.add_argument("--jobs", type=integer_in(1, 256, "--jobs"), default=d(1),
+                   help="parallel worker processes, where used")
 
 
 def register(sub) -> None:

@@ -12,6 +12,7 @@ import math
 import time
 from pathlib import Path
 
+from executive.cliutil import output_dir, seed
 from hearth import demo_world_path, missions_dir
 
 DEMO_WORLD = demo_world_path()
@@ -34,8 +35,9 @@ def register(sub) -> None:
                                    "about 10 cm off); print progress and a report; write the "
                                    "execution logs and a top-down PNG.")
     p.add_argument("--world", default=str(DEMO_WORLD), help="world file (default: the demo home)")
-    p.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
-    p.add_argument("--seed", type=int, default=0, help="sensor noise seed")
+    p.add_argument("--out", type=output_dir, default="out/demo",
+                   help="output directory (default out/demo)")
+    p.add_argument("--seed", type=seed, default=0, help="sensor noise seed")
     p.add_argument("--quiet", action="store_true", help="print only the report")
     p.set_defaults(func=_run)
 

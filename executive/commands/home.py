@@ -85,7 +85,7 @@ def _describe(args) -> int:
         for o in room.objects:
             print(f"  {o.id} ({o.name or o.type}): {o.description or o.type}")
             if isinstance(o, LargeArticulatedObject) and o.parts:
-                print(f"    parts: " + ", ".join(f"{q.id} ({q.type})" for q in o.parts))
+                print("    parts: " + ", ".join(f"{q.id} ({q.type})" for q in o.parts))
             for k in world.knobs(o.id):
                 names = ", ".join(s.name for s in k.states)
                 print(f"    knob {k.id}: {k.state} now, off is {k.off!r}; states {names}")

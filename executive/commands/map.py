@@ -63,6 +63,7 @@ def _find(args) -> int:
 
 
 def _draw(args) -> int:
+    from worldmodel.io import load_world
     from worldmodel.topdown import Overlay, draw, save_png
     world = load_world(args.world)
     if not 10 <= args.px_per_m <= 1000:

@@ -7,7 +7,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from executive.cliutil import DEFAULT_WORLD, add_run_arguments, make_clock, parse_params, run_to_end
+from executive.cliutil import (DEFAULT_WORLD, add_run_arguments, make_clock, output_dir,
+                               parse_params, run_to_end, seed)
 
 
 def register(sub) -> None:
@@ -21,12 +22,12 @@ def register(sub) -> None:
                                    "belief.xml is the map. Exit 0 when the mission succeeds, "
                                    "1 when it fails.")
     add_run_arguments(p)
-    p.add_argument("--out", required=True, metavar="PATH",
+    p.add_argument("--out", type=output_dir, required=True, metavar="PATH",
                    help="recording directory (or bag directory) to write")
     p.add_argument("--format", choices=("hearth", "mcap"), default="hearth",
                    help="hearth: a Hearth recording (default); mcap: a ROS 2 bag in MCAP "
                         "storage (needs the ros extra: pip install 'hearth[ros]')")
-    p.add_argument("--seed", type=int, default=0, help="sensor noise seed")
+    p.add_argument("--seed", type=seed, default=0, help="sensor noise seed")
     p.add_argument("--quiet", action="store_true", help="print only the outcome")
     p.set_defaults(func=_run)
 

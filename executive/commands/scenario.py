@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
-from executive.cliutil import DEFAULT_WORLD
+from executive.cliutil import DEFAULT_WORLD, output_dir, seed
 
 
 def register(sub) -> None:
@@ -16,8 +16,9 @@ def register(sub) -> None:
     s = p.add_subparsers(dest="scenario_command", required=True)
     m = s.add_parser("make", help="write a scenario directory")
     m.add_argument("--world", default=str(DEFAULT_WORLD), help="world file")
-    m.add_argument("--seed", type=int, default=0, help="random seed")
-    m.add_argument("--out", required=True, metavar="DIR", help="directory to write")
+    m.add_argument("--seed", type=seed, default=0, help="random seed (0 to 2^32 - 1)")
+    m.add_argument("--out", type=output_dir, required=True, metavar="DIR",
+                   help="directory to write (made if missing; not a file)")
     m.set_defaults(func=_make)
 
 

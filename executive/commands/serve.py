@@ -11,7 +11,8 @@ import argparse
 import os
 import sys
 
-from executive.cliutil import DEFAULT_WORLD, make_world_and_robot
+from executive.cliutil import (DEFAULT_WORLD, MAX_TICK_HZ, MIN_TICK_HZ, integer_in,
+                               make_world_and_robot, number_in, tick_rate)
 from executive.commands.run import add_groot2_arguments, start_groot2
 from hearth import missions_dir
 
@@ -25,7 +26,8 @@ def register(sub) -> None:
                                    "monitor page at /. Localhost only unless a token is given.")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1; others need --token)")
-    p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0: any free)")
+    p.add_argument("--port", type=integer_in(0, 65535, "the port"), default=8080,
+                   help="port (default 8080; 0: any free)")
     p.add_argument("--token", default=os.environ.get("HEARTH_TOKEN"),
                    help="require this bearer token (default: $HEARTH_TOKEN)")
     p.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
@@ -45,13 +47,15 @@ def register(sub) -> None:
                    help="recording to replay (a Hearth recording or a ROS 2 bag)")
     p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
                    help="with a ROS 2 bag: its topics and tf frames (docs/ros2-foxglove.md)")
-    p.add_argument("--tick-hz", type=float, default=10.0, help="tick rate (Hz)")
+    p.add_argument("--tick-hz", type=tick_rate, default=10.0,
+                   help=f"tick rate (Hz, {MIN_TICK_HZ:g} to {MAX_TICK_HZ:g}; default 10)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
     p.add_argument("--autonomy", type=int, default=3, choices=range(4),
                    help="granted autonomy level: skills above it wait for an operator's "
                         "approval (0 observe, 1 move, 2 act on the home, 3 handle objects; "
                         "default 3: never ask)")
-    p.add_argument("--approval-timeout", type=float, default=120.0,
+    p.add_argument("--approval-timeout", default=120.0,
+                   type=number_in(0, 86_400, "the approval timeout", lo_open=True),
                    help="seconds to wait for an approval before the skill fails")
     add_groot2_arguments(p)
     from executive.foxglove import add_arguments

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 from typing import TYPE_CHECKING
 
-from executive.cliutil import add_run_arguments, make_executive
+from executive.cliutil import add_run_arguments, integer_in, make_executive
 
 if TYPE_CHECKING:
     from executive.executive import Executive
@@ -26,7 +26,7 @@ def register(sub) -> None:
     p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
                    help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
                         "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
-    p.add_argument("--ticks", type=int, default=None,
+    p.add_argument("--ticks", type=integer_in(0, 10**9, "--ticks"), default=None,
                    help="tick N times without asking, then print tree and blackboard")
     p.set_defaults(func=_run)
 

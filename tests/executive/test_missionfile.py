@@ -1,3 +1,5 @@
+import re
+
 import pytest
 from hypothesis import given, settings, strategies as st
 
@@ -278,3 +280,168 @@ def test_every_node_reports_the_line_its_mapping_starts_on(tmp_path_factory, lea
     path.write_text("\n".join(lines) + "\n")
     m = load_mission(str(path), test_skills())
     assert [n.line for n in m.root.children] == expected
+
+
+# -- hostile and careless files (issue 19) ---------------------------------------------------
+
+BOMB = "\n".join(["  a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
+                 + [f"  {c}: &{c} [{', '.join(['*' + p] * 9)}]"
+                    for p, c in zip("abcdefgh", "bcdefghi")])
+
+
+@pytest.mark.parametrize("where", ["blackboard", "default", "input"])
+def test_an_alias_bomb_is_refused_at_load_in_one_line(mission_file, where):
+    body = {"blackboard": f"blackboard:\n{BOMB}\ntree: {{succeed: ok}}\n",
+            "default": "parameters:\n  p:\n    type: any\n    default:\n"
+                       + "\n".join("    " + l for l in BOMB.splitlines()) + "\ntree: {succeed: ok}\n",
+            "input": "tree:\n  skill: Speak\n  inputs:\n    text:\n"
+                     + "\n".join("    " + l for l in BOMB.splitlines()) + "\n"}[where]
+    path = mission_file("name: bomb\n" + body)
+    (err,) = errors(path)
+    assert re.fullmatch(rf"{re.escape(path)}:\d+: YAML aliases expand this to more than "
+                        r"250000 values", err)
+
+
+def test_a_few_aliases_are_fine_and_a_self_reference_is_not(mission_file):
+    path = mission_file("name: x\nblackboard:\n  a: &a [1, 2]\n  b: [*a, *a]\n"
+                        "tree: {succeed: ok}\n")
+    assert load_mission(path, test_skills()).blackboard["b"] == [[1, 2], [1, 2]]
+    path = mission_file("name: x\nblackboard: {a: &a [*a]}\ntree: {succeed: ok}\n", "self.yaml")
+    assert errors(path) == [f"{path}:2: a YAML alias refers to the value it is in"]
+
+
+def test_deep_trees_are_refused_with_a_clear_line(mission_file):
+    path = mission_file("name: deep\ntree: " + "{inverter: " * 3000 + "{succeed: ok}"
+                        + "}" * 3000 + "\n")
+    assert errors(path) == [f"{path}:2: YAML nests more than 150 levels deep"]
+    nested = "".join("  " * i + "inverter:\n" for i in range(1, 70)) + "  " * 70 + "succeed: ok\n"
+    path = mission_file("name: deep\ntree:\n" + nested, "d2.yaml")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:") and err.endswith("the tree is more than 64 nodes deep")
+
+
+def test_an_include_bomb_stops_at_the_tree_size_limit(mission_file):
+    subtrees = "".join(f"  s{i}:\n    tree:\n      sequence: [{{include: s{i + 1}}}, "
+                       f"{{include: s{i + 1}}}]\n" for i in range(20))
+    path = mission_file("name: x\ntree: {include: s0}\nsubtrees:\n" + subtrees
+                        + "  s20: {tree: {succeed: ok}}\n")
+    (err,) = errors(path)
+    assert "the tree has more than 20000 nodes" in err
+
+
+def test_siblings_are_named_uniquely_and_in_order(mission_file):
+    path = mission_file("""
+        name: x
+        tree:
+          sequence:
+            - succeed: a
+            - {succeed: b, name: succeed_3}
+            - succeed: c
+            - succeed: d
+            - {succeed: e, name: succeed_2}
+            - succeed: f
+    """)
+    names = [n.name for n in load_mission(path, test_skills()).root.children]
+    assert names == ["succeed", "succeed_3", "succeed_2", "succeed_4", "succeed_2_2", "succeed_5"]
+
+
+@pytest.mark.parametrize("attr, value, message", [
+    ("retry", "times: 100000000000000000000000000",
+     "integer '100000000000000000000000000' is too large (at most 2^63 - 1)"),
+    ("retry", "times: 1001", "times: 1001 is greater than the maximum of 1000"),
+    ("timeout", "seconds: .nan", "'.nan' is not a finite number"),
+    ("timeout", "seconds: .inf", "'.inf' is not a finite number"),
+    ("timeout", "seconds: 86401", "seconds: 86401 is greater than the maximum of 86400"),
+    ("repeat", "times: 1000001", "times: 1000001 is greater than the maximum of 1000000"),
+])
+def test_retry_counts_and_timeouts_are_finite_and_bounded(mission_file, attr, value, message):
+    path = mission_file(f"name: x\ntree:\n  {attr}: {{succeed: ok}}\n  {value}\n")
+    assert errors(path) == [f"{path}:4: {message}"]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("blackboard: {n: 1.0e+400}", "'1.0e+400' is not a finite number"),
+    ("blackboard: {d: 2001-12-14}", "date and time values are not allowed"),
+    ("blackboard: {n: " + "9" * 5000 + "}", "is too large"),
+    ("blackboard: {o: !!python/object/apply:os.system [true]}", "could not determine a constructor"),
+])
+def test_only_finite_plain_data_is_read(mission_file, text, message):
+    path = mission_file(f"name: x\n{text}\ntree: {{succeed: ok}}\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:2: ") and message in err
+
+
+def test_nan_parameters_and_condition_literals_are_refused(mission_file):
+    with pytest.raises(MissionError, match="cannot read '.nan' as number: '.nan' is not a finite"):
+        parse_param_text("speed", "number", ".nan")
+    with pytest.raises(MissionError, match="not a finite number"):
+        parse_param_text("pose", "pose", "{x: .inf, y: 0}")
+    path = mission_file("name: x\nblackboard: {v: 1}\ntree: {condition: '{v} < .nan'}\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:3: cannot read a value in condition")
+    assert not check_value("number", float("nan")) and not check_value("integer", 2**64)
+
+
+@pytest.mark.parametrize("target", ["/etc/passwd#x", "../../../../../proc/self/environ#x",
+                                    "/dev/zero#x", "outside/../../x.yaml"])
+def test_includes_stay_inside_the_missions_folder(mission_file, target):
+    path = mission_file(f"name: x\ntree:\n  include: '{target}'\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:3: include ") and "outside the mission's folder" in err
+
+
+def test_an_include_through_a_symlink_out_of_the_folder_is_refused(mission_file, tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "s.yaml").write_text("name: s\ntree: {succeed: ok}\n")
+    (tmp_path / "here").mkdir()
+    (tmp_path / "here" / "link.yaml").symlink_to(tmp_path / "elsewhere" / "s.yaml")
+    path = mission_file("name: x\ntree: {include: link.yaml}\n", "here/m.yaml")
+    (err,) = errors(path)
+    assert "outside the mission's folder" in err
+
+
+def test_a_mission_path_that_is_no_regular_file_is_refused(tmp_path):
+    import os
+    os.mkfifo(tmp_path / "m.yaml")
+    for path in (tmp_path / "m.yaml", tmp_path):
+        (err,) = errors(str(path))
+        assert "not a regular file" in str(err)
+
+
+def test_validating_is_linear_in_the_number_of_siblings(mission_file):
+    """10,000 same-named siblings: every name is unique and counted once (the old loop tried
+    _2, _3, ... afresh for each, which took 57 s; timings are in `hearth bench fuzz`)."""
+    path = mission_file("name: wide\ntree:\n  sequence:\n" + "    - succeed: ok\n" * 10_000)
+    names = [n.name for n in load_mission(path, test_skills()).root.children]
+    assert names[:3] == ["succeed", "succeed_2", "succeed_3"] and names[-1] == "succeed_10000"
+    assert len(set(names)) == 10_000
+
+
+def test_the_schemas_maxima_are_the_documented_limits():
+    from executive import missionfile as mf
+    defs = mf.schema()["$defs"]
+    assert defs["retry"]["properties"]["times"]["maximum"] == mf.MAX_RETRY_TIMES
+    assert defs["repeat"]["properties"]["times"]["maximum"] == mf.MAX_REPEAT_TIMES
+    assert defs["timeout"]["properties"]["seconds"]["maximum"] == mf.MAX_TIMEOUT_SECONDS
+    assert defs["parallel"]["properties"]["threshold"]["maximum"] == mf.MAX_TREE_NODES
+
+
+def test_a_malformed_enum_in_an_included_subtree_is_one_line(mission_file):
+    path = mission_file("""
+        name: x
+        tree: {include: s, params: {p: 1}}
+        subtrees:
+          s:
+            parameters: {p: {type: integer, enum: 3, default: 1, items: 7}}
+            tree: {succeed: ok}
+    """)
+    errs = errors(path)
+    assert errs and all(e.startswith(f"{path}:6: ") for e in errs), errs
+
+
+def test_a_huge_wrong_value_is_reported_in_a_short_line(mission_file):
+    path = mission_file("name: x\ntree:\n  skill: Navigate\n  inputs: {target: [" + "1, " * 3000
+                        + "1]}\n")
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:4: input target of Navigate: expected node_id|pose, got [1, ")
+    assert len(err) < 300 + len(path)

@@ -1,0 +1,80 @@
+"""The world and mission loaders against mutated shipped files (hearth/benchmarks/fuzz.py).
+
+A few hundred cases here, in-process; `hearth bench fuzz` runs thousands in worker processes.
+Every case must end refused (one located line per problem) or accepted and then usable: saved
+and loaded back equal, meshed, built into a tree. Any traceback, hang (the alarm in
+``run_case``), out-of-bounds number or path outside the case's folder fails the test.
+Under HYPOTHESIS_PROFILE=ci (tests/conftest.py) the same cases run every time.
+"""
+from __future__ import annotations
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hearth.benchmarks import fuzz
+
+FUZZ = settings(max_examples=150, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+_WORLD = fuzz._demo_world()
+_MISSIONS = fuzz._missions()
+
+
+def _ok(case: fuzz.Case, verdict: fuzz.Verdict) -> bool:
+    return verdict.outcome in ("accepted", "refused") and not verdict.outside
+
+
+@FUZZ
+@given(st.randoms(use_true_random=False))
+def test_mutated_world_files_are_refused_in_one_line_or_load_save_and_load_again(rng):
+    what, data = fuzz.mutate_world(rng, _WORLD)
+    case = fuzz.Case("world", what, {**fuzz.WORLD_NEIGHBOURS, "world.xml": data}, "world.xml")
+    verdict = fuzz.run_case(case, timeout=20)
+    assert _ok(case, verdict), f"{what}: {verdict}"
+
+
+@FUZZ
+@given(st.randoms(use_true_random=False))
+def test_mutated_missions_are_refused_in_one_line_or_build_a_tree(rng):
+    what, files, entry = fuzz.mutate_mission(rng, _MISSIONS)
+    case = fuzz.Case("mission", what, files, entry)
+    verdict = fuzz.run_case(case, timeout=20)
+    assert _ok(case, verdict), f"{entry}: {what}: {verdict}"
+
+
+FIXED = [c for c in fuzz.fixed_cases() if c.loader in ("world", "mission")]
+
+
+@pytest.mark.parametrize("case", FIXED, ids=[f"{c.loader}-{c.name}" for c in FIXED])
+def test_issue_19s_hand_made_files(case):
+    verdict = fuzz.run_case(case, timeout=60)
+    assert (verdict.outcome, verdict.outside) == (case.expect, 0), verdict.detail
+
+
+def test_the_fast_node_check_agrees_with_jsonschema():
+    """fastjsonschema only lets valid nodes through; jsonschema must agree on each."""
+    import random
+
+    import yaml
+    from executive.missionfile import KINDS, _validator
+    rng = random.Random(7)
+    seen = 0
+    for _ in range(60):
+        what, files, entry = fuzz.mutate_mission(rng, _MISSIONS)
+        try:
+            data = yaml.safe_load(files[entry])
+        except yaml.YAMLError:
+            continue
+        stack = [data]
+        while stack:
+            cur = stack.pop()
+            if isinstance(cur, dict):
+                kinds = [k for k in cur if k in KINDS]
+                if len(kinds) == 1:
+                    v = _validator(f"#/$defs/{kinds[0]}")
+                    assert v.valid_fast(cur) == (not list(v.slow.iter_errors(cur))), (what, cur)
+                    seen += 1
+                stack.extend(cur.values())
+            elif isinstance(cur, list):
+                stack.extend(cur)
+    assert seen > 400
