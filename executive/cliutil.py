@@ -177,3 +177,21 @@ def make_executive(args: argparse.Namespace) -> tuple[Mission, dict[str, Any], A
     ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
                    runs_dir=args.runs_dir, background=False)
     return mission, params, ex
+
+
+def add_foxglove_arguments(p, live: bool = True, file: bool = True, wait: bool = True) -> None:
+    """The ``--foxglove [PORT]`` (and ``--foxglove-mcap FILE``) options of run/serve."""
+    if live:
+        p.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None,
+                       metavar="PORT",
+                       help="stream the run live to Foxglove on ws://127.0.0.1:PORT (default "
+                            "8765; 0: any free port); needs the ros extra")
+    if file:
+        p.add_argument("--foxglove-mcap", default=None, metavar="FILE",
+                       help="write the run's log, tree, poses, images and map as MCAP with "
+                            "Foxglove schemas (a new file); needs the ros extra")
+    if live and wait:
+        p.add_argument("--foxglove-wait", type=float, default=10.0, metavar="SECONDS",
+                       help="with --foxglove on a simulated clock: wait up to this long for a "
+                            "viewer before starting, and after the end for viewers to leave "
+                            "(default 10; 0: do not wait)")

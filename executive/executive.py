@@ -40,6 +40,7 @@ import math
 import os
 import threading
 import time as _time
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Callable
 
@@ -52,6 +53,9 @@ from executive.runlog import LOG_FORMAT, RunLog, header_fields
 from executive.scheduler import STATES, MissionHandle, Scheduler, Submission
 from executive.ticking import Run, TickLoop, halt_tree
 from executive.tree import BuiltTree, SkillFactory, build_tree
+
+#: Ended runs whose handles ``Executive.handle_of`` still finds.
+RECENT = 64
 
 __all__ = ["Executive", "Event", "EventKind", "MissionHandle", "MissionResult", "RunState",
            "STATES", "TERMINAL", "LOG_FORMAT"]
@@ -104,6 +108,7 @@ class Executive:
         self._wake = threading.Condition(self._lock)
         self._outbox = Outbox(threaded=background)
         self._live: dict[str, Submission] = {}      # submitted and not ended, by run id
+        self._ended: "OrderedDict[str, Submission]" = OrderedDict()   # the last RECENT ended
         self._current: Run | None = None
         self._starting: Submission | None = None
         self._params: dict[str, Any] = {}
@@ -226,6 +231,13 @@ class Executive:
                 else:
                     self._subscribers = tuple(c for c in self._subscribers if c is not callback)
         return unsubscribe
+
+    def handle_of(self, run_id: str) -> MissionHandle | None:
+        """The handle of a run submitted here: live, or among the last ``RECENT`` ended
+        (subscribers hear of a run after the fact, when it may have ended already)."""
+        with self._lock:
+            sub = self._live.get(run_id) or self._ended.get(run_id)
+            return sub.handle if sub is not None else None
 
     @property
     def current(self) -> MissionHandle | None:
@@ -584,6 +596,9 @@ class Executive:
     def _finish(self, sub: Submission, result: MissionResult) -> None:
         sub.result = result
         self._live.pop(sub.id, None)
+        self._ended[sub.id] = sub
+        while len(self._ended) > RECENT:
+            self._ended.popitem(last=False)
         self._outbox.post_done(sub.done)
         self._wake.notify_all()
 

@@ -141,7 +141,14 @@ class Groot2Publisher:
                 return
         if ev.kind == "run" and ev.data.get("state") in _FINAL:
             # The run's keys are removed when it ends: keep what a viewer would last see.
-            snapshot = self._main_blackboard()
+            snapshot = self._main_blackboard() if self._built is not None else {}
+            handle = self.executive.handle_of(ev.run) if hasattr(self.executive, "handle_of") else None
+            if handle is not None and not snapshot:
+                # Delivered after the run ended: what it kept are its outputs and parameters.
+                result = handle.result
+                snapshot = dict(result.outputs if result is not None else {})
+                snapshot.update({f"${k}": v for k, v in handle.params.items()})
+                snapshot = json.loads(json.dumps(snapshot, default=repr))
             with self._lock:
                 self._final_bb = snapshot
             return
@@ -167,13 +174,18 @@ class Groot2Publisher:
     def _adopt(self, run: str) -> bool:
         """Start showing ``run`` once the Executive has its tree (from its first tick on)."""
         from executive.btcpp import live_tree
-        handle = self.executive.current
-        built = self.executive.current_tree
-        if handle is None or built is None or handle.id != run:
+        # Events reach subscribers from the executive's delivery thread, after the fact: the
+        # run may have ended by now, so take its mission from its handle, and its tree (for
+        # the blackboard) only while it is still the current one.
+        handle = self.executive.handle_of(run) if hasattr(self.executive, "handle_of") else None
+        current = self.executive.current
+        built = self.executive.current_tree if current is not None and current.id == run else None
+        if handle is None:
             return False
-        live = live_tree(built.mission)
+        live = live_tree(handle.mission)
         with self._lock:
             self._run, self._built, self._live = run, built, live
+            self._mission_name = handle.mission.name
             self._final_bb = None
             self._uuid = os.urandom(16)
             self._status = {u: 0 for u in live.order}
@@ -264,7 +276,7 @@ class Groot2Publisher:
         except ImportError:
             return [b"error", b"blackboard dumps need msgpack (pip install -e '.[btcpp]')"]
         out: dict[str, Any] = {}
-        main = self._built.mission.name
+        main = getattr(self, "_mission_name", None)
         for name in filter(None, names.split(";")):
             if name == main:
                 out[name] = self._final_bb if self._final_bb is not None \

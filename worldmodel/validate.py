@@ -152,7 +152,11 @@ def _visual(v: Visual, owner: str):
     if v.shape == "cylinder":
         yield from _positive("cylinder length", v.length, owner)
     if v.shape == "mesh":
-        yield from _positive("mesh scale", v.scale, owner)
+        scale = v.scale if isinstance(v.scale, (tuple, list)) else (v.scale,)
+        if len(scale) not in (1, 3):
+            yield f"{owner}: mesh scale {v.scale!r} is not one or three numbers"
+        for axis, s in zip("xyz" if len(scale) == 3 else "s", scale):
+            yield from _positive(f"mesh scale {axis}" if len(scale) == 3 else "mesh scale", s, owner)
         yield from _text("mesh file", v.file, owner)
 
 

@@ -22,8 +22,8 @@ def register(sub) -> None:
     p.add_argument("--groot2-linger", type=float, default=0.0, metavar="SECONDS",
                    help="with --groot2: keep publishing the ended mission this long (a "
                         "simulated run may end before a viewer attaches)")
-    from executive.foxglove import add_arguments
-    add_arguments(p)
+    from executive.cliutil import add_foxglove_arguments
+    add_foxglove_arguments(p)
     p.set_defaults(func=_run)
 
 

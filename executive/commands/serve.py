@@ -58,8 +58,8 @@ def register(sub) -> None:
                    type=number_in(0, 86_400, "the approval timeout", lo_open=True),
                    help="seconds to wait for an approval before the skill fails")
     add_groot2_arguments(p)
-    from executive.foxglove import add_arguments
-    add_arguments(p, wait=False)
+    from executive.cliutil import add_foxglove_arguments
+    add_foxglove_arguments(p, wait=False)
     p.set_defaults(func=_serve)
 
 

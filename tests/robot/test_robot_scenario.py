@@ -116,26 +116,32 @@ def test_a_scenario_of_a_generated_home_validates_where_its_meshes_are(tmp_path,
     assert (frame.depth > 0).mean() > 0.5
 
 
-def test_mesh_files_outside_the_world_folder_are_copied_and_the_maps_rewritten(tmp_path):
+def test_a_world_whose_meshes_leave_its_folder_is_refused_and_a_lost_mesh_is_named(tmp_path):
+    """Mesh paths stay inside the world's folder (issue 19), so a scenario never has to
+    reach outside it; a mesh that disappears before the scenario is saved is one line."""
+    from worldmodel.errors import WorldError
     from worldmodel.io import load_world, validate_file
     (tmp_path / "shared").mkdir()
-    (tmp_path / "flat").mkdir()
+    (tmp_path / "flat" / "parts").mkdir(parents=True)
     ply = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
            "end_header\n0 0 0\n0.1 0 0\n0 0.1 0\n3 0 1 2\n")
     (tmp_path / "shared" / "leg.ply").write_text(ply)
+    (tmp_path / "flat" / "parts" / "leg.ply").write_text(ply)
+    outside = tmp_path / "flat" / "out.xml"
+    outside.write_text(_NO_SURFACE.format(mesh='<mesh file="../shared/leg.ply"/>'))
+    with pytest.raises(WorldError, match="leaves the world file's folder"):
+        load_world(outside)
     world = tmp_path / "flat" / "w.xml"
-    world.write_text(_NO_SURFACE.format(mesh='<mesh file="../shared/leg.ply"/>'))
+    world.write_text(_NO_SURFACE.format(mesh='<mesh file="parts/leg.ply"/>'))
     sc, later = make_scenario(load_world(world), seed=0), make_scenario(load_world(world), seed=0)
     save_scenario(sc, tmp_path / "sc")
     assert validate_file(tmp_path / "sc" / "truth.xml") == []
-    copied = list((tmp_path / "sc" / "files").iterdir())
-    assert len(copied) == 1 and copied[0].name.endswith("-leg.ply")
-    assert f'file="files/{copied[0].name}"' in (tmp_path / "sc" / "truth.xml").read_text()
-    (tmp_path / "shared" / "leg.ply").unlink()
+    assert (tmp_path / "sc" / "parts" / "leg.ply").is_file()
+    (tmp_path / "flat" / "parts" / "leg.ply").unlink()
     with pytest.raises(robot.RobotError) as err:
         save_scenario(later, tmp_path / "sc2")
-    assert str(err.value) == (f"node stool: mesh file '../shared/leg.ply' not found (looked in "
+    assert str(err.value) == (f"node stool: mesh file 'parts/leg.ply' not found (looked in "
                               f"{tmp_path / 'flat'})")
 
 
