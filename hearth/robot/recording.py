@@ -29,7 +29,7 @@ import math
 import os
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Optional
 
@@ -530,9 +530,13 @@ class RecordingRobot:
             pass
 
     def capture(self):
+        """The inner adapter's frame, recorded; the mission gets the depth as the recording
+        keeps it (whole millimetres, both formats), so that a replay sees what the recorded
+        run saw and perception decides the same way on both."""
         frame = self.inner.capture()
         self.writer.add(frame, goal=self._goal)
-        return frame
+        depth = depth_to_mm(frame.depth).astype(np.float32) * np.float32(DEPTH_SCALE)
+        return replace(frame, depth=depth)
 
     def stop(self) -> None:
         self.inner.stop()

@@ -14,7 +14,7 @@ from executive.cli import main
 from executive.scenarios import Case, make_case_scenario
 from hearth.robot.scenario import save_scenario
 
-CASES = [Case("fetch_object", seed=0, warmup=0), Case("turn_off_oven", seed=0),
+CASES = [Case("fetch_object", seed=0, warmup=0, target="blue_cup"), Case("turn_off_oven", seed=0),
          Case("refine_localisation", seed=1)]
 
 
@@ -24,7 +24,7 @@ def _end(runs: Path) -> dict:
 
 
 def _record_and_replay(case: Case, d: Path) -> tuple[dict, dict]:
-    sc, params = make_case_scenario(case)
+    sc, params, _target = make_case_scenario(case)
     save_scenario(sc, d / "sc")
     p = [x for k, v in params.items() for x in ("--param", f"{k}={str(v).lower() if isinstance(v, bool) else v}")]
     mission = f"missions/{case.mission}.yaml"
