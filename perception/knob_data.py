@@ -130,29 +130,57 @@ class KnobScenes:
 
     def scene(self, owner: str, angles: dict, missing: tuple = ()) -> "LayeredScene":
         """The home with ``owner``'s knobs at ``angles`` (and without ``missing``), to render."""
-        return LayeredScene(self.base(owner), Scene(self.knob_meshes(owner, angles, missing)))
+        knobs = self.knob_meshes(owner, angles, missing)
+        points = (np.concatenate([np.asarray(lm.mesh.vertices) for lm in knobs])
+                  if knobs else np.zeros((0, 3)))
+        return LayeredScene(self.base(owner), Scene(knobs), points)
 
 
 class LayeredScene:
-    """Two ray-casting scenes rendered as one: per pixel the nearer hit."""
+    """Two ray-casting scenes rendered as one: per pixel the nearer hit. The front one (a few
+    small meshes whose vertices are ``front_points``, world frame) is cast only over the
+    pixels its vertices' bounding box covers."""
 
-    def __init__(self, back: Scene, front: Scene):
-        self.back, self.front = back, front
+    def __init__(self, back: Scene, front: Scene, front_points: Optional[np.ndarray] = None):
+        self.back, self.front, self.front_points = back, front, front_points
+
+    def _front_window(self, K: Intrinsics, T_world_camera: np.ndarray):
+        """(u0, v0, u1, v1) of the image the front meshes can cover, None when none."""
+        if self.front_points is None:
+            return 0, 0, K.width, K.height
+        if len(self.front_points) == 0:
+            return None
+        T = np.linalg.inv(T_world_camera)
+        pc = self.front_points @ T[:3, :3].T + T[:3, 3]
+        if np.any(pc[:, 2] <= 1e-3):
+            return 0, 0, K.width, K.height      # straddles the camera plane: cast everything
+        u = K.fx * pc[:, 0] / pc[:, 2] + K.cx
+        v = K.fy * pc[:, 1] / pc[:, 2] + K.cy
+        u0, v0 = max(int(np.floor(u.min())) - 1, 0), max(int(np.floor(v.min())) - 1, 0)
+        u1, v1 = min(int(np.ceil(u.max())) + 2, K.width), min(int(np.ceil(v.max())) + 2, K.height)
+        return (u0, v0, u1, v1) if u1 > u0 and v1 > v0 else None
 
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         a = self.back.render(K, T_world_camera, max_range)
-        if not self.front.nodes:
+        win = self._front_window(K, T_world_camera) if self.front.nodes else None
+        if win is None:
             return a
-        b = self.front.render(K, T_world_camera, max_range)
-        take = (b.depth > 0) & ((a.depth <= 0) | (b.depth < a.depth))
-        t3 = take[..., None]
-        return Rendering(depth=np.where(take, b.depth, a.depth),
-                         color=np.where(t3, b.color, a.color),
-                         labels=np.where(take, b.labels + len(a.nodes), a.labels).astype(a.labels.dtype),
-                         nodes=a.nodes + b.nodes, owners=a.owners + b.owners,
-                         names=a.names + b.names, materials=a.materials + b.materials,
-                         normals_camera=np.where(t3, b.normals_camera, a.normals_camera),
-                         incidence=np.where(take, b.incidence, a.incidence))
+        u0, v0, u1, v1 = win
+        b = self.front.render(Intrinsics(K.fx, K.fy, K.cx - u0, K.cy - v0, u1 - u0, v1 - v0),
+                              T_world_camera, max_range)
+        # a's arrays are this render's own: the front's nearer hits go straight into them
+        out = Rendering(depth=a.depth, color=a.color, labels=a.labels,
+                        nodes=a.nodes + b.nodes, owners=a.owners + b.owners,
+                        names=a.names + b.names, materials=a.materials + b.materials,
+                        normals_camera=a.normals_camera, incidence=a.incidence)
+        w = (slice(v0, v1), slice(u0, u1))
+        take = (b.depth > 0) & ((a.depth[w] <= 0) | (b.depth < a.depth[w]))
+        out.depth[w][take] = b.depth[take]
+        out.color[w][take] = b.color[take]
+        out.labels[w][take] = b.labels[take] + len(a.nodes)
+        out.normals_camera[w][take] = b.normals_camera[take]
+        out.incidence[w][take] = b.incidence[take]
+        return out
 
 
 def _perturb(prior: KnobPrior, rng, cfg: KnobDataConfig) -> KnobPrior:
