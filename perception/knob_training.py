@@ -127,9 +127,9 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     """Render the training views of ``world``'s knobs, cut windows and fit the three
     estimators. ``noise(rendering, rng)``: the sensor model applied to every view (e.g. the
     simulated robot's Kinect noise); ``progress(stage, done, total)`` is called now and then;
-    ``jobs``: threads for the forest (-1: every core). The angle models are fitted in a thread
-    of their own while the detector is (scikit-learn's solvers and OpenCV release the GIL);
-    the result does not depend on the threads."""
+    ``jobs``: threads for the forest's trees and the SVR's fits (-1: every core). The angle
+    models are fitted in threads of their own while the detector is (scikit-learn's solvers
+    and OpenCV release the GIL); the result does not depend on the threads."""
     say = progress or (lambda stage, done, total: None)
     scenes = KnobScenes(world)
     views = render_views(world, cfg.views, cfg.seed, cfg.data, knob, noise=noise, scenes=scenes,
@@ -138,21 +138,17 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     det_p, det_y, ang_p, ang_y = training_patches(views, cfg.seed + 1, knob, cfg.positives,
                                                   cfg.negatives, cfg.angle_patches)
     ang_f = hog_features(ang_p, ANGLE_HOG)      # once, for both angle models
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="angle-models") as pool:
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="angle-models") as pool:
         say(f"fitting angle forest ({cfg.forest_trees} trees) and SVR on {len(ang_y)} windows, "
             f"beside the detector", 0, 2)
-        angle_models = pool.submit(_fit_angle_models, ang_f, ang_y, cfg, jobs)
+        forest = pool.submit(KnobAngleForest(n_estimators=cfg.forest_trees, random_state=cfg.seed,
+                                             n_jobs=jobs).fit, ang_f, ang_y)
+        svr = pool.submit(KnobAngleSVR(C_grid=cfg.svr_C_grid, random_state=cfg.seed,
+                                       n_jobs=jobs).fit, ang_f, ang_y)
         detector = _fit_detector(world, views, det_p, det_y, scenes, cfg, knob, noise, say)
-        forest, svr = angle_models.result()
+        forest, svr = forest.result(), svr.result()
     say("done", 3, 3)
     return KnobReader(detector, forest, svr, knob)
-
-
-def _fit_angle_models(features, angles, cfg: TrainingConfig, jobs: int):
-    forest = KnobAngleForest(n_estimators=cfg.forest_trees, random_state=cfg.seed,
-                             n_jobs=jobs).fit(features, angles)
-    svr = KnobAngleSVR(C_grid=cfg.svr_C_grid, random_state=cfg.seed).fit(features, angles)
-    return forest, svr
 
 
 def _fit_detector(world, views, det_p, det_y, scenes, cfg: TrainingConfig, knob: KnobConfig,

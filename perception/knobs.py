@@ -367,22 +367,30 @@ def proba_to_angle(p: np.ndarray) -> np.ndarray:
 class KnobAngleSVR(BaseEstimator, RegressorMixin):
     """HOG + two linear SVRs regressing cos and sin of the angle; ``predict(X)`` = atan2 (rad).
     ``C`` is chosen from ``C_grid`` by ``cv``-fold cross-validation in ``fit`` (as RAMCIP did)
-    unless the grid has one value."""
+    unless the grid has one value. ``n_jobs`` threads run the fits of ``fit`` (liblinear
+    releases the GIL; the result does not depend on it)."""
 
     def __init__(self, C_grid: Sequence[float] = (0.03, 0.3), epsilon: float = 0.0,
-                 cv: int = 3, cv_samples: int = 3000, random_state: int = 0):
+                 cv: int = 3, cv_samples: int = 3000, random_state: int = 0,
+                 n_jobs: int | None = None):
         self.C_grid = C_grid
         self.epsilon = epsilon
         self.cv = cv
         self.cv_samples = cv_samples
         self.random_state = random_state
+        self.n_jobs = n_jobs
 
-    def _fit_one(self, X, Y, C):
+    def _fit_one(self, X, y, C):
         # The primal solver (squared epsilon-insensitive loss) is much faster than the dual
         # one when there are more samples than HOG values, as in training.
-        return [LinearSVR(C=C, epsilon=self.epsilon, loss="squared_epsilon_insensitive",
-                          dual=False, random_state=self.random_state, max_iter=2000).fit(X, Y[:, i])
-                for i in range(2)]
+        return LinearSVR(C=C, epsilon=self.epsilon, loss="squared_epsilon_insensitive",
+                         dual=False, random_state=self.random_state, max_iter=2000).fit(X, y)
+
+    def _fit_all(self, jobs):
+        """``jobs``: (X, y, C) triples, fitted on ``n_jobs`` threads, in order."""
+        from joblib import Parallel, delayed
+        return Parallel(n_jobs=self.n_jobs, prefer="threads")(
+            delayed(self._fit_one)(X, y, C) for X, y, C in jobs)
 
     def fit(self, X, angles):
         X = _features(X, ANGLE_HOG)
@@ -395,20 +403,21 @@ class KnobAngleSVR(BaseEstimator, RegressorMixin):
             sub = rng.permutation(len(X))[:self.cv_samples]
             Xs, Ys, As = X[sub], Y[sub], a[sub]
             fold = rng.integers(0, self.cv, len(Xs))
-            errs = []
-            for C in grid:
-                e = []
-                for f in range(self.cv):
-                    tr, te = fold != f, fold == f
-                    m = self._fit_one(Xs[tr], Ys[tr], C)
-                    pa = np.arctan2(m[1].predict(Xs[te]), m[0].predict(Xs[te]))
-                    e.append(np.median(np.abs(_wrap(pa - As[te]))))
-                errs.append(float(np.mean(e)))
+            runs = [(C, f) for C in grid for f in range(self.cv)]
+            models = iter(self._fit_all([(Xs[fold != f], Ys[fold != f, i], C)
+                                         for C, f in runs for i in range(2)]))
+            e = {}
+            for C, f in runs:
+                te = fold == f
+                cos_m, sin_m = next(models), next(models)
+                pa = np.arctan2(sin_m.predict(Xs[te]), cos_m.predict(Xs[te]))
+                e.setdefault(C, []).append(np.median(np.abs(_wrap(pa - As[te]))))
+            errs = [float(np.mean(e[C])) for C in grid]
             self.C_ = grid[int(np.argmin(errs))]
-            self.cv_errors_deg_ = [math.degrees(e) for e in errs]
+            self.cv_errors_deg_ = [math.degrees(v) for v in errs]
         else:
             self.C_ = grid[0]
-        cos_m, sin_m = self._fit_one(X, Y, self.C_)
+        cos_m, sin_m = self._fit_all([(X, Y[:, i], self.C_) for i in range(2)])
         self.coef_ = np.stack([cos_m.coef_, sin_m.coef_]).astype(np.float32)
         self.intercept_ = np.array([float(np.ravel(cos_m.intercept_)[0]),
                                     float(np.ravel(sin_m.intercept_)[0])], dtype=np.float32)
