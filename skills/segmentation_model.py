@@ -1,6 +1,6 @@
 """The semantic-segmentation forest, asked of the model store and trained on first use.
 
-``load_or_train()`` gives the forest: from memory, from ``segmentation_forest.joblib`` in
+``load_or_train()`` gives the forest: from memory, from ``segmentation.joblib`` in
 ``$HEARTH_MODEL_DIR`` (default ``~/.cache/hearth``), or trained now on rendered random rooms
 (perception/segmentation_training.py, a minute or two on two cores) and stored
 (worldmodel/model_store.py). The rooms are random, not the user's home, so one forest serves
@@ -22,7 +22,7 @@ from perception.segmentation_training import TrainingConfig, class_of_node, grou
 from worldmodel import model_store
 from worldmodel.model_store import ModelInfo, model_dir
 
-MODEL_NAME = "segmentation_forest"
+MODEL_NAME = "segmentation"
 MODEL_FILE = model_store.path_of(MODEL_NAME, directory=Path(".")).name
 
 __all__ = ["MODEL_FILE", "MODEL_NAME", "ModelInfo", "TrainingConfig", "check", "class_of_node",

@@ -1,7 +1,7 @@
 """Trained models on disk, one file per model and home, each with what it was trained from.
 
 The one place where perception's fitted estimators become files (perception/ only gets and
-returns objects). A model is asked for by ``name`` ("knobs", "segmentation_forest"), by the
+returns objects). A model is asked for by ``name`` ("knobs", "segmentation"), by the
 ``world`` it was trained for and by its training ``config``:
 
 - ``world`` is a JSON-able description of what of a home the training depends on (the knob
