@@ -17,11 +17,15 @@ $(STAMP): pyproject.toml constraints.txt scripts/sysdeps.sh
 
 install: $(STAMP)
 
-# The knob reader and the segmentation forest are trained once per machine from renderings of
-# the demo home (a few minutes) and cached in $$HEARTH_MODEL_DIR (default ~/.cache/hearth);
+# The perception models of a home: the knob reader, trained for that home from renderings of
+# its own knobs, and the segmentation forest, trained once and shared by every home; cached in
+# $$HEARTH_MODEL_DIR (default ~/.cache/hearth), one knob model per home. `make models` trains
+# them for the demo home, `make models WORLD=my_home.xml` for yours (README: "Your own home");
 # when they are current this takes a second or two.
+WORLD ?= data/demo_home/world.xml
+
 models: $(STAMP)
-	$(VENV)/bin/hearth train all
+	$(VENV)/bin/hearth train all --world $(WORLD)
 
 demo: models
 	$(VENV)/bin/hearth demo

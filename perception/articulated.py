@@ -30,8 +30,8 @@ import open3d as o3d
 from perception.errors import PerceptionError
 from perception.registration import (
     DepthAgreement, ICPConfig, ICPResult, JointAxis, RegistrationFailed, View, crop_box,
-    observed_view, register_6dof, register_joint, register_planar, render_reference,
-    single_threaded_blas, transform,
+    depth_agreement, observed_view, register_6dof, register_joint, register_planar,
+    render_reference, single_threaded_blas, transform,
 )
 from worldmodel.geometry import handle_visuals, knob_T, knob_visuals, model_visuals, object_meshes, visual_mesh
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part
@@ -167,8 +167,7 @@ def _grid(part: Part, cfg: ArticulatedConfig) -> np.ndarray:
 def coarse_joint_search(samples: tuple[np.ndarray, np.ndarray], joint: JointAxis,
                         values: np.ndarray, depth: np.ndarray, K, T_world_camera: np.ndarray,
                         tau: float = 0.02) -> np.ndarray:
-    """Score of every joint value: the part's front-facing samples that agree with the observed
-    depth minus those the camera sees through."""
+    """Score of every joint value: ``depth_agreement`` of the part's front-facing samples."""
     pts, nrm = samples
     cam = T_world_camera[:3, 3]
     T_cw = np.linalg.inv(T_world_camera)
@@ -176,18 +175,7 @@ def coarse_joint_search(samples: tuple[np.ndarray, np.ndarray], joint: JointAxis
     pw = np.einsum("sij,nj->sni", Ts[:, :3, :3], pts) + Ts[:, None, :3, 3]
     nw = np.einsum("sij,nj->sni", Ts[:, :3, :3], nrm)
     front = np.einsum("sni,sni->sn", nw, cam - pw) > 0
-    pc = pw @ T_cw[:3, :3].T + T_cw[:3, 3]
-    z = pc[..., 2]
-    zs = np.where(z > 0.05, z, 1.0)
-    H, W = depth.shape
-    u = np.rint(K.fx * pc[..., 0] / zs + K.cx).astype(np.int64)
-    v = np.rint(K.fy * pc[..., 1] / zs + K.cy).astype(np.int64)
-    inside = front & (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-    d = depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
-    valid = inside & (d > 0)
-    agree = valid & (np.abs(d - z) < tau)
-    through = valid & (d > z + tau)
-    return agree.sum(axis=1) - through.sum(axis=1)
+    return depth_agreement(pw @ T_cw[:3, :3].T + T_cw[:3, 3], depth, K, tau, mask=front)
 
 
 def _move(correction: np.ndarray, T_world_object: np.ndarray) -> tuple[float, float, float]:

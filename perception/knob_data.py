@@ -31,7 +31,7 @@ from perception.knobs import (
     BORDER, DETECTOR_HOG, PATCH, WINDOW, KnobConfig, KnobPrior, canvas_homography, detect_knob, face_patch,
     knob_priors, rectify, rotate_xy, to_gray,
 )
-from perception.render import Scene
+from perception.render import Rendering, Scene
 
 
 #: A window whose centre is this far (canvas px, a third of a knob radius) from the knob's is
@@ -77,11 +77,14 @@ class KnobView:
 
 
 class KnobScenes:
-    """Meshes of a home, split into what never changes and the knob-bearing objects (rebuilt
-    per view with new knob angles)."""
+    """Meshes of a home for rendering knob views: per knob-bearing object, one ray-casting
+    scene of everything but its knobs (built once, on first use), and the knobs, placed at the
+    angles of each view in a small scene of their own. A view casts its rays into both and
+    keeps the nearer hit, which is the image one scene of everything would give, without
+    rebuilding the whole home's acceleration structure for every new set of knob angles."""
 
     def __init__(self, world):
-        from worldmodel.geometry import object_meshes, scene_meshes
+        from worldmodel.geometry import knob_visuals, object_meshes, scene_meshes, visual_mesh
         self.world = world
         self.priors = {p.knob_id: p for p in knob_priors(world)}
         if not self.priors:
@@ -92,12 +95,92 @@ class KnobScenes:
         self.static = [lm for lm in scene_meshes(world) if lm.owner not in owners]
         self._object_meshes = object_meshes
         self.knobs_of = {o: [k for k in self.priors if self.owner[k] == o] for o in owners}
+        # each knob's visuals in its own frame at angle 0, and that frame in the world
+        self._knob_visuals = {kid: [(visual_mesh(v, world.base_dir), v)
+                                    for v in knob_visuals(world.get(kid))] for kid in self.priors}
+        self._bases: dict[str, Scene] = {}
 
-    def scene(self, owner: str, angles: dict, missing: tuple = ()) -> Scene:
-        obj = self.world.get(owner)
-        meshes = [lm for lm in self._object_meshes(self.world, obj, states=angles)
-                  if lm.node not in missing]
-        return Scene(self.static + meshes)
+    def base(self, owner: str) -> Scene:
+        """Everything of the home but ``owner``'s knobs."""
+        if owner not in self._bases:
+            knobs = set(self.knobs_of[owner])
+            own = [lm for lm in self._object_meshes(self.world, self.world.get(owner))
+                   if lm.node not in knobs]
+            self._bases[owner] = Scene(self.static + own)
+        return self._bases[owner]
+
+    def knob_meshes(self, owner: str, angles: dict, missing: tuple = ()) -> list:
+        """``owner``'s knobs (LabelledMesh, world frame) at ``angles`` (rad, by knob id; a knob
+        not in it at the map's angle), without those in ``missing``."""
+        from worldmodel.geometry import LabelledMesh
+        out = []
+        for kid in self.knobs_of[owner]:
+            if kid in missing:
+                continue
+            a = float(angles.get(kid, self.world.get(kid).angle))
+            c, s = math.cos(a), math.sin(a)
+            turn = np.eye(4)
+            turn[:2, :2] = [[c, -s], [s, c]]
+            T = self.priors[kid].T_world_knob @ turn
+            for mesh, v in self._knob_visuals[kid]:
+                m = type(mesh)(mesh)
+                m.transform(T)
+                out.append(LabelledMesh(kid, owner, m, tuple(v.color), v.material, v.name))
+        return out
+
+    def scene(self, owner: str, angles: dict, missing: tuple = ()) -> "LayeredScene":
+        """The home with ``owner``'s knobs at ``angles`` (and without ``missing``), to render."""
+        knobs = self.knob_meshes(owner, angles, missing)
+        points = (np.concatenate([np.asarray(lm.mesh.vertices) for lm in knobs])
+                  if knobs else np.zeros((0, 3)))
+        return LayeredScene(self.base(owner), Scene(knobs), points)
+
+
+class LayeredScene:
+    """Two ray-casting scenes rendered as one: per pixel the nearer hit. The front one (a few
+    small meshes whose vertices are ``front_points``, world frame) is cast only over the
+    pixels its vertices' bounding box covers."""
+
+    def __init__(self, back: Scene, front: Scene, front_points: Optional[np.ndarray] = None):
+        self.back, self.front, self.front_points = back, front, front_points
+
+    def _front_window(self, K: Intrinsics, T_world_camera: np.ndarray):
+        """(u0, v0, u1, v1) of the image the front meshes can cover, None when none."""
+        if self.front_points is None:
+            return 0, 0, K.width, K.height
+        if len(self.front_points) == 0:
+            return None
+        T = np.linalg.inv(T_world_camera)
+        pc = self.front_points @ T[:3, :3].T + T[:3, 3]
+        if np.any(pc[:, 2] <= 1e-3):
+            return 0, 0, K.width, K.height      # straddles the camera plane: cast everything
+        u = K.fx * pc[:, 0] / pc[:, 2] + K.cx
+        v = K.fy * pc[:, 1] / pc[:, 2] + K.cy
+        u0, v0 = max(int(np.floor(u.min())) - 1, 0), max(int(np.floor(v.min())) - 1, 0)
+        u1, v1 = min(int(np.ceil(u.max())) + 2, K.width), min(int(np.ceil(v.max())) + 2, K.height)
+        return (u0, v0, u1, v1) if u1 > u0 and v1 > v0 else None
+
+    def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
+        a = self.back.render(K, T_world_camera, max_range)
+        win = self._front_window(K, T_world_camera) if self.front.nodes else None
+        if win is None:
+            return a
+        u0, v0, u1, v1 = win
+        b = self.front.render(Intrinsics(K.fx, K.fy, K.cx - u0, K.cy - v0, u1 - u0, v1 - v0),
+                              T_world_camera, max_range)
+        # a's arrays are this render's own: the front's nearer hits go straight into them
+        out = Rendering(depth=a.depth, color=a.color, labels=a.labels,
+                        nodes=a.nodes + b.nodes, owners=a.owners + b.owners,
+                        names=a.names + b.names, materials=a.materials + b.materials,
+                        normals_camera=a.normals_camera, incidence=a.incidence)
+        w = (slice(v0, v1), slice(u0, u1))
+        take = (b.depth > 0) & ((a.depth[w] <= 0) | (b.depth < a.depth[w]))
+        out.depth[w][take] = b.depth[take]
+        out.color[w][take] = b.color[take]
+        out.labels[w][take] = b.labels[take] + len(a.nodes)
+        out.normals_camera[w][take] = b.normals_camera[take]
+        out.incidence[w][take] = b.incidence[take]
+        return out
 
 
 def _perturb(prior: KnobPrior, rng, cfg: KnobDataConfig) -> KnobPrior:
@@ -309,12 +392,15 @@ def scene_negatives(world, n_views: int, seed: int, cfg: KnobConfig = KnobConfig
     radius = float(np.median([p.radius for p in scenes.priors.values()]))
     knob_pts = np.array([p.T_world_face()[:3, 3] for p in scenes.priors.values()])
     owners = sorted(scenes.knobs_of)
+    bounds = {}
     out = []
     tries = 0
     while len(out) < n_views * per_view and tries < n_views * 20:
         tries += 1
         o = objs[int(rng.integers(len(objs)))]
-        b = world.bounds_world(o.id)
+        if o.id not in bounds:
+            bounds[o.id] = world.bounds_world(o.id)
+        b = bounds[o.id]
         target = rng.uniform(b[0], b[1])
         d = rng.uniform(0.5, 2.5)
         a = rng.uniform(-math.pi, math.pi)

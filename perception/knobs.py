@@ -15,10 +15,12 @@ the knob frame's x (right) and y (up) at angle 0.
 
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
 shape (the constructor stores parameters, ``fit`` returns self, learned attributes end in
-``_``, ``predict`` never trains); they take *patches*: (N, P, P) uint8 grey windows with
+``_``, every other method starts with ``check_is_fitted``, ``predict(X)`` never trains and
+answers what the reader uses); their ``X`` is *patches*: (N, P, P) uint8 grey windows with
 ``P = WINDOW + 2 * BORDER`` (the 48x48 window plus a 2-pixel context border so that HOG
-gradients at the window's edge are those of the canvas). Storing them is skills/ work
-(skills/knob_models.py).
+gradients at the window's edge are those of the canvas), or the HOG features of patches.
+Training is perception/knob_training.py; storing the models is worldmodel/model_store.py,
+asked by skills/knob_models.py.
 
 Frames: ``T_world_camera`` maps camera points (OpenCV axes) to the world; a knob's
 ``T_world_knob`` is its frame at angle 0 (``worldmodel.nodes.Knob``: +z out of the panel, the
@@ -37,8 +39,10 @@ import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin, RegressorMixin
 from sklearn.ensemble import RandomForestClassifier
 from sklearn.svm import LinearSVC, LinearSVR
+from sklearn.utils.validation import check_is_fitted
 
 from perception.camera import Intrinsics
+from perception.trained import read_time, trained_fields
 
 WINDOW = 48
 BORDER = 2
@@ -60,18 +64,24 @@ class KnobConfig:
     the detected centre and shifted this far left, right, up and down, and average (0: one
     window), which makes them tolerant of a detection a few pixels off; ``view_aligned``: the
     canvas is turned about the knob's axis so that the direction towards the camera is always
-    canvas-up (``KnobPrior.canvas_frame``)."""
+    canvas-up (``KnobPrior.canvas_frame``). Fields declared ``read_time`` can change without
+    retraining; every other one is part of the stored model's configuration."""
     px_per_radius: float = 16.0
     search_px: int = 18
     scales: tuple[float, ...] = (0.87, 1.0, 1.15)
-    threshold: Optional[float] = None
-    nms_iou: float = 0.3
-    angle_method: str = "fused"
-    fuse_gate_deg: float = 15.0
-    min_confidence: float = 0.3
-    max_off_axis_deg: float = 70.0
-    angle_shifts_px: float = 2.0
+    threshold: Optional[float] = read_time(None)
+    nms_iou: float = read_time(0.3)
+    angle_method: str = read_time("fused")
+    fuse_gate_deg: float = read_time(15.0)
+    min_confidence: float = read_time(0.3)
+    max_off_axis_deg: float = read_time(70.0)
+    angle_shifts_px: float = read_time(2.0)
     view_aligned: bool = True
+
+    def trained_fields(self) -> dict:
+        """The fields the knob models are trained with (the others, declared ``read_time``,
+        change how a trained reader reads and need no retraining)."""
+        return trained_fields(self)
 
 
 # -- the knobs the map knows --------------------------------------------------------------------
@@ -235,45 +245,70 @@ def hog_features(patches: np.ndarray, spec: dict) -> np.ndarray:
                      for p in patches]).astype(np.float32)
 
 
+def hog_length(spec: dict) -> int:
+    """Values per window of a HOG spec."""
+    return int(hog_descriptor(spec).getDescriptorSize())
+
+
+def _features(X, spec: dict) -> np.ndarray:
+    """The estimators' input ``X``: (N, PATCH, PATCH) uint8 patches, or (N, D) HOG features of
+    them already computed with ``spec`` (the reader computes the angle HOG once for both
+    angle models)."""
+    X = np.asarray(X)
+    if X.ndim == 2 and X.shape[1] == hog_length(spec):
+        return X.astype(np.float32, copy=False)
+    if X.ndim != 3 or X.shape[1:] != (PATCH, PATCH):
+        raise ValueError(f"expected (n, {PATCH}, {PATCH}) patches or (n, {hog_length(spec)}) "
+                         f"HOG features, got shape {X.shape}")
+    return hog_features(X, spec)
+
+
 # -- estimators --------------------------------------------------------------------------------------
 
 class KnobDetector(BaseEstimator, ClassifierMixin):
-    """HOG + linear SVM: is a knob centred in this window? ``fit(patches, y)`` with y 1 for a
-    knob centred within a few pixels at about the canonical scale, 0 otherwise."""
+    """HOG + linear SVM: is a knob centred in this window? ``fit(X, y)`` with y 1 for a knob
+    centred within a few pixels at about the canonical scale, 0 otherwise. ``threshold_`` is
+    the score a window needs: the SVM's own boundary (0) after ``fit``, the calibrated one
+    once ``calibrate_threshold`` (perception/knob_data.py) has set it; ``predict`` and the
+    reader both use it."""
 
     def __init__(self, C: float = 0.01, class_weight: str | None = "balanced", random_state: int = 0):
         self.C = C
         self.class_weight = class_weight
         self.random_state = random_state
 
-    def fit(self, patches, y):
-        X = hog_features(patches, DETECTOR_HOG)
+    def fit(self, X, y):
+        F = _features(X, DETECTOR_HOG)
         y = np.asarray(y).astype(int)
         svm = LinearSVC(C=self.C, class_weight=self.class_weight, random_state=self.random_state,
                         max_iter=5000)
-        svm.fit(X, y)
+        svm.fit(F, y)
         self.coef_ = svm.coef_.ravel().astype(np.float32)
         self.intercept_ = float(svm.intercept_[0])
         self.classes_ = np.array([0, 1])
+        self.n_features_in_ = F.shape[1]
+        self.threshold_ = 0.0
         return self
 
-    def decision_function(self, patches) -> np.ndarray:
-        return hog_features(patches, DETECTOR_HOG) @ self.coef_ + self.intercept_
+    def decision_function(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return _features(X, DETECTOR_HOG) @ self.coef_ + self.intercept_
 
     def threshold_for(self, cfg: "KnobConfig") -> float:
-        """The score a window needs: the configured one, else the calibrated ``threshold_``
-        (set by ``calibrate_threshold``), else 0 (the SVM's own boundary)."""
-        if cfg.threshold is not None:
-            return float(cfg.threshold)
-        return float(getattr(self, "threshold_", 0.0))
+        """The score a window needs: the configured one, else ``threshold_``."""
+        check_is_fitted(self)
+        return float(cfg.threshold) if cfg.threshold is not None else float(self.threshold_)
 
-    def predict(self, patches) -> np.ndarray:
-        return (self.decision_function(patches) > 0).astype(int)
+    def predict(self, X) -> np.ndarray:
+        """1 where a window scores over ``threshold_``, else 0."""
+        check_is_fitted(self)
+        return (self.decision_function(X) > self.threshold_).astype(int)
 
     def scan(self, canvas: np.ndarray) -> np.ndarray:
         """SVM scores of every window of a canvas at HOG block stride (6 px): (rows, cols),
         window (i, j) has its top-left corner at (6 j, 6 i). One HOG pass per canvas (the
         block histograms are shared between overlapping windows)."""
+        check_is_fitted(self)
         hog = hog_descriptor(DETECTOR_HOG)
         s = DETECTOR_HOG["stride"][0]
         n = (canvas.shape[0] - WINDOW) // s + 1
@@ -293,9 +328,10 @@ def angle_class(angles) -> np.ndarray:
 
 
 class KnobAngleForest(BaseEstimator, ClassifierMixin):
-    """HOG + random forest over 36 classes of 10 degrees (RAMCIP 5.2.1.4). ``predict`` gives a
-    continuous angle (rad): the probability-weighted circular mean of the winning class and
-    its two neighbours; ``predict_proba`` the (N, 36) class probabilities."""
+    """HOG + random forest over 36 classes of 10 degrees (RAMCIP 5.2.1.4). ``fit(X, angles)``
+    with angles in rad; ``predict(X)`` gives a continuous angle (rad): the probability-weighted
+    circular mean of the winning class and its two neighbours; ``predict_proba(X)`` the
+    (N, 36) class probabilities."""
 
     def __init__(self, n_estimators: int = 100, max_features: str | float = "sqrt",
                  min_samples_leaf: int = 1, random_state: int = 0, n_jobs: int | None = None):
@@ -305,25 +341,30 @@ class KnobAngleForest(BaseEstimator, ClassifierMixin):
         self.random_state = random_state
         self.n_jobs = n_jobs
 
-    def fit(self, patches, angles):
-        X = hog_features(patches, ANGLE_HOG)
+    def fit(self, X, angles):
+        F = _features(X, ANGLE_HOG)
         y = angle_class(angles)
         self.forest_ = RandomForestClassifier(
             n_estimators=self.n_estimators, max_features=self.max_features,
             min_samples_leaf=self.min_samples_leaf, random_state=self.random_state,
-            n_jobs=self.n_jobs).fit(X, y)
+            n_jobs=self.n_jobs).fit(F, y)
+        # reading is one small batch at a time: threads would cost more than they save
+        self.forest_.set_params(n_jobs=None)
         self.classes_ = np.arange(N_CLASSES)
+        self.n_features_in_ = F.shape[1]
         return self
 
-    def predict_proba(self, patches=None, features=None) -> np.ndarray:
-        X = hog_features(patches, ANGLE_HOG) if features is None else features
-        p = self.forest_.predict_proba(X)
-        out = np.zeros((len(X), N_CLASSES))
+    def predict_proba(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        F = _features(X, ANGLE_HOG)
+        p = self.forest_.predict_proba(F)
+        out = np.zeros((len(F), N_CLASSES))
         out[:, self.forest_.classes_] = p
         return out
 
-    def predict(self, patches=None, features=None) -> np.ndarray:
-        return proba_to_angle(self.predict_proba(patches, features))
+    def predict(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return proba_to_angle(self.predict_proba(X))
 
 
 def proba_to_angle(p: np.ndarray) -> np.ndarray:
@@ -336,27 +377,35 @@ def proba_to_angle(p: np.ndarray) -> np.ndarray:
 
 
 class KnobAngleSVR(BaseEstimator, RegressorMixin):
-    """HOG + two linear SVRs regressing cos and sin of the angle; ``predict`` = atan2 (rad).
+    """HOG + two linear SVRs regressing cos and sin of the angle; ``predict(X)`` = atan2 (rad).
     ``C`` is chosen from ``C_grid`` by ``cv``-fold cross-validation in ``fit`` (as RAMCIP did)
-    unless the grid has one value."""
+    unless the grid has one value. ``n_jobs`` threads run the fits of ``fit`` (liblinear
+    releases the GIL; the result does not depend on it)."""
 
     def __init__(self, C_grid: Sequence[float] = (0.03, 0.3), epsilon: float = 0.0,
-                 cv: int = 3, cv_samples: int = 3000, random_state: int = 0):
+                 cv: int = 3, cv_samples: int = 3000, random_state: int = 0,
+                 n_jobs: int | None = None):
         self.C_grid = C_grid
         self.epsilon = epsilon
         self.cv = cv
         self.cv_samples = cv_samples
         self.random_state = random_state
+        self.n_jobs = n_jobs
 
-    def _fit_one(self, X, Y, C):
+    def _fit_one(self, X, y, C):
         # The primal solver (squared epsilon-insensitive loss) is much faster than the dual
         # one when there are more samples than HOG values, as in training.
-        return [LinearSVR(C=C, epsilon=self.epsilon, loss="squared_epsilon_insensitive",
-                          dual=False, random_state=self.random_state, max_iter=2000).fit(X, Y[:, i])
-                for i in range(2)]
+        return LinearSVR(C=C, epsilon=self.epsilon, loss="squared_epsilon_insensitive",
+                         dual=False, random_state=self.random_state, max_iter=2000).fit(X, y)
 
-    def fit(self, patches, angles):
-        X = hog_features(patches, ANGLE_HOG)
+    def _fit_all(self, jobs):
+        """``jobs``: (X, y, C) triples, fitted on ``n_jobs`` threads, in order."""
+        from joblib import Parallel, delayed
+        return Parallel(n_jobs=self.n_jobs, prefer="threads")(
+            delayed(self._fit_one)(X, y, C) for X, y, C in jobs)
+
+    def fit(self, X, angles):
+        X = _features(X, ANGLE_HOG)
         a = np.asarray(angles, dtype=float)
         Y = np.stack([np.cos(a), np.sin(a)], 1)
         grid = list(self.C_grid)
@@ -366,28 +415,30 @@ class KnobAngleSVR(BaseEstimator, RegressorMixin):
             sub = rng.permutation(len(X))[:self.cv_samples]
             Xs, Ys, As = X[sub], Y[sub], a[sub]
             fold = rng.integers(0, self.cv, len(Xs))
-            errs = []
-            for C in grid:
-                e = []
-                for f in range(self.cv):
-                    tr, te = fold != f, fold == f
-                    m = self._fit_one(Xs[tr], Ys[tr], C)
-                    pa = np.arctan2(m[1].predict(Xs[te]), m[0].predict(Xs[te]))
-                    e.append(np.median(np.abs(_wrap(pa - As[te]))))
-                errs.append(float(np.mean(e)))
+            runs = [(C, f) for C in grid for f in range(self.cv)]
+            models = iter(self._fit_all([(Xs[fold != f], Ys[fold != f, i], C)
+                                         for C, f in runs for i in range(2)]))
+            e = {}
+            for C, f in runs:
+                te = fold == f
+                cos_m, sin_m = next(models), next(models)
+                pa = np.arctan2(sin_m.predict(Xs[te]), cos_m.predict(Xs[te]))
+                e.setdefault(C, []).append(np.median(np.abs(_wrap(pa - As[te]))))
+            errs = [float(np.mean(e[C])) for C in grid]
             self.C_ = grid[int(np.argmin(errs))]
-            self.cv_errors_deg_ = [math.degrees(e) for e in errs]
+            self.cv_errors_deg_ = [math.degrees(v) for v in errs]
         else:
             self.C_ = grid[0]
-        cos_m, sin_m = self._fit_one(X, Y, self.C_)
+        cos_m, sin_m = self._fit_all([(X, Y[:, i], self.C_) for i in range(2)])
         self.coef_ = np.stack([cos_m.coef_, sin_m.coef_]).astype(np.float32)
         self.intercept_ = np.array([float(np.ravel(cos_m.intercept_)[0]),
                                     float(np.ravel(sin_m.intercept_)[0])], dtype=np.float32)
+        self.n_features_in_ = X.shape[1]
         return self
 
-    def predict(self, patches=None, features=None) -> np.ndarray:
-        X = hog_features(patches, ANGLE_HOG) if features is None else features
-        cs = X @ self.coef_.T + self.intercept_
+    def predict(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        cs = _features(X, ANGLE_HOG) @ self.coef_.T + self.intercept_
         return np.arctan2(cs[:, 1], cs[:, 0])
 
 
@@ -559,11 +610,11 @@ class KnobReader:
             return readings
         n_views = len(patches) // len(found)
         X = hog_features(np.stack(patches), ANGLE_HOG)
-        proba = self.forest.predict_proba(features=X).reshape(len(found), n_views, N_CLASSES).mean(1)
+        proba = self.forest.predict_proba(X).reshape(len(found), n_views, N_CLASSES).mean(1)
         # the models read angles in the (turned) canvas: add its turn back
         psi = np.array([readings[idx].detection.psi for idx, _ in found])
         a_rf = _wrap(proba_to_angle(proba) + psi)
-        s_svr = self.svr.predict(features=X).reshape(len(found), n_views)
+        s_svr = self.svr.predict(X).reshape(len(found), n_views)
         a_svr = _wrap(np.arctan2(np.sin(s_svr).sum(1), np.cos(s_svr).sum(1)) + psi)
         gate = math.radians(cfg.fuse_gate_deg)
         for n, (idx, prior) in enumerate(found):

@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from perception.camera import Intrinsics, depth_to_points, project
 from perception.errors import PerceptionError
+from perception.registration import associate, converged, planar_delta, planar_point_step
 
 
 #: Materials on which Kinect-class sensors often return no depth (see hearth.robot.noise).
@@ -352,34 +353,31 @@ def planar_icp(scene_xyz: np.ndarray, model: ObjectModel, x: float, y: float, ya
                z: float, view_dir_xy: np.ndarray, iterations: int = 12,
                max_dist: float = 0.03, final_dist: float = 0.008):
     """Fit x, y, yaw of an upright model to scene points (world frame) on a plane at height
-    ``z``. Written here because open3d's ICP solves all six degrees of freedom, and the plane
-    fixes three of them: each step is a 2-D Kabsch on trimmed scene->model correspondences,
-    matching only model points whose normals face the camera (``view_dir_xy``: horizontal
-    direction from the camera to the object). Returns (x, y, yaw, rmse, n_inliers)."""
-    thresholds = np.geomspace(max_dist, final_dist, iterations)
+    ``z``: the plane fixes z, roll and pitch, so this is registration.py's ICP skeleton
+    (associate, solve, converged) with point-to-point residuals in x, y and yaw (x and y only
+    for a rotationally symmetric model), whose step has a closed form (``planar_point_step``),
+    the gate shrinking from ``max_dist`` to ``final_dist`` over the iterations. Scene points
+    are associated with the model points whose normals face the camera (``view_dir_xy``:
+    horizontal direction from the camera to the object). Returns (x, y, yaw, rmse,
+    n_inliers)."""
     rmse, n_in = np.inf, 0
-    for it in range(iterations):
+    for gate in np.geomspace(max_dist, final_dist, iterations):
         R = _rot_z(yaw)
         mp, tree = _front_tree(model, R[:2, :2].T @ view_dir_xy)
         local = (scene_xyz - np.array([x, y, z])) @ R  # world -> object frame (R^T p)
-        d, j = tree.query(local, distance_upper_bound=thresholds[it])
-        ok = np.isfinite(d)
-        n_in = int(ok.sum())
+        i_s, i_m, d = associate(tree, local, gate)
+        n_in = len(i_s)
         if n_in < 6:
             return x, y, yaw, np.inf, 0
-        rmse = float(np.sqrt(np.mean(d[ok] ** 2)))
-        # Solve for the 2-D rigid motion taking model correspondences to scene points.
-        src = (mp[j[ok]] @ R.T)[:, :2] + (x, y)   # model points in the world
-        dst = scene_xyz[ok, :2]
-        cs, cd = src.mean(0), dst.mean(0)
-        H = (src - cs).T @ (dst - cd)
-        a = 0.0 if model.symmetric else math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
-        Rd = _rot_z(a)[:2, :2]
-        t = cd - Rd @ cs
-        p = Rd @ np.array([x, y]) + t
-        step = math.hypot(p[0] - x, p[1] - y)
-        x, y, yaw = float(p[0]), float(p[1]), yaw + a
-        if step < 2e-4 and abs(a) < 2e-3 and thresholds[it] < 2 * final_dist:
+        rmse = float(np.sqrt(np.mean(d ** 2)))
+        # the matched model points in the world, moved onto their scene points
+        step, c = planar_point_step((mp[i_m] @ R.T)[:, :2] + (x, y), scene_xyz[i_s],
+                                    turn=not model.symmetric)
+        o = planar_delta(step, c) @ np.array([x, y, 0.0, 1.0])
+        moved = math.hypot(o[0] - x, o[1] - y)
+        x, y, yaw = float(o[0]), float(o[1]), yaw + float(step[2])
+        # converged: the origin moved under 0.2 mm and the model turned under 0.11 degrees
+        if converged([moved, step[2]], (2e-4, 2e-3)) and gate < 2 * final_dist:
             break
     return x, y, yaw, rmse, n_in
 

@@ -23,6 +23,7 @@ registration with too little overlap raises ``RegistrationFailed`` (a Perception
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Optional
 
@@ -212,26 +213,112 @@ def register_6dof(source: np.ndarray, target: np.ndarray, target_normals: np.nda
     return _check_overlap(out, len(src), cfg, "6-DoF ICP")
 
 
-# -- planar and 1-DoF: small Gauss-Newton solvers over scipy KD-tree correspondences ----------
+# -- the ICP skeleton: associate, linearise, solve, converged ---------------------------------
 #
-# Written by hand because open3d's ICP estimates all six degrees of freedom and cannot be
-# restricted to a subspace (x, y, yaw; or one joint coordinate). Projecting its 6-DoF step
-# afterwards is not the constrained optimum. The solvers below are the textbook linearised
-# point-to-plane step (Low 2004) with only the wanted columns in the Jacobian, iteratively
-# reweighted (Tukey) in the last stage; a few lines of numpy each.
+# The planar and 1-DoF solvers (and objects.planar_icp) are written by hand because open3d's
+# ICP estimates all six degrees of freedom and cannot be restricted to a subspace (x, y, yaw;
+# or one joint coordinate); projecting its 6-DoF step afterwards is not the constrained
+# optimum. Each loop reads like KISS-ICP's ``AlignPointsToMap``: associate the moved points
+# with their nearest neighbours within the stage's gate, linearise the residuals in the
+# variant's parameters (the textbook linearised point-to-plane step, Low 2004, with only the
+# wanted columns in the Jacobian), solve the damped normal equations (iteratively reweighted
+# with a Tukey kernel in the last stage), apply the step, stop when it is small. The pieces
+# below are shared; a variant only brings its parameterisation (Jacobian and update).
 
-def _query(tree: cKDTree, pts: np.ndarray, gate: float):
-    d, j = tree.query(pts, k=1, distance_upper_bound=gate, workers=1)
+def stages(cfg: ICPConfig):
+    """(gate, iterations, robust) per stage, coarse to fine; the kernel in the last only."""
+    last = len(cfg.gates) - 1
+    for stage, (gate, iterations) in enumerate(zip(cfg.gates, cfg.iterations)):
+        yield gate, iterations, stage == last and cfg.robust_scale > 0
+
+
+def associate(tree: cKDTree, points: np.ndarray, gate: float):
+    """Nearest neighbours of ``points`` among the tree's within ``gate``: (indices into
+    ``points``, indices into the tree's points, distances)."""
+    d, j = tree.query(points, k=1, distance_upper_bound=gate, workers=1)
     ok = np.isfinite(d)
-    return np.nonzero(ok)[0], j[ok]
+    return np.nonzero(ok)[0], j[ok], d[ok]
 
 
-def _planar_delta(x, c):
+def point_to_plane(p: np.ndarray, q: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Signed distances of points ``p`` from the planes through ``q`` with unit normals ``n``."""
+    return np.einsum("ij,ij->i", p - q, n)
+
+
+def kernel_weights(r: np.ndarray, robust: bool, scale: float) -> np.ndarray:
+    """Tukey weights of residuals ``r`` at ``scale`` when ``robust``, else ones."""
+    return _tukey_weights(r, scale) if robust else np.ones_like(r)
+
+
+def normal_equations(J: np.ndarray, r: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """H = J^T W J and g = J^T W r of weighted residuals ``r`` (N,) with Jacobian ``J`` (N, k)."""
+    Jw = J * w[:, None]
+    return Jw.T @ J, Jw.T @ r
+
+
+def solve(H: np.ndarray, g: np.ndarray, damping: float = 1e-6) -> Optional[np.ndarray]:
+    """The damped Gauss-Newton step ``-(H + lambda I)^-1 g`` with lambda = ``damping`` tr(H):
+    a direction nothing constrains (along one flat wall) stays put instead of running off.
+    None when H is empty (no correspondence constrains anything)."""
+    tr = float(np.trace(H))
+    if tr < 1e-12:
+        return None
+    return -np.linalg.solve(H + (damping * tr + 1e-12) * np.eye(len(H)), g)
+
+
+def converged(step, tolerance) -> bool:
+    """Whether a step moved less than ``tolerance``: one size against one tolerance, or a
+    size per quantity against a tolerance each (metres, radians), all under."""
+    return bool(np.all(np.abs(np.asarray(step, dtype=float)) < tolerance))
+
+
+# -- planar: x, y and yaw -----------------------------------------------------------------------
+
+def planar_delta(x, c) -> np.ndarray:
+    """The planar move of parameters ``x`` = (dx, dy, dyaw): a turn by dyaw about the vertical
+    through ``c``, then a shift by (dx, dy). 4x4."""
     co, si = np.cos(x[2]), np.sin(x[2])
     D = np.eye(4)
     D[:2, :2] = [[co, -si], [si, co]]
     D[:2, 3] = c[:2] - D[:2, :2] @ c[:2] + x[:2]
     return D
+
+
+def planar_plane_jacobian(n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(N, 3) Jacobian of point-to-plane residuals (normals ``n``) in (x, y, yaw), ``d`` the
+    points' offsets from the centre of rotation: d(p)/d(yaw) = e_z x d."""
+    return np.stack([n[:, 0], n[:, 1], n[:, 1] * d[:, 0] - n[:, 0] * d[:, 1]], axis=1)
+
+
+def planar_point_jacobian(d: np.ndarray) -> np.ndarray:
+    """(2N, 3) Jacobian of point-to-point residuals (the x residuals, then the y ones) in
+    (x, y, yaw), ``d`` as in ``planar_plane_jacobian``."""
+    one, zero = np.ones(len(d)), np.zeros(len(d))
+    return np.concatenate([np.stack([one, zero, -d[:, 1]], axis=1),
+                           np.stack([zero, one, d[:, 0]], axis=1)])
+
+
+def planar_point_step(src: np.ndarray, dst: np.ndarray, turn: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The planar move (dx, dy, dyaw) about ``c``, and ``c``, that best takes points ``src``
+    onto ``dst`` (both (N, 2) or (N, 3), x and y used) in the least-squares sense; without
+    ``turn`` a shift only. Point-to-point residuals in x, y and yaw need no linearisation:
+    the 2-D Kabsch solution is the exact minimiser, and it is what the normal equations of
+    ``planar_point_jacobian`` approach as the step gets small."""
+    c, cd = src[:, :2].mean(axis=0), dst[:, :2].mean(axis=0)
+    H = (src[:, :2] - c).T @ (dst[:, :2] - cd)
+    a = math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1]) if turn else 0.0
+    return np.array([cd[0] - c[0], cd[1] - c[1], a]), np.array([c[0], c[1], 0.0])
+
+
+def _planar_search(T, info, c, radius, scorer, search_range, search_step):
+    """The candidate along the weakest direction of ``info`` (+-``search_range`` m) the
+    scorer likes best."""
+    S = np.diag([1.0, 1.0, radius])       # yaw scaled to metres at the cloud's radius
+    _, evecs = np.linalg.eigh(np.linalg.inv(S) @ info @ np.linalg.inv(S))
+    v = evecs[:, 0]
+    ks = np.arange(-search_range, search_range + 1e-9, search_step)
+    cands = [planar_delta(np.array([k * v[0], k * v[1], k * v[2] / radius]), c) @ T for k in ks]
+    return cands[int(np.argmax(np.asarray(scorer(cands))))]
 
 
 @single_threaded_blas
@@ -258,66 +345,57 @@ def register_planar(source: np.ndarray, target: np.ndarray, target_normals: np.n
     T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
     c = target.mean(axis=0)
     radius = float(np.sqrt(np.mean(np.sum((target[:, :2] - c[:2]) ** 2, axis=1))))
-    total, converged, last = 0, False, len(cfg.gates) - 1
+    total, done = 0, False
     info = np.zeros((3, 3))
-    idx_s = np.zeros(0, dtype=np.int64)
-    for stage, (gate, iters) in enumerate(zip(cfg.gates, cfg.iterations)):
-        robust = stage == last and cfg.robust_scale > 0
-        for _ in range(iters):
+    for stage, (gate, iterations, robust) in enumerate(stages(cfg)):
+        for _ in range(iterations):
             total += 1
             p = transform(T, src)
-            idx_s, idx_t = _query(tree, p, gate)
-            if len(idx_s) < 6:
+            i_s, i_t, _ = associate(tree, p, gate)
+            if len(i_s) < 6:
                 break
-            ps, q, n = p[idx_s], target[idx_t], tn[idx_t]
-            r = np.einsum("ij,ij->i", ps - q, n)
-            d = ps - c
-            # d(p)/d(yaw) = e_z x (p - c)
-            J = np.stack([n[:, 0], n[:, 1], n[:, 1] * d[:, 0] - n[:, 0] * d[:, 1]], axis=1)
-            w = _tukey_weights(r, cfg.robust_scale) if robust else np.ones_like(r)
-            H = (J * w[:, None]).T @ J
-            g = (J * w[:, None]).T @ r
+            ps, q = p[i_s], target[i_t]
+            r = point_to_plane(ps, q, tn[i_t])
+            w = kernel_weights(r, robust, cfg.robust_scale)
+            H, g = normal_equations(planar_plane_jacobian(tn[i_t], ps - c), r, w)
             info = H / max(w.sum(), 1e-9)
             if cfg.point_weight > 0:
+                # point-to-point rows anchor what flat faces leave free (the silhouette)
                 e = ps - q
-                lw = cfg.point_weight * w
-                Jx = np.stack([np.ones_like(r), np.zeros_like(r), -d[:, 1]], axis=1)
-                Jy = np.stack([np.zeros_like(r), np.ones_like(r), d[:, 0]], axis=1)
-                H = H + (Jx * lw[:, None]).T @ Jx + (Jy * lw[:, None]).T @ Jy
-                g = g + (Jx * lw[:, None]).T @ e[:, 0] + (Jy * lw[:, None]).T @ e[:, 1]
-            # A little damping so a direction nothing constrains (one flat wall) stays put.
-            x = -np.linalg.solve(H + (1e-6 * np.trace(H) + 1e-12) * np.eye(3), g)
+                Hp, gp = normal_equations(planar_point_jacobian(ps - c),
+                                          np.concatenate([e[:, 0], e[:, 1]]),
+                                          np.tile(cfg.point_weight * w, 2))
+                H, g = H + Hp, g + gp
+            x = solve(H, g)
+            if x is None:
+                break
             # Trust region: correspondences gated at ``gate`` say nothing about moves much
             # larger than it; a full Gauss-Newton step from a first, mostly wrong matching
             # along a weakly constrained direction jumps into another minimum.
             x *= min(1.0, 0.5 * gate / max(np.hypot(x[0], x[1]) + abs(x[2]) * radius, 1e-12))
-            T = _planar_delta(x, c) @ T
-            if abs(x[0]) + abs(x[1]) + abs(x[2]) < cfg.tolerance:
-                converged = stage == last
+            T = planar_delta(x, c) @ T
+            if converged(np.sum(np.abs(x)), cfg.tolerance):    # metres, yaw at a 1 m lever
+                done = stage == len(cfg.gates) - 1
                 break
         if stage == 0 and scorer is not None and np.any(info):
-            # Param space with yaw scaled to metres at the cloud's radius.
-            S = np.diag([1.0, 1.0, radius])
-            evals, evecs = np.linalg.eigh(np.linalg.inv(S) @ info @ np.linalg.inv(S))
-            v = evecs[:, 0]
-            ks = np.arange(-search_range, search_range + 1e-9, search_step)
-            cands = [_planar_delta(np.array([k * v[0], k * v[1], k * v[2] / radius]), c) @ T
-                     for k in ks]
-            scores = np.asarray(scorer(cands))
-            T = cands[int(np.argmax(scores))]
-    return _finish(T, src, target, tn, tree, cfg, total, converged, info, "planar ICP")
+            T = _planar_search(T, info, c, radius, scorer, search_range, search_step)
+    moved = transform(T, src)
+    i_s, i_t, _ = associate(tree, moved, cfg.gates[-1])
+    r = point_to_plane(moved[i_s], target[i_t], tn[i_t])
+    return _finish(T, moved, len(src), i_s, r, target, cfg, total, done, info, "planar ICP")
 
 
-def _finish(T, src, target, tn, tree, cfg, total, converged, info, what, value=None):
-    p = transform(T, src)
-    idx_s, idx_t = _query(tree, p, cfg.gates[-1])
-    r = np.einsum("ij,ij->i", p[idx_s] - target[idx_t], tn[idx_t]) if len(idx_s) else np.zeros(0)
-    out = ICPResult(T=T, fitness=len(idx_s) / max(len(src), 1),
+def _finish(T, moved, n_source, inliers, r, target, cfg, total, done, info, what, value=None):
+    """The result of a constrained registration after its last step: ``moved`` the source
+    points at ``T``, ``inliers`` those with a correspondence within the final gate and ``r``
+    their point-to-plane residuals."""
+    out = ICPResult(T=T, fitness=len(inliers) / max(n_source, 1),
                     residual=float(np.sqrt(np.mean(r ** 2))) if len(r) else float("inf"),
-                    converged=converged, iterations=total, inliers=idx_s, information=info,
+                    converged=done, iterations=total, inliers=inliers, information=info,
                     value=value,
-                    coverage=_coverage(target, p, 2 * cfg.gates[-1]) if cfg.min_coverage else 1.0)
-    return _check_overlap(out, len(src), cfg, what)
+                    coverage=(_coverage(target, moved, 2 * cfg.gates[-1])
+                              if cfg.min_coverage and target is not None else 1.0))
+    return _check_overlap(out, n_source, cfg, what)
 
 
 @dataclass(frozen=True)
@@ -343,6 +421,18 @@ class JointAxis:
         return self.T_world_joint @ M
 
 
+def joint_jacobian(joint: "JointAxis", p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(N, 1) Jacobian of point-to-plane residuals (points ``p`` on the moving part, their
+    normals ``n``, world frame) in the joint coordinate."""
+    a = joint.T_world_joint[:3, :3] @ (np.asarray(joint.axis, dtype=float)
+                                       / np.linalg.norm(joint.axis))
+    if joint.type == "revolute":
+        dp = np.cross(a, p - joint.T_world_joint[:3, 3])
+    else:
+        dp = np.broadcast_to(a, p.shape)
+    return np.einsum("ij,ij->i", dp, n)[:, None]
+
+
 @single_threaded_blas
 def register_joint(model_points: np.ndarray, model_normals: np.ndarray, observed: np.ndarray,
                    joint: JointAxis, value_init: float, cfg: ICPConfig = ICPConfig(),
@@ -361,52 +451,34 @@ def register_joint(model_points: np.ndarray, model_normals: np.ndarray, observed
     _require(mp, cfg.min_points, "joint ICP model")
     _require(obs, cfg.min_points, "joint ICP observation")
     tree = tree or cKDTree(obs)
-    a_j = np.asarray(joint.axis, dtype=float)
-    a_j = a_j / np.linalg.norm(a_j)
-    a_w = joint.T_world_joint[:3, :3] @ a_j
-    o_w = joint.T_world_joint[:3, 3]
     s = float(np.clip(value_init, joint.lower, joint.upper))
-    total, converged, last, info = 0, False, len(cfg.gates) - 1, np.zeros((1, 1))
-    for stage, (gate, iters) in enumerate(zip(cfg.gates, cfg.iterations)):
-        robust = stage == last and cfg.robust_scale > 0
-        for _ in range(iters):
+    total, done, info = 0, False, np.zeros((1, 1))
+    for stage, (gate, iterations, robust) in enumerate(stages(cfg)):
+        for _ in range(iterations):
             total += 1
             T = joint.T_world_part(s)
-            p = transform(T, mp)
-            n = mn @ T[:3, :3].T
-            idx_m, idx_o = _query(tree, p, gate)
-            if len(idx_m) < 3:
+            p, n = transform(T, mp), mn @ T[:3, :3].T
+            i_m, i_o, _ = associate(tree, p, gate)
+            if len(i_m) < 3:
                 break
-            pm, nm = p[idx_m], n[idx_m]
-            r = np.einsum("ij,ij->i", pm - obs[idx_o], nm)
-            if joint.type == "revolute":
-                dp = np.cross(a_w, pm - o_w)
-            else:
-                dp = np.broadcast_to(a_w, pm.shape)
-            J = np.einsum("ij,ij->i", dp, nm)
-            w = _tukey_weights(r, cfg.robust_scale) if robust else np.ones_like(r)
-            H = float(np.sum(w * J * J))
-            info = np.array([[H / max(w.sum(), 1e-9)]])
-            if H < 1e-12:
+            r = point_to_plane(p[i_m], obs[i_o], n[i_m])
+            w = kernel_weights(r, robust, cfg.robust_scale)
+            H, g = normal_equations(joint_jacobian(joint, p[i_m], n[i_m]), r, w)
+            info = H / max(w.sum(), 1e-9)
+            x = solve(H, g)
+            if x is None:
                 break
-            step = -float(np.sum(w * J * r)) / H
-            new = float(np.clip(s + step, joint.lower, joint.upper))
-            moved = abs(new - s)
-            s = new
-            if moved < cfg.tolerance:
-                converged = stage == last
+            new = float(np.clip(s + x[0], joint.lower, joint.upper))
+            step, s = np.array([new - s]), new
+            if converged(step, cfg.tolerance):
+                done = stage == len(cfg.gates) - 1
                 break
     T = joint.T_world_part(s)
     # Residuals and inliers with the observation as the reference: normals of the model.
-    p = transform(T, mp)
-    n = mn @ T[:3, :3].T
-    idx_m, idx_o = _query(tree, p, cfg.gates[-1])
-    r = np.einsum("ij,ij->i", p[idx_m] - obs[idx_o], n[idx_m]) if len(idx_m) else np.zeros(0)
-    out = ICPResult(T=T, fitness=len(idx_m) / max(len(mp), 1),
-                    residual=float(np.sqrt(np.mean(r ** 2))) if len(r) else float("inf"),
-                    converged=converged, iterations=total, inliers=idx_m, information=info,
-                    value=s)
-    return _check_overlap(out, len(mp), cfg, "joint ICP")
+    p, n = transform(T, mp), mn @ T[:3, :3].T
+    i_m, i_o, _ = associate(tree, p, cfg.gates[-1])
+    r = point_to_plane(p[i_m], obs[i_o], n[i_m])
+    return _finish(T, p, len(mp), i_m, r, None, cfg, total, done, info, "joint ICP", value=s)
 
 
 def planar_params(T: np.ndarray) -> tuple[float, float, float]:
@@ -414,13 +486,33 @@ def planar_params(T: np.ndarray) -> tuple[float, float, float]:
     return float(T[0, 3]), float(T[1, 3]), float(np.arctan2(T[1, 0], T[0, 0]))
 
 
+def depth_agreement(points_camera: np.ndarray, depth: np.ndarray, K, tau: float = 0.02,
+                    mask: Optional[np.ndarray] = None) -> np.ndarray:
+    """How well placements of a model agree with an observed depth image (metres, 0: no
+    reading): ``points_camera`` (M, N, 3) holds M placements of N model points in the camera
+    frame; each scores +1 for a point whose observed depth is within ``tau`` of it and -1 for
+    one the camera sees through (the observed depth is behind it by more than ``tau``); a point
+    hidden behind something nearer, off the image or without a reading scores 0, as does one
+    that ``mask`` (M, N) leaves out (back faces, say). Returns (M,) integer scores."""
+    z = points_camera[..., 2]
+    zs = np.where(z > 0.05, z, 1.0)
+    H, W = depth.shape
+    u = np.rint(K.fx * points_camera[..., 0] / zs + K.cx).astype(np.int64)
+    v = np.rint(K.fy * points_camera[..., 1] / zs + K.cy).astype(np.int64)
+    inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    if mask is not None:
+        inside &= mask
+    d = depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
+    valid = inside & (d > 0)
+    agree = valid & (np.abs(d - z) < tau)
+    through = valid & (d > z + tau)
+    return agree.sum(axis=1) - through.sum(axis=1)
+
+
 class DepthAgreement:
     """Scores candidate corrections ``C`` (``T_target_source``: observed world -> model world)
-    by how well the model, moved by ``C^-1`` into where the observation says it is, agrees with
-    the observed depth image: +1 for a model point whose observed depth is within ``tau``,
-    -1 for one the camera sees through (observed depth behind it by more than ``tau``), 0 for
-    one hidden behind something nearer. Vectorised over candidates; the reference should be
-    small (a few thousand points)."""
+    by ``depth_agreement`` of the model moved by ``C^-1`` into where the observation says it is.
+    Vectorised over candidates; the reference should be small (a few thousand points)."""
 
     def __init__(self, ref_points: np.ndarray, depth: np.ndarray, K, T_world_camera: np.ndarray,
                  tau: float = 0.02, max_points: int = 3000, seed: int = 0):
@@ -432,21 +524,9 @@ class DepthAgreement:
         self.T_camera_world = np.linalg.inv(T_world_camera)
 
     def __call__(self, Cs) -> np.ndarray:
-        Cs = np.asarray(Cs)
-        Cinv = np.linalg.inv(Cs)
-        A = self.T_camera_world[None] @ Cinv                      # (M, 4, 4)
+        A = self.T_camera_world[None] @ np.linalg.inv(np.asarray(Cs))      # (M, 4, 4)
         p = np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
-        K, H, W = self.K, self.depth.shape[0], self.depth.shape[1]
-        z = p[..., 2]
-        zs = np.where(z > 0.05, z, 1.0)
-        u = np.rint(K.fx * p[..., 0] / zs + K.cx).astype(np.int64)
-        v = np.rint(K.fy * p[..., 1] / zs + K.cy).astype(np.int64)
-        inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-        d = self.depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
-        valid = inside & (d > 0)
-        agree = valid & (np.abs(d - z) < self.tau)
-        through = valid & (d > z + self.tau)
-        return agree.sum(axis=1) - through.sum(axis=1)
+        return depth_agreement(p, self.depth, self.K, self.tau)
 
 
 # -- views: the rendered reference and the observed cloud -----------------------------------
@@ -516,6 +596,9 @@ def crop_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, margin: float,
     return m
 
 
-__all__ = ["ICPConfig", "ICPResult", "JointAxis", "RegistrationFailed", "planar_params",
-           "register_6dof", "register_joint", "register_planar", "transform", "voxel_downsample",
-           "to_o3d", "replace", "View", "render_reference", "observed_view", "crop_box"]
+__all__ = ["DepthAgreement", "ICPConfig", "ICPResult", "JointAxis", "RegistrationFailed",
+           "associate", "converged", "crop_box", "depth_agreement", "kernel_weights",
+           "normal_equations", "observed_view", "planar_delta", "planar_params", "planar_point_step",
+           "planar_plane_jacobian", "planar_point_jacobian", "point_to_plane", "register_6dof",
+           "register_joint", "register_planar", "render_reference", "replace", "solve", "stages",
+           "to_o3d", "transform", "View", "voxel_downsample"]

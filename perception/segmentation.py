@@ -33,7 +33,8 @@ for ~1-2 thousand patches ten iterations take a few milliseconds. PyMaxflow's
 alpha-expansion would solve the same energy (Potts is a metric) but adds a compiled
 dependency for no gain at this size.
 
-Pure: arrays in, arrays out. The trained forest is stored by skills/segmentation_model.py.
+Pure: arrays in, arrays out. Training is perception/segmentation_training.py; the forest is
+stored by worldmodel/model_store.py, asked by skills/segmentation_model.py.
 """
 from __future__ import annotations
 
@@ -45,9 +46,11 @@ import numpy as np
 from scipy import ndimage, sparse
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.ensemble import RandomForestClassifier
+from sklearn.utils.validation import check_is_fitted
 
 from perception.camera import Intrinsics
 from perception.errors import PerceptionError
+from perception.trained import read_time, trained_fields
 
 LABELS = ("floor", "wall", "ceiling", "table", "chair", "cabinet", "object", "unknown")
 N_FEATURES = 14
@@ -59,7 +62,9 @@ FEATURE_NAMES = ("pointness", "surfaceness", "linearness", "centroid_height", "m
 @dataclass(frozen=True)
 class SegmentationConfig:
     """Parameters of the over-segmentation and the MRF. Pixel sizes are for 640 pixels width
-    and scale with the image."""
+    and scale with the image. The over-segmentation makes the patches the forest is trained
+    on, so its fields are trained ones (part of the stored model's configuration); the MRF's
+    are declared ``read_time`` and can change without retraining."""
     cell_px: int = 28                 # grid cell edge (pixels)
     smooth_px: int = 7                # depth box filter before normals
     normal_step_px: int = 3           # neighbour offset for normals
@@ -67,12 +72,16 @@ class SegmentationConfig:
     depth_jump_m: float = 0.02        # discontinuity threshold: this + depth_jump_rel * z
     depth_jump_rel: float = 0.03
     min_points: int = 30              # smaller fragments merge into a neighbour
-    unary_weight: float = 1.0         # lambda
-    pair_sigma_m: float = 0.5         # sigma of the Potts term
-    pair_weight: float = 0.6          # scales the Potts term relative to the unary
-    pair_color_sigma: float = 20.0    # CIELAB distance scale of the contrast term (0: off)
-    bp_iterations: int = 12
-    bp_damping: float = 0.5
+    unary_weight: float = read_time(1.0)         # lambda
+    pair_sigma_m: float = read_time(0.5)         # sigma of the Potts term
+    pair_weight: float = read_time(0.6)          # scales the Potts term relative to the unary
+    pair_color_sigma: float = read_time(20.0)    # CIELAB distance scale of the contrast term (0: off)
+    bp_iterations: int = read_time(12)
+    bp_damping: float = read_time(0.5)
+
+    def trained_fields(self) -> dict:
+        """The fields the forest is trained with (see ``perception.trained``)."""
+        return trained_fields(self)
 
 
 @dataclass
@@ -248,7 +257,8 @@ def extract_patches(depth: np.ndarray, color: np.ndarray, K: Intrinsics,
 
 class PatchClassifier(ClassifierMixin, BaseEstimator):
     """Random forest over patch features; ``predict_proba`` has one column per ``LABELS``
-    entry (classes absent from training get probability 0)."""
+    entry (classes absent from training get probability 0). ``n_jobs`` threads fit the
+    forest; predicting (one frame's patches at a time) uses one."""
 
     def __init__(self, n_estimators: int = 40, max_depth: int | None = 18,
                  min_samples_leaf: int = 2, class_weight: str | None = "balanced",
@@ -269,13 +279,13 @@ class PatchClassifier(ClassifierMixin, BaseEstimator):
             n_estimators=self.n_estimators, max_depth=self.max_depth,
             min_samples_leaf=self.min_samples_leaf, class_weight=self.class_weight,
             random_state=self.random_state, n_jobs=self.n_jobs).fit(X, y, sample_weight=sample_weight)
+        self.forest_.set_params(n_jobs=None)
         self.classes_ = np.arange(len(LABELS))
         self.n_features_in_ = N_FEATURES
         return self
 
     def predict_proba(self, X) -> np.ndarray:
-        if not hasattr(self, "forest_"):
-            raise PerceptionError("segmentation classifier is not trained")
+        check_is_fitted(self)
         X = np.asarray(X, dtype=np.float64)
         p = np.zeros((len(X), len(LABELS)))
         if len(X):
@@ -283,6 +293,7 @@ class PatchClassifier(ClassifierMixin, BaseEstimator):
         return p
 
     def predict(self, X) -> np.ndarray:
+        check_is_fitted(self)
         return self.predict_proba(X).argmax(axis=1)
 
 

@@ -4,9 +4,10 @@ ReadKnobs captures one frame through ``robot.capture()`` (``color``, ``intrinsic
 ``T_world_camera``), reads the knobs with perception.knobs in regions projected from the map
 (the registered pose when RegisterLargeObject ran before), and writes each knob it could read
 with ``world.set_knob_state(knob, state, angle, source="ReadKnobs")``; knobs it could not
-find or was unsure of are listed as unknown and left as the map has them. The models come
-from skills/knob_models.py in ``setup`` (loaded, or trained on first use), unless the
-executive passes a ready ``knob_reader`` to ``setup``.
+find or was unsure of are listed as unknown and left as the map has them. The models are the
+ones trained for this home, asked of skills/knob_models.py in ``setup`` (loaded, or trained
+on first use for this home), unless the executive passes a ready ``knob_reader`` to
+``setup``.
 """
 from __future__ import annotations
 
@@ -38,7 +39,8 @@ class ReadKnobs(Skill):
                Port("unknown", "list", required=False))
 
     def setup(self, **kwargs) -> None:
-        """Loads the knob models (trains them on first use: minutes, once per machine)."""
+        """Loads the knob models of this home (trains them on first use: about a minute, once
+        per home)."""
         super().setup(**kwargs)
         self.reader = kwargs.get("knob_reader")
         if self.reader is None and self.world is not None:

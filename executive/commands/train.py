@@ -1,9 +1,13 @@
-"""`hearth train knobs|segmentation|all`: train (or check) the perception models ahead of first use.
+"""`hearth train knobs|segmentation|all --world W`: train (or check) a home's perception models
+ahead of first use.
 
-Prints progress lines on stderr and one summary line on stdout. ``--check`` only says whether
-the stored model is current (exit 1 when it is missing or stale); ``--force`` retrains a
-current one. Models go to ``--model-dir`` (default ``$HEARTH_MODEL_DIR`` or
-``~/.cache/hearth``).
+The knob models are trained for the home in ``--world`` (from renderings of its own knobs) and
+stored under a key of that home, beside the models of other homes; the segmentation forest is
+trained on random rooms and shared by every home. A home without knobs needs no knob models
+(``all`` says so and goes on). Prints progress lines on stderr and one summary line per model
+on stdout. ``--check`` only says whether the stored models are current (exit 1 when one is
+missing or stale); ``--force`` retrains current ones. Models go to ``--model-dir`` (default
+``$HEARTH_MODEL_DIR`` or ``~/.cache/hearth``).
 """
 from __future__ import annotations
 
@@ -18,11 +22,12 @@ MODELS = ("knobs", "segmentation", "all")
 
 
 def register(sub) -> None:
-    p = sub.add_parser("train", help="train perception models (knobs, segmentation)",
-                       description="Train a perception model for a world and store it.")
+    p = sub.add_parser("train", help="train a home's perception models (knobs, segmentation)",
+                       description="Train the perception models for a home and store them "
+                                   "(per home: training another home keeps this one's).")
     p.add_argument("model", choices=MODELS, help="which model")
     p.add_argument("--world", default=str(DEFAULT_WORLD),
-                   help="world file (default: data/demo_home/world.xml)")
+                   help="world file of the home (default: data/demo_home/world.xml)")
     p.add_argument("--model-dir", default=None, help="where models are stored")
     p.add_argument("--force", action="store_true", help="retrain even if the stored model is current")
     p.add_argument("--check", action="store_true", help="only report whether it is current")
@@ -30,12 +35,15 @@ def register(sub) -> None:
     p.set_defaults(func=_run)
 
 
-def _progress():
+def _progress(header: str):
+    """Progress lines on stderr, after ``header`` (printed once training starts)."""
     last = {"stage": None, "t": 0.0}
     t0 = time.perf_counter()
 
     def say(stage: str, done: int, total: int) -> None:
         now = time.perf_counter()
+        if last["stage"] is None:
+            print(header, file=sys.stderr, flush=True)
         if stage != last["stage"] or now - last["t"] > 2.0 or done == total:
             print(f"[{now - t0:6.1f} s] {stage}: {done}/{total}", file=sys.stderr, flush=True)
             last["stage"], last["t"] = stage, now
@@ -43,55 +51,63 @@ def _progress():
 
 
 def _run(args: argparse.Namespace) -> int:
+    from worldmodel.io import load_world
+
+    t0 = time.perf_counter()
+    world = load_world(args.world)
     status = 0
     if args.model in ("knobs", "all"):
-        status = max(status, _knobs(args))
+        status = max(status, _knobs(args, world))
     if args.model in ("segmentation", "all"):
         status = max(status, _segmentation(args))
+    if args.model == "all" and not args.check:
+        print(f"models for {world.apartment.id} ready in {time.perf_counter() - t0:.0f} s")
     return status
+
+
+def _say(what: str, info) -> None:
+    if info.source == "trained":
+        why = f" ({info.reason})" if info.reason else ""
+        print(f"{what} trained in {info.seconds:.0f} s{why} -> {info.path}")
+    else:
+        print(f"{what} current ({info.path})")
 
 
 def _segmentation(args: argparse.Namespace) -> int:
     from skills import segmentation_model as sm
 
-    path = (Path(args.model_dir) if args.model_dir else sm.model_dir()) / sm.MODEL_FILE
-    cfg = sm.TrainingConfig()
+    directory = Path(args.model_dir) if args.model_dir else None
+    cfg = sm.TrainingConfig(frames=8, n_estimators=8) if args.tiny else sm.TrainingConfig()
     if args.check:
-        ok = sm.load(path, cfg, sm.SegmentationConfig()) is not None
-        print(f"segmentation model: {'current' if ok else 'missing or stale'} ({path})")
-        return 0 if ok else 1
-    if args.force and path.exists():
-        path.unlink()
-    if sm.load(path, cfg, sm.SegmentationConfig()) is not None:
-        print(f"segmentation model current ({path})")
-        return 0
-    print("training the segmentation forest on rendered rooms (a few minutes, once)...",
-          file=sys.stderr, flush=True)
-    sm.load_or_train(cfg, path=path, log=lambda m: print(m, file=sys.stderr, flush=True))
-    print(f"segmentation model trained -> {path}")
+        loaded = sm.check(cfg, directory=directory)
+        print(f"segmentation forest: {'current' if loaded.ok else loaded.reason} ({loaded.path})")
+        return 0 if loaded.ok else 1
+    _, info = sm.get(cfg, directory=directory, force=args.force, progress=_progress(
+        "training the segmentation forest on rendered rooms (once, for every home)..."))
+    _say("segmentation forest", info)
     return 0
 
 
-def _knobs(args: argparse.Namespace) -> int:
-    from skills import models_store
-    from skills.knob_models import MODEL_NAME, TrainingConfig, configuration, load_or_train
-    from perception.knobs import KnobConfig
-    from worldmodel.io import load_world
+def _knobs(args: argparse.Namespace, world) -> int:
+    from skills import knob_models as km
 
-    world = load_world(args.world)
+    home = world.apartment.id
     if not world.knobs():
+        if args.model == "all":
+            print(f"{home} has no knobs: no knob models needed")
+            return 0
         print(f"{args.world}: the map has no knobs", file=sys.stderr)
         return 2
     directory = Path(args.model_dir) if args.model_dir else None
-    cfg = TrainingConfig().tiny() if args.tiny else TrainingConfig()
+    cfg = km.TrainingConfig().tiny() if args.tiny else km.TrainingConfig()
     if args.check:
-        loaded = models_store.load(MODEL_NAME, configuration(world, cfg, KnobConfig()), directory)
-        print(f"knob models: {'current' if loaded.ok else loaded.reason} ({loaded.path})")
+        loaded = km.check(world, cfg, directory=directory)
+        print(f"knob models for {home}: {'current' if loaded.ok else loaded.reason} "
+              f"({loaded.path})")
         return 0 if loaded.ok else 1
-    _, info = load_or_train(world, cfg, directory=directory, force=args.force, progress=_progress())
-    if info.source == "trained":
-        why = f" ({info.reason})" if info.reason else ""
-        print(f"knob models trained in {info.seconds:.0f} s{why} -> {info.path}")
-    else:
-        print(f"knob models current ({info.path})")
+    header = (f"training the knob models for {home} ({len(world.knobs())} knobs) from "
+              f"renderings of its knobs...")
+    _, info = km.load_or_train(world, cfg, directory=directory, force=args.force,
+                               progress=_progress(header))
+    _say(f"knob models for {home}", info)
     return 0

@@ -8,8 +8,9 @@ import json
 def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
     import skills.knob_models as km
     from executive.cli import main
+    from worldmodel import model_store
     monkeypatch.setattr(km, "load_or_train", lambda world, *a, **k: (reader, km.ModelInfo(
-        km.models_store.path_of(km.MODEL_NAME), "memory")))
+        model_store.path_of(km.MODEL_NAME, {}), "memory")))
     assert main(["bench", "knobs", "--json", "--scenarios", "40", "--seed", "3"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     for key in ("detection_precision", "detection_recall", "state_accuracy"):

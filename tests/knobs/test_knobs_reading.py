@@ -11,9 +11,11 @@ from sklearn.base import clone
 
 from perception.camera import Intrinsics, look_at
 from perception.knob_data import KnobScenes
-from perception.knobs import KnobAngleForest, KnobDetector, KnobPrior, knob_priors, snap_to_state
-from skills import models_store
+from perception.knobs import (
+    KnobAngleForest, KnobAngleSVR, KnobDetector, KnobPrior, knob_priors, snap_to_state,
+)
 from skills.knob_models import TrainingConfig, load_or_train
+from worldmodel import model_store
 
 K = Intrinsics.kinect()
 
@@ -95,30 +97,53 @@ def test_a_model_trained_with_another_configuration_is_stale(world, reader, mode
     from perception.errors import PerceptionError
     other = TrainingConfig().tiny()
     other = type(other)(**{**other.__dict__, "forest_trees": 31})
-    with pytest.raises(PerceptionError, match="stale"):
+    with pytest.raises(PerceptionError, match="stale: trained with other training.forest_trees"):
         load_or_train(world, other, directory=model_dir, retrain=False)
     # the current one loads from disk without retraining
-    import skills.knob_models as km
-    km._CACHE.clear()
+    model_store.forget()
     _, info = load_or_train(world, TrainingConfig().tiny(), directory=model_dir, retrain=False)
     assert info.source == "disk"
 
 
-def test_model_store_names_what_changed(tmp_path):
-    models_store.save("m", {"a": 1}, {"x": 1, "y": 2}, tmp_path)
-    assert models_store.load("m", {"x": 1, "y": 2}, tmp_path).model == {"a": 1}
-    stale = models_store.load("m", {"x": 1, "y": 3}, tmp_path)
-    assert stale.model is None and stale.reason == "stale: trained with other y"
-    assert models_store.load("n", {}, tmp_path).reason == "missing"
-    (tmp_path / "bad.joblib").write_text("not a model")
-    assert models_store.load("bad", {}, tmp_path).reason.startswith("unreadable")
+def test_changing_a_trained_reader_field_makes_the_model_stale_and_a_read_time_one_does_not(
+        world, reader, model_dir):
+    from perception.errors import PerceptionError
+    from perception.knobs import KnobConfig
+    model_store.forget()
+    with pytest.raises(PerceptionError, match="stale: trained with other reader.px_per_radius"):
+        load_or_train(world, TrainingConfig().tiny(), KnobConfig(px_per_radius=14.0),
+                      directory=model_dir, retrain=False)
+    r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(threshold=0.5, nms_iou=0.4),
+                            directory=model_dir, retrain=False)
+    assert info.source == "disk" and r.config.threshold == 0.5
+
+
+def test_knob_config_fields_are_trained_unless_declared_read_time():
+    from perception.knobs import KnobConfig
+    assert set(KnobConfig().trained_fields()) == {"px_per_radius", "search_px", "scales",
+                                                  "view_aligned"}
+    from dataclasses import dataclass
+    from perception.trained import read_time, trained_fields
+
+    @dataclass(frozen=True)
+    class Later:
+        old: float = 1.0
+        added_later: int = 3              # nobody decided: it invalidates models
+        gain: float = read_time(0.5)
+    assert trained_fields(Later()) == {"old": 1.0, "added_later": 3}
 
 
 def test_estimators_have_the_scikit_learn_shape():
+    from sklearn.exceptions import NotFittedError
     rng = np.random.default_rng(0)
     patches = rng.integers(0, 255, (40, 52, 52)).astype(np.uint8)
+    for est in (KnobDetector(), KnobAngleForest(n_estimators=3), KnobAngleSVR(C_grid=(0.1,))):
+        with pytest.raises(NotFittedError):
+            est.predict(patches)
     det = KnobDetector(C=0.1)
     assert clone(det).get_params()["C"] == 0.1
+    with pytest.raises(NotFittedError):
+        det.scan(np.zeros((84, 84), np.uint8))
     assert det.fit(patches, np.arange(40) % 2) is det and hasattr(det, "coef_")
     before = det.coef_.copy()
     det.predict(patches)
@@ -126,6 +151,26 @@ def test_estimators_have_the_scikit_learn_shape():
     f = KnobAngleForest(n_estimators=3)
     assert f.fit(patches, np.linspace(-3, 3, 40)) is f
     assert f.predict_proba(patches).shape == (40, 36)
+    assert f.predict(patches).shape == (40,)
+    # HOG features computed once give what the patches give
+    from perception.knobs import ANGLE_HOG, hog_features
+    assert np.allclose(f.predict_proba(hog_features(patches, ANGLE_HOG)), f.predict_proba(patches))
+
+
+def test_detector_predict_uses_the_calibrated_threshold(reader):
+    """``predict`` answers what the reader uses: a window is a knob when it scores over
+    ``threshold_`` (calibrated on validation views), not over the SVM's own 0."""
+    det = reader.detector
+    rng = np.random.default_rng(1)
+    patches = rng.integers(0, 255, (200, 52, 52)).astype(np.uint8)
+    score = det.decision_function(patches)
+    assert np.array_equal(det.predict(patches), (score > det.threshold_).astype(int))
+    import copy
+    t = float(np.median(score))
+    shifted = copy.deepcopy(det)
+    shifted.threshold_ = t
+    assert shifted.predict(patches).sum() == int((score > t).sum()) == 100
+    assert det.threshold_for(reader.config) == det.threshold_
 
 
 PRIOR = KnobPrior("k", np.eye(4), 0.02, 0.02, tuple(f"s{i}" for i in range(9)),
@@ -152,7 +197,8 @@ def test_read_time_settings_do_not_make_the_model_stale(world, reader, model_dir
 def test_hearth_train_check_reports_a_missing_model(tmp_path, capsys):
     from executive.cli import main
     assert main(["train", "knobs", "--check", "--model-dir", str(tmp_path)]) == 1
-    assert "missing" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "knob models for demo_home: missing" in out and "knobs-" in out
 
 
 def test_the_canvas_turns_so_that_the_camera_is_up():

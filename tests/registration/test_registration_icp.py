@@ -126,3 +126,63 @@ def test_too_little_overlap_fails_explicitly(clouds):
         register_6dof(far, tgt, tn)
     with pytest.raises(RegistrationFailed, match="only 3 points"):
         register_planar(src[:3], tgt, tn)
+
+
+# -- the shared ICP pieces ------------------------------------------------------------------------
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from perception.registration import (  # noqa: E402
+    DepthAgreement, depth_agreement, normal_equations, planar_delta, planar_plane_jacobian,
+    planar_point_jacobian, planar_point_step, solve,
+)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(-math.pi, math.pi))
+def test_the_planar_point_step_recovers_any_planar_motion(dx, dy, yaw):
+    rng = np.random.default_rng(3)
+    src = rng.uniform(-0.1, 0.1, (40, 3))
+    dst = transform(_planar(dx, dy, yaw), src)
+    step, c = planar_point_step(src, dst)
+    assert np.allclose(transform(planar_delta(step, c), src)[:, :2], dst[:, :2], atol=1e-9)
+
+
+def test_the_damped_solve_leaves_a_direction_nothing_constrains_where_it_is():
+    """Points on one flat wall facing x: the normal equations say nothing about y; the damped
+    step moves x only, and a small motion's Gauss-Newton step is the closed-form one."""
+    rng = np.random.default_rng(0)
+    p = np.c_[np.zeros(200), rng.uniform(-1, 1, 200), rng.uniform(0, 2, 200)]
+    n = np.tile([1.0, 0.0, 0.0], (200, 1))
+    H, g = normal_equations(planar_plane_jacobian(n, p)[:, :2], np.full(200, 0.03), np.ones(200))
+    x = solve(H, g)
+    assert x[0] == pytest.approx(-0.03, abs=1e-6) and abs(x[1]) < 1e-9
+    assert solve(np.zeros((3, 3)), np.zeros(3)) is None
+    src = rng.uniform(-0.1, 0.1, (50, 3))
+    dst = transform(_planar(0.001, -0.002, 0.002), src)
+    c = src.mean(axis=0)
+    e = src - dst
+    H, g = normal_equations(planar_point_jacobian(src - c), np.r_[e[:, 0], e[:, 1]], np.ones(100))
+    closed, _ = planar_point_step(src, dst)
+    assert np.allclose(solve(H, g), closed, atol=1e-5)
+
+
+def test_one_depth_agreement_scores_candidate_corrections_and_placements():
+    """DepthAgreement (candidate corrections of a registration) is depth_agreement (placements
+    of model points, as the coarse joint search uses it) after moving the model."""
+    from perception.camera import Intrinsics
+    K = Intrinsics.kinect(160, 120)
+    depth = np.full((120, 160), 2.0, dtype=np.float32)      # a wall 2 m ahead
+    pts = np.c_[np.random.default_rng(1).uniform(-0.5, 0.5, (300, 2)), np.full(300, 2.0)]
+    on_wall = depth_agreement(pts[None], depth, K)
+    nearer = depth_agreement((pts - [0, 0, 0.5])[None], depth, K)
+    behind = depth_agreement((pts + [0, 0, 0.5])[None], depth, K)
+    assert on_wall[0] == 300
+    assert nearer[0] == -300            # the camera sees the wall through where they would be
+    assert behind[0] == 0               # hidden behind the wall: no evidence either way
+    half = depth_agreement(pts[None], depth, K, mask=(np.arange(300) < 150)[None])
+    assert half[0] == 150
+    scorer = DepthAgreement(pts, depth, K, np.eye(4))
+    toward = np.eye(4)
+    toward[2, 3] = 0.5                  # a correction that puts the model 0.5 m nearer
+    assert list(scorer([np.eye(4), toward])) == [300, -300]

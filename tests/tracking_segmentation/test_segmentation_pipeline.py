@@ -76,8 +76,10 @@ def test_patch_classifier_has_scikit_learn_estimator_shape():
     X[:, 3] += y                               # learnable
     clf = PatchClassifier(n_estimators=5, random_state=0)
     assert clone(clf).get_params() == clf.get_params()
-    with pytest.raises(PerceptionError):
-        clf.predict_proba(X)                   # predict never trains
+    from sklearn.exceptions import NotFittedError
+    for method in (clf.predict_proba, clf.predict):
+        with pytest.raises(NotFittedError):
+            method(X)                          # predict never trains
     assert clf.fit(X, y) is clf
     p = clf.predict_proba(X)
     assert p.shape == (60, len(LABELS))        # a column for every label, seen or not
@@ -119,20 +121,24 @@ def test_trained_pipeline_labels_held_out_rooms(small_forest):
 
 
 def test_model_is_stored_with_its_configuration_and_retrained_when_stale(tmp_path, monkeypatch):
+    """A trained over-segmentation field (cell_px) makes the stored forest stale; an MRF weight
+    (read-time) does not."""
     from perception.segmentation import SegmentationConfig
     from skills import segmentation_model as sm
+    from worldmodel import model_store
     tiny = sm.TrainingConfig(frames=2, n_estimators=3, seed=5)
     calls = []
     real = sm.train
-    monkeypatch.setattr(sm, "train", lambda cfg, seg: calls.append(cfg) or real(cfg, seg))
-    path = tmp_path / "forest.joblib"
-    a = sm.load_or_train(tiny, SegmentationConfig(), path)
-    assert path.exists() and len(calls) == 1
-    sm._CACHE.clear()
-    b = sm.load_or_train(tiny, SegmentationConfig(), path)
-    assert len(calls) == 1 and b.get_params() == a.get_params()
-    assert sm.load(path, tiny, SegmentationConfig(cell_px=12)) is None     # stale
-    sm._CACHE.clear()
-    sm.load_or_train(tiny, SegmentationConfig(cell_px=12), path)
+    monkeypatch.setattr(sm, "train", lambda cfg, seg, progress=None: calls.append(cfg) or real(cfg, seg))
+    a, info = sm.get(tiny, SegmentationConfig(), tmp_path)
+    assert info.source == "trained" and info.path == tmp_path / sm.MODEL_FILE
+    assert info.path.exists() and len(calls) == 1
+    model_store.forget()
+    b, info = sm.get(tiny, SegmentationConfig(pair_weight=0.9, bp_iterations=5), tmp_path)
+    assert info.source == "disk" and len(calls) == 1 and b.get_params() == a.get_params()
+    stale = sm.check(tiny, SegmentationConfig(cell_px=12), tmp_path)
+    assert not stale.ok and stale.reason == "stale: trained with other segmentation.cell_px"
+    sm.get(tiny, SegmentationConfig(cell_px=12), tmp_path)
     assert len(calls) == 2
-    sm._CACHE.clear()
+    model_store.forget()
+    assert list(tmp_path.iterdir()) == [tmp_path / sm.MODEL_FILE]    # no temporary files left
