@@ -168,17 +168,23 @@ class LayeredScene:
         u0, v0, u1, v1 = win
         b = self.front.render(Intrinsics(K.fx, K.fy, K.cx - u0, K.cy - v0, u1 - u0, v1 - v0),
                               T_world_camera, max_range)
-        # a's arrays are this render's own: the front's nearer hits go straight into them
+        # a's arrays are this render's own: the front's nearer hits go straight into them.
+        # Triangle rows: a's, then b's, then the no-hit row of zeros.
+        na, nb = len(a.triangle_normals_camera) - 1, len(b.triangle_normals_camera) - 1
+        tri_a = np.where(a.triangle == na, na + nb, a.triangle)
+        tri_b = np.where(b.triangle == nb, na + nb, b.triangle + na)
         out = Rendering(depth=a.depth, color=a.color, labels=a.labels,
                         nodes=a.nodes + b.nodes, owners=a.owners + b.owners,
                         names=a.names + b.names, materials=a.materials + b.materials,
-                        normals_camera=a.normals_camera, incidence=a.incidence)
+                        incidence=a.incidence, triangle=tri_a,
+                        triangle_normals_camera=np.vstack([a.triangle_normals_camera[:-1],
+                                                           b.triangle_normals_camera]))
         w = (slice(v0, v1), slice(u0, u1))
         take = (b.depth > 0) & ((a.depth[w] <= 0) | (b.depth < a.depth[w]))
         out.depth[w][take] = b.depth[take]
         out.color[w][take] = b.color[take]
         out.labels[w][take] = b.labels[take] + len(a.nodes)
-        out.normals_camera[w][take] = b.normals_camera[take]
+        out.triangle[w][take] = tri_b[take]
         out.incidence[w][take] = b.incidence[take]
         return out
 
