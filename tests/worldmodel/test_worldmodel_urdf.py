@@ -135,7 +135,8 @@ def test_a_per_axis_scale_stretches_the_mesh_and_survives_save_and_load(demo_wor
 
 def test_a_world_file_scale_needs_one_or_three_positive_numbers(demo_world, tmp_path):
     room = demo_world.apartment.rooms[0]
-    room.objects.append(crate("crate", [Visual("mesh", file="box.ply", scale=2.0)]))
+    room.objects.append(crate("crate", [Visual("mesh", file=_unit_box_ply(tmp_path), scale=2.0)]))
+    demo_world.base_dir = tmp_path        # meshes live next to the world file (issue 19)
     save_world(demo_world, tmp_path / "w.xml")
     text = (tmp_path / "w.xml").read_text()
     line = next(i for i, l in enumerate(text.splitlines(), 1) if 'scale="2"' in l)
