@@ -439,7 +439,9 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     local = (P - T_ws[:3, 3]) @ T_ws[:3, :3]
     inside = (np.abs(local[:, 0]) < sx / 2 + config.surface_margin) & \
              (np.abs(local[:, 1]) < sy / 2 + config.surface_margin)
-    above = inside & (h > config.min_height) & (h < config.max_height)
+    # On a shelf, what stands on the shelf above is not on this one: the column ends below it.
+    top = min(config.max_height, _headroom(world, name, T_ws, sx, sy) - config.min_height)
+    above = inside & (h > config.min_height) & (h < top)
     if above.any():
         # What the map's furniture explains is not a small object: a shelf's back and sides,
         # the shelf above, a cupboard's walls.
@@ -492,6 +494,24 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
                                         K, T_cw, color is not None, config))
     hyps = _resolve(hyps)
     return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence)
+
+
+def _headroom(world, surface: str, T_ws: np.ndarray, sx: float, sy: float) -> float:
+    """Metres from a surface up to the next surface of the same furniture above it that
+    overlaps it (a shelf's underside is a few cm lower still, but the furniture's own points
+    are removed anyway); infinity when none."""
+    oid, sid = surface.split("/", 1)
+    node = world.get(oid) if oid in world else None
+    best = math.inf
+    for s in getattr(node, "surfaces", ()):
+        if s.id == sid:
+            continue
+        T = world.T_world(oid) @ s.pose.matrix()
+        dz = T[2, 3] - T_ws[2, 3]
+        c = np.linalg.inv(T_ws) @ T[:, 3]
+        if dz > 0.02 and abs(c[0]) < (sx + s.size_x) / 2 and abs(c[1]) < (sy + s.size_y) / 2:
+            best = min(best, float(dz))
+    return best
 
 
 def _explained_by_furniture(world, object_id: str, points_world: np.ndarray,

@@ -108,7 +108,9 @@ class PlaceSurfaces(Skill):
 
     NAME = "PlaceSurfaces"
     DESCRIPTION = "list the surface levels of a place to look at"
-    INPUTS = (Port("place", "any", description="a search place or a large object id"),
+    INPUTS = (Port("place", "any", required=False, default=None,
+                   description="a search place or a large object id (default: the object's "
+                               "place in the map)"),
               Port("object_id", "node_id", required=False, default=None),
               Port("above", "number", required=False, default=0.05,
                    description="metres above a surface's centre to aim at"))
@@ -118,6 +120,13 @@ class PlaceSurfaces(Skill):
 
     def update(self) -> S:
         place = self.input("place")
+        if place is None:
+            oid = self.input("object_id")
+            parent = self.world.parent(oid) if oid else None
+            if parent is None:
+                self.feedback_message = "PlaceSurfaces: no place given and the object has none"
+                return S.FAILURE
+            place = parent.id
         pid = place_id(place)
         if isinstance(place, dict) and place.get("look_at") is not None:
             levels = [dict(place=pid, surface=None, relation=place.get("relation", "on"),

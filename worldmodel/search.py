@@ -31,10 +31,18 @@ from worldmodel.pose import Pose
 
 @dataclass(frozen=True)
 class SearchWeights:
-    k1: float = 20.0          # metres per unit of probability
+    k1: float = 20.0          # metres per unit of probability (at least; see k1_per_home_m)
     k2: float = 1.5           # metres of penalty for the user's room
     detour: float = 1.3       # path length / straight-line distance
     room_change_m: float = 2.0
+    #: k1 grows with the home: at least this many times the largest path between two places
+    #: (a place across a large flat is worth crossing it for when it is much likelier).
+    k1_per_home_m: float = 1.5
+    #: What looking at a place costs besides driving, in metres of path: a fixed part, each
+    #: surface level looked at, each closed door opened (and closed again).
+    effort_m: float = 1.0
+    effort_per_level_m: float = 0.5
+    effort_per_door_m: float = 1.5
     prior_parent: float = 0.6
     prior_default: float = 0.35
     prior_surface: float = 0.08
@@ -58,6 +66,31 @@ class SearchPlace:
                 "yaw": self.pose.yaw, "cost": round(self.cost, 4),
                 "probability": round(self.probability, 4), "path_m": round(self.path_m, 3),
                 "in_user_room": self.in_user_room, "relation": self.relation}
+
+
+def effort(place: LargeObject, w: SearchWeights) -> float:
+    """What searching a place costs besides the drive, in metres: looking at each of its
+    surface levels, opening (and closing) its closed doors."""
+    doors = sum(1 for p in getattr(place, "parts", ()) if p.type == "door" and p.handles
+                and p.joint.state - p.joint.lower < 0.35)
+    return w.effort_m + w.effort_per_level_m * max(len(place.surfaces), 1) \
+        + w.effort_per_door_m * doors
+
+
+def effective_k1(world, w: SearchWeights) -> float:
+    """``k1`` for this home: the configured one, or ``k1_per_home_m`` times the longest path
+    between two places' default parking positions when that is more (HOBBIT's weight was set
+    for one flat; a larger home needs a larger one for probability to keep its say)."""
+    poses = []
+    for place in candidate_places(world):
+        pp = world.parking_positions(place.id)
+        if pp:
+            poses.append((pp[0][1].x, pp[0][1].y))
+    longest = 0.0
+    for i, a in enumerate(poses):
+        for b in poses[i + 1:]:
+            longest = max(longest, math.hypot(a[0] - b[0], a[1] - b[1]) * w.detour)
+    return max(w.k1, w.k1_per_home_m * longest)
 
 
 def candidate_places(world) -> list[LargeObject]:
@@ -98,6 +131,7 @@ def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[st
         believed_parent = p.id if p is not None else None
     here = room_at(world, robot_pose.x, robot_pose.y)
     robot_room = here.id if here is not None else None
+    k1 = effective_k1(world, weights)
     out = []
     for place in candidate_places(world):
         if place.id in exclude:
@@ -116,7 +150,7 @@ def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[st
         else:
             prob = prior(world, obj, place, weights, believed_parent)
         pen = 1.0 if user_room is not None and room == user_room else 0.0
-        cost = path - weights.k1 * prob + weights.k2 * pen
+        cost = path + effort(place, weights) - k1 * prob + weights.k2 * pen
         relation = place.surfaces[0].relation if place.surfaces else "on"
         out.append(SearchPlace(place.id, best[0].id, best[1], cost, prob, path, pen > 0, relation))
     out.sort(key=lambda s: (s.cost, s.place))
