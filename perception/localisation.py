@@ -50,6 +50,13 @@ class LocalisationConfig:
     margin: float = 0.25
     min_weakest: float = 0.004
     use_walls: bool = False
+    #: A second basin of the coarse grid scoring at least this share of the best one is
+    #: refined too; when it converges elsewhere (``distinct_m``, ``distinct_deg``) and fits
+    #: about as well (``ambiguous_fit``), the view does not tell the two apart: not trusted.
+    second_basin: float = 0.9
+    distinct_m: float = 0.03
+    distinct_deg: float = 1.5
+    ambiguous_fit: float = 0.97
     #: Below this many points of the landmarks' fixed bodies, their doors and drawers (in the
     #: map's states) are registered against too.
     min_body_points: int = 300
@@ -127,13 +134,13 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     t2 = time.perf_counter()
     base = np.asarray(T_world_base, dtype=float)[:3, 3]
     try:
-        res, T0 = _register(bodies if not parts_used else ref, src, depth, K, T_world_camera,
-                            base, cfg)
+        res, T0, alt = _register(bodies if not parts_used else ref, src, depth, K,
+                                 T_world_camera, base, cfg)
     except RegistrationFailed:
         if parts_used:
             raise
         parts_used = True
-        res, T0 = _register(ref, src, depth, K, T_world_camera, base, cfg)
+        res, T0, alt = _register(ref, src, depth, K, T_world_camera, base, cfg)
     t4 = time.perf_counter()
     C = res.T
     T_new = C @ np.asarray(T_world_base, dtype=float)
@@ -141,10 +148,15 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     dx, dy = (T_new[:3, 3] - base)[:2]
     weakest = float(np.linalg.eigvalsh(_scaled(res.information, ref.points))[0]) \
         if res.information is not None else 0.0
-    ok = bool(res.converged or res.residual < 0.004) and weakest >= cfg.min_weakest
+    # A correction beyond what was searched is ICP wandering off, not a fix.
+    inside = math.hypot(dx, dy) <= math.hypot(cfg.max_xy, cfg.max_xy) + 0.03 and \
+        abs(math.degrees(dyaw)) <= cfg.max_yaw_deg + 1.0
+    ok = bool(res.converged or res.residual < 0.004) and weakest >= cfg.min_weakest \
+        and inside and alt is None
     quality = dict(fitness=round(res.fitness, 4), coverage=round(res.coverage, 4),
                    residual_mm=round(res.residual * 1000, 3), converged=res.converged,
                    weakest=round(weakest, 4), landmarks=len(ids), points=len(src),
+                   ambiguous=alt is not None, within_search=inside,
                    parts_used=parts_used)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
@@ -153,16 +165,43 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
 
 def _register(ref, src, depth, K, T_world_camera, base, cfg):
     """Coarse grid about the base (the believed-pose error is a rotation about the robot),
-    then planar ICP from the best cell."""
+    then planar ICP from the best cell; and from the best cell of another basin when that one
+    scores nearly as well (returned second, else None), to tell an ambiguous view."""
     coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
     xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
     yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
     cands = np.stack([planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
-    T0 = cands[int(np.argmax(coarse(cands)))]
+    scores = coarse(cands)
+    order = np.argsort(-scores)
+    T0 = cands[order[0]]
     fine = DepthAgreement(ref.points, depth, K, T_world_camera)
     res = register_planar(src, ref.points, ref.normals, T_init=T0, cfg=cfg.icp, scorer=fine,
                           search_range=0.06, search_step=0.005)
-    return res, T0
+    alt = None
+    for i in order[1:]:
+        if scores[i] < cfg.second_basin * scores[order[0]]:
+            break
+        if not _distinct(cands[i], T0, base, 2 * cfg.grid_xy * 0.99, 2 * cfg.grid_yaw_deg * 0.99):
+            continue      # a neighbour of the best cell: the same basin
+        try:
+            r2 = register_planar(src, ref.points, ref.normals, T_init=cands[i], cfg=cfg.icp,
+                                 scorer=fine, search_range=0.06, search_step=0.005)
+        except RegistrationFailed:
+            break
+        if _distinct(r2.T, res.T, base, cfg.distinct_m, cfg.distinct_deg) and \
+                fine(r2.T[None])[0] >= cfg.ambiguous_fit * fine(res.T[None])[0]:
+            alt = r2
+        break
+    return res, T0, alt
+
+
+def _distinct(A: np.ndarray, B: np.ndarray, base: np.ndarray, metres: float, degrees: float) -> bool:
+    """Whether two corrections move the base to places further apart than ``metres`` or
+    turn it differently by more than ``degrees``."""
+    pa, pb = A[:3, :3] @ base + A[:3, 3], B[:3, :3] @ base + B[:3, 3]
+    dyaw = math.degrees(abs(math.remainder(math.atan2(A[1, 0], A[0, 0])
+                                           - math.atan2(B[1, 0], B[0, 0]), 2 * math.pi)))
+    return float(np.linalg.norm((pa - pb)[:2])) > metres or dyaw > degrees
 
 
 def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
