@@ -57,6 +57,9 @@ class LocalisationConfig:
     distinct_m: float = 0.03
     distinct_deg: float = 1.5
     ambiguous_fit: float = 0.97
+    #: The corrected pose must explain at least this share of what the believed pose explains
+    #: (depth agreement of the landmarks' points).
+    min_improvement: float = 0.98
     #: Below this many points of the landmarks' fixed bodies, their doors and drawers (in the
     #: map's states) are registered against too.
     min_body_points: int = 300
@@ -141,6 +144,21 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
             raise
         parts_used = True
         res, T0, alt = _register(ref, src, depth, K, T_world_camera, base, cfg)
+    used = ref if parts_used else bodies
+    agree = DepthAgreement(used.points, depth, K, T_world_camera)
+    if not parts_used and len(ref) > len(bodies) + cfg.icp.min_points:
+        # Doors and drawers in view: where the fit on the bodies alone explains the view
+        # worse than the believed pose (ICP pulled onto an open door beside a carcass side),
+        # register on everything as the map has it, and keep that when the bodies agree
+        # with it better.
+        s_res, s_none = agree(np.stack([res.T, np.eye(4)]))
+        if s_res < cfg.min_improvement * s_none:
+            try:
+                res2, T02, alt2 = _register(ref, src, depth, K, T_world_camera, base, cfg)
+            except RegistrationFailed:
+                res2 = None
+            if res2 is not None and agree(res2.T[None])[0] > s_res:
+                res, T0, alt, parts_used = res2, T02, alt2, True
     t4 = time.perf_counter()
     C = res.T
     T_new = C @ np.asarray(T_world_base, dtype=float)
@@ -148,15 +166,20 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     dx, dy = (T_new[:3, 3] - base)[:2]
     weakest = float(np.linalg.eigvalsh(_scaled(res.information, ref.points))[0]) \
         if res.information is not None else 0.0
-    # A correction beyond what was searched is ICP wandering off, not a fix.
+    # A correction beyond what was searched is ICP wandering off, not a fix; and a fix must
+    # explain the view better than the believed pose does (ICP can be pulled away by what the
+    # landmarks' fixed bodies do not model: open doors, things on shelves).
     inside = math.hypot(dx, dy) <= math.hypot(cfg.max_xy, cfg.max_xy) + 0.03 and \
         abs(math.degrees(dyaw)) <= cfg.max_yaw_deg + 1.0
+    s_fix, s_believed = agree(np.stack([C, np.eye(4)]))
+    better = float(s_fix) >= cfg.min_improvement * float(s_believed)
     ok = bool(res.converged or res.residual < 0.004) and weakest >= cfg.min_weakest \
-        and inside and alt is None
+        and inside and alt is None and better
     quality = dict(fitness=round(res.fitness, 4), coverage=round(res.coverage, 4),
                    residual_mm=round(res.residual * 1000, 3), converged=res.converged,
                    weakest=round(weakest, 4), landmarks=len(ids), points=len(src),
                    ambiguous=alt is not None, within_search=inside,
+                   agreement=int(s_fix), agreement_believed=int(s_believed),
                    parts_used=parts_used)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
@@ -168,8 +191,11 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
     then planar ICP from the best cell; and from the best cell of another basin when that one
     scores nearly as well (returned second, else None), to tell an ambiguous view."""
     coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
-    xs = np.arange(-cfg.max_xy, cfg.max_xy + 1e-9, cfg.grid_xy)
-    yaws = np.radians(np.arange(-cfg.max_yaw_deg, cfg.max_yaw_deg + 1e-9, cfg.grid_yaw_deg))
+    # Grids centred on no correction (the believed pose itself is a candidate): an odd
+    # number of cells, e.g. yaw -8..8 in steps of 2 rather than -9..9, which misses 0.
+    nx, na = int(cfg.max_xy / cfg.grid_xy + 1e-9), int(cfg.max_yaw_deg / cfg.grid_yaw_deg + 1e-9)
+    xs = cfg.grid_xy * np.arange(-nx, nx + 1)
+    yaws = np.radians(cfg.grid_yaw_deg * np.arange(-na, na + 1))
     cands = np.stack([planar_about(x, y, a, base) for a in yaws for x in xs for y in xs])
     scores = coarse(cands)
     order = np.argsort(-scores)
