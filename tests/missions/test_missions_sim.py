@@ -18,7 +18,7 @@ def test_fetch_finds_the_moved_cup_grasps_it_and_says_where_it_was():
     if moved:   # the sentence names the place the map now has it at
         from worldmodel import load_world
         from hearth import demo_world_path
-        new_parent = moved[-1].rsplit("-> ", 1)[1]
+        new_parent = moved[0].rsplit("-> ", 1)[1]   # where it was found (the last: handed over)
         assert load_world(demo_world_path()).label(new_parent) in r.said[-1]
 
 
