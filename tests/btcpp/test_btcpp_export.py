@@ -111,8 +111,10 @@ def test_literals_keep_their_type():
     root = parse(export_mission(MISSIONS / "fetch_object.yaml"))
     detect = root.find(".//DetectObject[@name='detect_again']")
     assert detect.get("update_map") == "false"
-    loop = root.find(".//ForceSuccess[@name='localise_again']/ForEach")
-    assert loop.get("in") == "json:[0, 1]" and loop.get("until") == "success"
+    loop = root.find(".//ForEach[@name='other_landmarks']")
+    assert loop.get("in") == "json:[0, 1, 2]" and loop.get("until") == "success"
+    again = root.find(".//ForEach[@name='look_again']")
+    assert again.get("in") == "{levels_again}"
 
 
 def test_cli_export_writes_the_file(tmp_path, capsys):

@@ -94,20 +94,24 @@ def test_resolve_unknown_object_says_so(demo_world):
 
 
 def test_plan_search_starts_at_the_believed_place_and_learns(demo_world):
-    s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box"}, outputs={"places": "/places"})
-    assert tick(s) == S.SUCCESS
-    assert bb("/places")[0]["place"] == "bathroom_cabinet"
+    # The robot stands beside the side table, the bathroom is across the flat: a glance at the
+    # table on the way costs less than it is unlikely (HOBBIT's cost with looking effort). Of
+    # the two bathroom places the one the map believes comes first.
+    def order(**inputs):
+        s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box", **inputs},
+                 outputs={"places": "/places"})
+        assert tick(s) == S.SUCCESS
+        return [p["place"] for p in bb("/places")]
+    first = order()
+    assert first.index("bathroom_cabinet") < first.index("bathroom_counter")
     # The pill box keeps turning up on the bathroom counter: the order learns it.
     for _ in range(6):
         demo_world.record_search("pill_box", "bathroom_cabinet", False)
         demo_world.record_search("pill_box", "bathroom_counter", True)
-    s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box"}, outputs={"places": "/places"})
-    tick(s)
-    assert bb("/places")[0]["place"] == "bathroom_counter"
-    fixed = make(PlanSearch, demo_world, inputs={"object_id": "pill_box", "learned": False},
-                 outputs={"places": "/fixed"})
-    tick(fixed)
-    assert bb("/fixed")[0]["place"] == "bathroom_cabinet"
+    learned = order()
+    assert learned[0] == "bathroom_counter"
+    fixed = order(learned=False)
+    assert fixed.index("bathroom_cabinet") < fixed.index("bathroom_counter")
 
 
 def test_record_search_and_update_location_write_the_map(demo_world):
