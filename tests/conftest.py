@@ -26,3 +26,13 @@ def demo_world_path() -> Path:
 def demo_world():
     from worldmodel import load_world
     return load_world(DEMO_WORLD)
+
+
+@pytest.fixture(autouse=True)
+def _state_dir(tmp_path_factory, monkeypatch):
+    """Each test keeps the maps it runs on in a state directory of its own
+    (``$HEARTH_STATE_DIR``; subprocesses inherit it): no test writes into
+    ~/.local/share/hearth, and no test starts from what another one learned."""
+    path = tmp_path_factory.mktemp("state")
+    monkeypatch.setenv("HEARTH_STATE_DIR", str(path))
+    return path
