@@ -254,6 +254,7 @@ class RunPrinter:
         self.t0: float | None = None
         self.tick: int | None = None
         self.pending: list[dict] = []
+        self.feedback: dict[str, str] = {}     # path -> the last feedback it reported
         self.progress = ""
 
     def __call__(self, event: Any) -> None:
@@ -283,6 +284,8 @@ class RunPrinter:
         for i, e in enumerate(events):
             kind, path = e["e"], e.get("path")
             node = self.nodes.get(path) if path else None
+            if kind == "feedback":
+                self.feedback[path] = e["message"]
             if kind == "run":
                 self._line(self._at(e) + f"mission {e['state']}"
                            + (f": {e['reason']}" if e.get("reason") else ""))
@@ -318,17 +321,15 @@ class RunPrinter:
     # -- helpers --------------------------------------------------------------------------
     def _said(self, events: list[dict], i: int, path: str) -> str:
         """The feedback a skill reported with its outcome (the diff reports a node's status,
-        then its feedback), else the last it reported."""
+        then its feedback), else the last it reported (a feedback is reported when it
+        changes)."""
         for e in events[i + 1:]:
             if e.get("path") == path:
                 if e["e"] == "feedback":
                     return self._text(e["message"])
                 if e["e"] == "status":
                     break
-        for e in reversed(events[:i]):
-            if e.get("path") == path and e["e"] == "feedback":
-                return self._text(e["message"])
-        return ""
+        return self._text(self.feedback.get(path, ""))
 
     def _label(self, path: str | None) -> str:
         node = self.nodes.get(path or "")
@@ -338,10 +339,9 @@ class RunPrinter:
         return f"{e.get('t', 0.0) - (self.t0 or 0.0):8.1f}s  "
 
     @staticmethod
-    def _text(message: Any, limit: int = 160) -> str:
-        from executive.replay import readable
-        text = readable(str(message), limit + 2)
-        return text[1:-1] if text.endswith(("'", '"')) else text.strip("'\"")
+    def _text(message: Any) -> str:
+        from executive.replay import readable_text
+        return readable_text(message)
 
     def _line(self, text: str) -> None:
         self._clear_progress()

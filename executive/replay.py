@@ -80,6 +80,12 @@ def readable(value: Any, limit: int = VALUE_CHARS) -> str:
     return text if len(text) <= limit else text[:limit - 3].rstrip(", ") + "..."
 
 
+def readable_text(text: Any, limit: int = VALUE_CHARS) -> str:
+    """A message (a skill's feedback) with its long numbers rounded, cut to ``limit``."""
+    text = _LONG_FLOAT.sub(lambda m: _num(float(m.group())), str(text))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def _num(v: float) -> str:
     if v == 0 or 0.001 <= abs(v) < 1e7:
         text = f"{v:.3f}".rstrip("0").rstrip(".")
@@ -136,7 +142,7 @@ def format_event(e: dict, t0: float = 0.0) -> str:
         extra = " (halted)" if e.get("halted") else ""
         return head + f"status  {path} {e['previous']} -> {e['status']}{extra}"
     if kind == "feedback":
-        return head + f"feedbk  {path}: {e['message']}"
+        return head + f"feedbk  {path}: {readable_text(e['message'])}"
     if kind == "write":
         return head + f"write   {{{e['key']}}} = {readable(e['value'])}  by {path}"
     if kind == "param":

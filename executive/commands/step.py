@@ -67,6 +67,15 @@ class Stepper:
                 self.blackboard = tree.blackboard()
         return done
 
+    def run_to_end(self) -> None:
+        """Tick until the mission ends (at the tick rate on a wall clock), keeping the
+        blackboard to look at afterwards."""
+        wall = not getattr(self.ex.clock, "simulated", False)
+        while not self.handle.done:
+            self.tick()
+            if wall and not self.handle.done:
+                self.ex.clock.sleep(self.ex.period)
+
     def until(self, name: str, limit: int = 100_000) -> bool:
         targets = [n.path for n in self.handle.mission.nodes()
                    if n.path == name or n.name == name or n.path.endswith("/" + name)]
@@ -160,7 +169,7 @@ def _step(args, mission, params, ex) -> int:
         elif cmd == "u" and arg:
             st.until(arg.strip())
         elif cmd == "c":
-            ex.run_until_idle()
+            st.run_to_end()
         elif cmd == "s":
             print(set_parameter(ex, mission, arg))
         else:
