@@ -176,3 +176,33 @@ def test_step_sets_a_runtime_parameter_and_stays_open_after_the_end(fake_robot, 
     assert "the mission has ended (succeeded)" in after        # "t" after the end
     assert "$presence            = 'away'" in after           # the blackboard, still there
     assert "watch follow_presence" in after                   # and the tree
+
+
+def test_serve_on_an_ipv6_address_prints_a_bracketed_url(tmp_path):
+    import signal
+    import socket
+    try:
+        socket.socket(socket.AF_INET6).bind(("::1", 0))
+    except OSError:
+        pytest.skip("no IPv6 loopback here")
+    proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--host", "::1",
+                             "--port", "0", "--no-save", "--runs-dir", str(tmp_path)],
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        line = next(line for line in proc.stderr if "http" in line)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+        proc.stderr.close()
+    assert re.search(r"http://\[::1\]:\d+/ \(API docs at /docs\)$", line.strip()), line
+
+
+def test_bench_turns_on_per_case_progress_where_a_benchmark_has_it(monkeypatch, capsys):
+    from hearth.benchmarks import missions
+    seen = []
+    monkeypatch.setattr(missions, "run", lambda args: seen.append(args.verbose) or {"ok": 1})
+    assert main(["bench", "missions", "--json"]) == 0
+    assert main(["bench", "missions", "--json", "--no-progress"]) == 0
+    assert seen == [True, False]
+    err = capsys.readouterr().err
+    assert err.count("hearth bench: missions running...") == 1

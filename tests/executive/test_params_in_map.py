@@ -200,3 +200,10 @@ def test_bounds_and_kinds_survive_a_round_trip_through_behaviortree_cpp(tmp_path
     xml.write_text(export_mission(MISSIONS / "fetch_object.yaml"))
     places = import_tree(xml)[1].parameters["max_places"]
     assert (places.minimum, places.maximum) == (1, 100)
+
+
+def test_a_command_the_map_refutes_is_refused_with_the_same_sentence(api):
+    r = api.post("/api/commands", json={"text": "turn off the fridge"})
+    assert r.status_code == 422, r.text
+    assert r.json()["error"]["message"] == "parameter oven: fridge holds no Knob; try one of: oven"
+    assert api.get("/api/runs").json() == []
