@@ -206,3 +206,31 @@ def test_bench_turns_on_per_case_progress_where_a_benchmark_has_it(monkeypatch, 
     assert seen == [True, False]
     err = capsys.readouterr().err
     assert err.count("hearth bench: missions running...") == 1
+
+
+def test_on_a_terminal_one_progress_line_rewrites_itself(tmp_path):
+    import os
+    import pty
+    leader, follower = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "executive", "run", "missions/go_to_rest.yaml",
+                             "--no-save", "--runs-dir", str(tmp_path)],
+                            stdout=follower, stderr=follower, close_fds=True)
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            data = os.read(leader, 65536)
+        except OSError:          # the child has closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(leader)
+    assert proc.wait(timeout=120) == 0
+    text = b"".join(chunks).decode()
+    rewrites = text.count("\r\x1b[K")
+    assert rewrites > 10                               # progress updated in place
+    assert re.search(r"\r\x1b\[K +[\d.]+s  \.\.\.  NavigateTo drive_near_user: navigating to "
+                     r"side_table: \d+%", text)
+    shown = [line for line in text.replace("\r\n", "\n").split("\n") if "\r" not in line]
+    assert shown[-2].startswith("go_to_rest: succeeded (completed)") and "%" not in shown[-2]
