@@ -135,7 +135,7 @@ def add_map_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
     ``saves=False`` (hearth record): the map is kept only where --map-out says."""
     if not saves:
         p.add_argument("--map-out", default=None, metavar="PATH",
-                       help="also keep the belief map in PATH, saved after every change (read "
+                       help="keep the belief map in PATH, saved after every change (read "
                             "from PATH when it exists); by default a recording's map is left "
                             "as it was, so that replaying it starts from the same map")
         return

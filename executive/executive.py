@@ -142,8 +142,9 @@ class Executive:
         """Queue a mission (a path or a loaded Mission) with parameter values.
 
         Raises MissionValidationError / MissionError(param=) at once for a bad mission or
-        parameter (a parameter declaring ``kinds`` is checked against the map). A higher ``priority`` preempts the running mission; equal priorities
-        queue (or preempt, see ``equal_priority``)."""
+        parameter (a parameter declaring ``kinds`` is checked against the map). A higher
+        ``priority`` preempts the running mission; equal priorities queue (or preempt, see
+        ``equal_priority``)."""
         mission = self.load(mission)
         self._check_autonomy(mission)
         params = mission.resolve_in_map(params, self.world)   # node kinds, words; reads the map
