@@ -46,6 +46,8 @@ from executive.missionfile import (IDENT, BBKey, Lit, LineDict, LineList, Missio
 
 _KEY = re.compile(r"^\{(" + IDENT + r")\}$")
 _PARAM = re.compile(r"^\$(" + IDENT + r")$")
+#: Mission parameter keys carried on a SubTree model's ports as JSON attributes.
+_CHECKS = ("minimum", "maximum", "kinds", "having", "sentinels", "pick_only")
 _IDENT = re.compile(r"^" + IDENT + r"$")
 # Operands of a condition, skipping quoted literals: {key} and $param are rewritten.
 _EXPR_TOKEN = re.compile(r"'[^']*'|\"[^\"]*\"|\{(" + IDENT + r")\}|\$(" + IDENT + r")")
@@ -328,6 +330,9 @@ class _Exporter:
                 port.set("enum", json.dumps(plain(spec["enum"]), ensure_ascii=False))
             if spec.get("items"):
                 port.set("items", str(spec["items"]))
+            for attr in _CHECKS:            # what submit checks against the map, and bounds
+                if spec.get(attr) is not None:
+                    port.set(attr, json.dumps(plain(spec[attr]), ensure_ascii=False))
             if spec.get("description"):
                 port.text = str(spec["description"])
         meta = {}
@@ -894,6 +899,12 @@ class _Importer:
                 spec["enum"] = json.loads(port.get("enum"))
             except json.JSONDecodeError:
                 self.error(f"port {name}: enum is not a JSON list", port.sourceline)
+        for attr in _CHECKS:
+            if port.get(attr) is not None:
+                try:
+                    spec[attr] = json.loads(port.get(attr))
+                except json.JSONDecodeError:
+                    self.error(f"port {name}: {attr} is not JSON", port.sourceline)
         text = (port.text or "").strip() or port.get("description")
         if text:
             spec["description"] = text

@@ -21,10 +21,12 @@ USER_ERRORS = (HearthError,)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from hearth import __version__
     parser = argparse.ArgumentParser(
         prog="hearth",
         description="Hearth: YAML missions as behaviour trees for home service robots.",
     )
+    parser.add_argument("--version", action="version", version=f"hearth {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(_commands.__path__), key=lambda m: m.name):
         module = importlib.import_module(f"executive.commands.{info.name}")
@@ -51,6 +53,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of stdout has gone (`hearth log show RUN | head`): stop quietly, as a
+        # command killed by SIGPIPE would (status 128 + 13).
+        from executive.cliutil import drop_stdout
+        drop_stdout()
+        return 141
     return int(status or 0)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -38,13 +39,14 @@ def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
 
 def mission_file(text: str) -> str:
     """A mission argument as given, or, when no such file is here, the shipped mission it
-    names (``missions/go_to_rest.yaml`` or ``go_to_rest.yaml``): an installed Hearth runs its
-    own missions from any directory."""
+    names (``missions/go_to_rest.yaml``, ``go_to_rest.yaml`` or ``go_to_rest``): an installed
+    Hearth runs its own missions from any directory."""
     path = Path(text)
     if path.exists() or path.is_absolute():
         return text
     shipped = missions_dir()
-    for candidate in (shipped.parent / path, shipped / path):
+    named = [shipped / f"{text}.yaml"] if text and not path.suffix and "/" not in text else []
+    for candidate in (shipped.parent / path, shipped / path, *named):
         if candidate.is_file():
             return str(candidate)
     return text
@@ -104,14 +106,18 @@ def output_dir(text: str) -> str:
     return text
 
 
-def add_run_arguments(p: argparse.ArgumentParser) -> None:
+def add_run_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
+    """The options of a command that runs a mission (run, step, record); ``saves``: whether
+    it keeps the belief map on disk by default (add_map_arguments)."""
+    p.set_defaults(saves_map=saves)
     p.add_argument("mission", type=mission_file,
                    help="mission file (YAML); one not found here is looked up among the shipped "
                         "missions (missions/NAME.yaml)")
     p.add_argument("--param", action="append", metavar="NAME=VALUE", default=[],
                    help="mission parameter (repeatable)")
     p.add_argument("--world", default=str(DEFAULT_WORLD),
-                   help="world file (default: data/demo_home/world.xml)")
+                   help="world file: the belief map (default: the shipped demo home, "
+                        "data/demo_home/world.xml)")
     p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
     p.add_argument("--recording", default=None, metavar="PATH",
                    help="recording to replay instead of simulating: a Hearth recording "
@@ -121,16 +127,85 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
     p.add_argument("--wall-clock", action="store_true",
                    help="run in real time (default: simulated time, as fast as possible)")
+    add_map_arguments(p, saves=saves)
 
 
-def make_world_and_robot(args: argparse.Namespace, clock: Any) -> tuple[Any, Any]:
-    """Load the world (worldmodel.io.load_world) and make the robot adapter
-    (robot.create_adapter); one clear MissionError line if either is not available."""
+def add_map_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
+    """``--map-out PATH`` and ``--no-save``: where the belief map is kept (executive/mapstore.py).
+    ``saves=False`` (hearth record): the map is kept only where --map-out says."""
+    if not saves:
+        p.add_argument("--map-out", default=None, metavar="PATH",
+                       help="keep the belief map in PATH, saved after every change (read "
+                            "from PATH when it exists); by default a recording's map is left "
+                            "as it was, so that replaying it starts from the same map")
+        return
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--map-out", default=None, metavar="PATH",
+                   help="keep the belief map in PATH instead of the world file: read from PATH "
+                        "when it exists (else from --world), saved after every change")
+    g.add_argument("--no-save", action="store_true",
+                   help="leave the map on disk as it is (by default what the mission learns is "
+                        "saved: into the world file, or for the shipped demo home into a copy "
+                        "in $HEARTH_STATE_DIR, default ~/.local/share/hearth)")
+
+
+def keeps_map(args: argparse.Namespace) -> bool:
+    """Whether this command keeps the belief map on disk. A replay (``--recording``) and
+    ``hearth record`` do only with --map-out: a recording is replayed from the map it was
+    made on, so writing what it learned into that map would make the next replay differ."""
+    if getattr(args, "no_save", False):
+        return False
+    if getattr(args, "map_out", None):
+        return True
+    return getattr(args, "saves_map", True) and not getattr(args, "recording", None)
+
+
+def belief_file(args: argparse.Namespace) -> Any:
+    """The file the belief map is read from (and kept in, see :func:`keeps_map`)."""
+    if not keeps_map(args):
+        return args.world
+    from executive.mapstore import map_path
+    try:
+        return map_path(args.world, getattr(args, "map_out", None))
+    except FileNotFoundError:
+        raise
+    except OSError as err:
+        where = err.filename or getattr(args, "map_out", None) or args.world
+        raise MissionError(f"{where}: cannot keep the map there: {err.strerror or err}") from None
+
+
+def keep_map(args: argparse.Namespace, world: Any, path: Any) -> Any:
+    """A MapKeeper saving ``world`` to ``path`` after every change, or None (not kept)."""
+    if not keeps_map(args):
+        return None
+    from executive.mapstore import MapKeeper
+    return MapKeeper(world, path)
+
+
+def close_map(keeper: Any, quiet: bool = False) -> None:
+    """Write what is pending and say where the map is (a failed save: always, on stderr)."""
+    if keeper is None:
+        return
+    keeper.close()
+    if keeper.error:
+        print(f"hearth: {keeper.error}", file=sys.stderr)
+    elif not quiet and keeper.saves:
+        print(f"map saved to {keeper.path}")
+
+
+def make_world_and_robot(args: argparse.Namespace, clock: Any, path: Any = None,
+                         check: Callable[[Any], None] | None = None) -> tuple[Any, Any]:
+    """Load the belief map from ``path`` (default: ``args.world``), call ``check(world)``
+    (before the robot adapter exists: parameters refuted by the map fail fast), and make the
+    robot adapter (robot.create_adapter); one clear MissionError line if either is not
+    available."""
     try:
         from worldmodel.io import load_world
     except ImportError as err:
         raise MissionError(f"cannot load worlds: worldmodel.io is not available ({err})") from None
-    world = load_world(args.world, clock=clock)
+    world = load_world(path if path is not None else args.world, clock=clock)
+    if check is not None:
+        check(world)
     try:
         from hearth import robot
         create_adapter = robot.create_adapter
@@ -147,36 +222,201 @@ def make_clock(args: argparse.Namespace) -> Any:
     return WallClock() if getattr(args, "wall_clock", False) else SimClock()
 
 
-def run_to_end(ex: Any, mission: Mission, params: dict[str, Any], quiet: bool = False) -> Any:
-    """Submit ``mission`` to a non-background Executive, print its progress unless ``quiet``,
-    tick it to the end (Ctrl-C cancels it and lets the robot stop) and return its result."""
-    from executive.replay import format_event
-
-    if not quiet:
-        ex.subscribe(lambda e: print(format_event(e.to_json()))
-                     if e.kind in ("run", "feedback", "write", "param", "restart") else None)
-    handle = ex.submit(mission, **params)
+def drop_stdout() -> None:
+    """Whoever read stdout has gone (``hearth log show ... | head``): what is still to be
+    printed goes to /dev/null, so neither a later print nor Python's final flush raises."""
     try:
-        ex.run_until_idle()
-    except KeyboardInterrupt:
-        handle.cancel("interrupted")
-        ex.run_until_idle(100_000)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):   # not a real file (a test's capture)
+        pass
+
+
+class RunPrinter:
+    """What `hearth run` prints while a mission runs (an Executive subscriber).
+
+    Concise (the default): the mission's own events (started, halting, how it ended,
+    parameter changes, restarts) and each skill's outcome once, with what it said, one line
+    each; on a terminal, one progress line (the running skill's latest feedback) rewrites
+    itself in place. ``verbose``: every event, in the order it happened within its tick
+    (executive.replay.in_tick_order). Times are clock seconds since the run started; values
+    are cut to a readable length (the execution log keeps everything)."""
+
+    def __init__(self, mission: Mission, verbose: bool = False, out: Any = None):
+        import shutil
+        self.out = out if out is not None else sys.stdout
+        self.verbose = verbose
+        isatty = getattr(self.out, "isatty", None)
+        self.tty = bool(isatty and isatty())
+        self.width = max(40, shutil.get_terminal_size((100, 24)).columns - 1)
+        self.nodes = {n.path: n for n in mission.nodes()}
+        self.t0: float | None = None
+        self.tick: int | None = None
+        self.pending: list[dict] = []
+        self.feedback: dict[str, str] = {}     # path -> the last feedback it reported
+        self.progress = ""
+
+    def __call__(self, event: Any) -> None:
+        e = event.to_json()
+        if e["e"] == "tick":
+            return
+        if self.t0 is None:
+            self.t0 = e.get("t", 0.0)
+        if e.get("tick") != self.tick:
+            self.flush()
+            self.tick = e.get("tick")
+        self.pending.append(e)
+        if e["e"] == "run" and e.get("state") not in ("running", "halting"):
+            self.flush()
+
+    def flush(self) -> None:
+        """Print the events of the tick seen so far."""
+        events, self.pending = self.pending, []
+        if not events:
+            return
+        if self.verbose:
+            from executive.replay import format_event, in_tick_order
+            for e in in_tick_order(events):
+                self._line(format_event(e, self.t0 or 0.0))
+            return
+        progress = None
+        for i, e in enumerate(events):
+            kind, path = e["e"], e.get("path")
+            node = self.nodes.get(path) if path else None
+            if kind == "feedback":
+                self.feedback[path] = e["message"]
+            if kind == "run":
+                self._line(self._at(e) + f"mission {e['state']}"
+                           + (f": {e['reason']}" if e.get("reason") else ""))
+                progress = None
+            elif kind == "param":
+                from executive.replay import readable
+                self._line(self._at(e) + f"parameter {e['name']} = {readable(e['value'])}")
+            elif kind == "restart":
+                changed = ", ".join(f"{k} {o} -> {n}" for k, (o, n) in (e.get("changed") or {}).items())
+                self._line(self._at(e) + f"restarting {self._label(path)} ({changed})")
+            elif kind == "status" and node is not None and node.kind == "skill":
+                if e["status"] in ("SUCCESS", "FAILURE") and not e.get("halted"):
+                    said = self._said(events, i, path)
+                    mark = "ok  " if e["status"] == "SUCCESS" else "FAIL"
+                    self._line(self._at(e) + f"{mark} {self._label(path)}"
+                               + (f": {said}" if said else ""))
+                    if progress is not None and progress.get("path") == path:
+                        progress = None
+                elif e.get("halted") and e.get("previous") == "RUNNING":
+                    self._line(self._at(e) + f"halt {self._label(path)}")
+            elif kind == "status" and e.get("status") == "RUNNING":
+                pass
+            elif kind == "feedback" and node is not None and node.kind == "skill":
+                progress = e
+        if progress is not None and self.tty:
+            self._show_progress(self._at(progress) + f"...  {self._label(progress['path'])}: "
+                                + self._text(progress["message"]))
+
+    def close(self) -> None:
+        self.flush()
+        self._clear_progress()
+
+    # -- helpers --------------------------------------------------------------------------
+    def _said(self, events: list[dict], i: int, path: str) -> str:
+        """The feedback a skill reported with its outcome (the diff reports a node's status,
+        then its feedback), else the last it reported (a feedback is reported when it
+        changes)."""
+        for e in events[i + 1:]:
+            if e.get("path") == path:
+                if e["e"] == "feedback":
+                    return self._text(e["message"])
+                if e["e"] == "status":
+                    break
+        return self._text(self.feedback.get(path, ""))
+
+    def _label(self, path: str | None) -> str:
+        node = self.nodes.get(path or "")
+        return node.label if node is not None else (path or "").rsplit("/", 1)[-1]
+
+    def _at(self, e: dict) -> str:
+        return f"{e.get('t', 0.0) - (self.t0 or 0.0):8.1f}s  "
+
+    @staticmethod
+    def _text(message: Any) -> str:
+        from executive.replay import readable_text
+        return readable_text(message)
+
+    def _line(self, text: str) -> None:
+        self._clear_progress()
+        self._write(text + "\n")
+
+    def _show_progress(self, text: str) -> None:
+        self._write("\r\x1b[K" + text[:self.width])
+        self.progress = text
+
+    def _clear_progress(self) -> None:
+        if self.progress:
+            self._write("\r\x1b[K")
+            self.progress = ""
+
+    def _write(self, text: str) -> None:
+        if self.out is None:
+            return
+        try:
+            self.out.write(text)
+            if self.tty:
+                self.out.flush()
+        except BrokenPipeError:     # `hearth run ... | head`: the mission goes on, unprinted
+            self.out = None
+            drop_stdout()
+
+
+def outcome_line(mission: Mission, result: Any) -> str:
+    """The last line of `hearth run`: how the mission ended, in how long, and its log."""
+    line = (f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
+            f"{result.duration:.2f} s")
+    return line + (f"; log {result.log_path}" if result.log_path else "")
+
+
+def run_to_end(ex: Any, mission: Mission, params: dict[str, Any], quiet: bool = False,
+               verbose: bool = False) -> Any:
+    """Submit ``mission`` to a non-background Executive, print its progress unless ``quiet``
+    (:class:`RunPrinter`), tick it to the end (Ctrl-C cancels it and lets the robot stop) and
+    return its result."""
+    printer = None if quiet else RunPrinter(mission, verbose=verbose)
+    unsubscribe = ex.subscribe(printer) if printer is not None else None
+    try:
+        handle = ex.submit(mission, **params)
+        try:
+            ex.run_until_idle()
+        except KeyboardInterrupt:
+            handle.cancel("interrupted")
+            ex.run_until_idle(100_000)
+    finally:
+        if printer is not None:
+            unsubscribe()
+            printer.close()
     return handle.result
 
 
-def make_executive(args: argparse.Namespace) -> tuple[Mission, dict[str, Any], Any]:
-    """The mission, its typed parameters and a non-background Executive on the world and
-    robot named by ``add_run_arguments`` options (what `hearth run` and `hearth step` share)."""
+def make_executive(args: argparse.Namespace) -> tuple[Mission, dict[str, Any], Any, Any]:
+    """The mission, its typed parameters (checked against the map), a non-background
+    Executive on the world and robot named by ``add_run_arguments`` options, and the
+    MapKeeper that keeps the map on disk (None with --no-save): what `hearth run` and
+    `hearth step` share. Close the keeper with :func:`close_map`."""
     from executive.executive import Executive
     from executive.missionfile import load_mission
 
     mission = load_mission(args.mission)
     params = parse_params(mission, args.param)
     clock = make_clock(args)
-    world, robot = make_world_and_robot(args, clock)
+    path = belief_file(args)
+    checked: dict[str, Any] = {}
+
+    def check(world: Any) -> None:        # before the robot adapter is made
+        checked.update(mission.resolve_in_map(params, world))
+
+    world, robot = make_world_and_robot(args, clock, path, check=check)
     ex = Executive(world=world, robot=robot, clock=clock, tick_hz=args.tick_hz,
                    runs_dir=args.runs_dir, background=False)
-    return mission, params, ex
+    return mission, checked, ex, keep_map(args, world, path)
 
 
 def add_foxglove_arguments(p, live: bool = True, file: bool = True, wait: bool = True) -> None:

@@ -142,10 +142,12 @@ class Executive:
         """Queue a mission (a path or a loaded Mission) with parameter values.
 
         Raises MissionValidationError / MissionError(param=) at once for a bad mission or
-        parameter. A higher ``priority`` preempts the running mission; equal priorities
-        queue (or preempt, see ``equal_priority``)."""
+        parameter (a parameter declaring ``kinds`` is checked against the map). A higher
+        ``priority`` preempts the running mission; equal priorities queue (or preempt, see
+        ``equal_priority``)."""
         mission = self.load(mission)
         self._check_autonomy(mission)
+        params = mission.resolve_in_map(params, self.world)   # node kinds, words; reads the map
         with self._lock:
             if self._closed:
                 raise MissionError("the executive has been shut down")
@@ -603,7 +605,8 @@ class Executive:
         self._wake.notify_all()
 
     def _new_run_id(self, name: str, n: int) -> str:
-        stamp = _time.strftime("%Y%m%dT%H%M%S", _time.gmtime(self.clock.wall()))
+        # The date a person ran it (a simulated clock's wall() is a fixed epoch).
+        stamp = _time.strftime("%Y%m%dT%H%M%S", _time.gmtime(_time.time()))
         rid = f"{stamp}-{name}-{n}"
         if self.runs_dir is not None:
             while (self.runs_dir / f"{rid}.jsonl").exists():

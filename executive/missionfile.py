@@ -16,6 +16,7 @@ docs/missions.md, "Limits"), so that no file makes validation slow, deep or larg
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -516,9 +517,16 @@ class ParamSpec:
     items: str | None = None
     description: str = ""
     line: int = 0
+    minimum: float | None = None
+    maximum: float | None = None
+    kinds: list[str] | None = None       # map node kinds the value must name (at submit)
+    having: list[str] | None = None      # kinds the named node must hold (an appliance's Knob)
+    sentinels: list[str] | None = None   # values let through: the mission reads them itself
+    pick_only: bool = False              # "": the only node of ``kinds`` in the map
 
     def check(self, value: Any) -> None:
-        """Raise MissionError(param=name) unless ``value`` fits this parameter."""
+        """Raise MissionError(param=name) unless ``value`` fits this parameter (type, items,
+        enum, bounds; the map is checked by :meth:`check_in_map`)."""
         if not check_value(self.type, value):
             raise MissionError(f"expected {self.type}, got {_short(value)}", param=self.name)
         if self.items and isinstance(value, (list, tuple)):
@@ -529,6 +537,80 @@ class ParamSpec:
         if self.enum is not None and value not in self.enum:
             raise MissionError(f"expected one of {_short(self.enum)}, got {_short(value)}",
                                param=self.name)
+        if _is_number(value):
+            if self.minimum is not None and value < self.minimum:
+                raise MissionError(f"expected at least {self.minimum:g}, got {_short(value)}",
+                                   param=self.name)
+            if self.maximum is not None and value > self.maximum:
+                raise MissionError(f"expected at most {self.maximum:g}, got {_short(value)}",
+                                   param=self.name)
+
+    def check_in_map(self, value: Any, world: Any) -> Any:
+        """``value`` checked against the belief map ``world`` (a worldmodel World): the
+        value to run with (``pick_only``: "" becomes the only matching node's id). Raises
+        MissionError(param=name) in one line a person can act on: "no node 'nowhere' in the
+        map", "blue_cup is a SmallObject, not a LargeArticulatedObject", "fridge holds no
+        Knob", "nothing in the map matches 'zebra'". Values that are not strings are left to
+        :meth:`check`."""
+        if not self.kinds or world is None or not isinstance(value, str):
+            return value
+        if self.sentinels is not None and value in self.sentinels:
+            return value
+        if value == "" and self.pick_only:
+            return self._only(world)
+        if "node_id" in _alternatives(self.type):
+            return self._node(value, world)
+        # Words ("blue cup") or an id naming a node of these kinds.
+        if value in world and world.get(value).kind in self.kinds:
+            return value
+        if not any(self._fits(m.node, world) for m in world.find(value, kinds=self.kinds)):
+            raise MissionError(f"no {_or_kinds(self.kinds)} in the map matches {_short(value)}"
+                               f"{self._examples(world)}", param=self.name)
+        return value
+
+    def _fits(self, node: Any, world: Any) -> bool:
+        if node.kind not in self.kinds:
+            return False
+        if self.having:
+            held = _held_kinds(node)
+            return all(k in held for k in self.having)
+        return True
+
+    def _node(self, value: str, world: Any) -> str:
+        if value not in world:
+            raise MissionError(f"no node {_short(value)} in the map{self._examples(world)}",
+                               param=self.name)
+        node = world.get(value)
+        if node.kind not in self.kinds:
+            raise MissionError(f"{value} is a {node.kind}, not a {_or_kinds(self.kinds)}"
+                               f"{self._examples(world)}", param=self.name)
+        if not self._fits(node, world):
+            missing = [k for k in self.having or () if k not in _held_kinds(node)]
+            raise MissionError(f"{value} holds no {_or_kinds(missing)}{self._examples(world)}",
+                               param=self.name)
+        return value
+
+    def _candidates(self, world: Any) -> list:
+        return sorted((n for k in self.kinds for n in world.nodes(k) if self._fits(n, world)),
+                      key=lambda n: n.id)
+
+    def _examples(self, world: Any, most: int = 6) -> str:
+        ids = [n.id for n in self._candidates(world)]
+        if not ids:
+            return ""
+        shown = ", ".join(ids[:most]) + (f" and {len(ids) - most} more" if len(ids) > most else "")
+        return f"; try one of: {shown}"
+
+    def _only(self, world: Any) -> str:
+        found = self._candidates(world)
+        what = _or_kinds(self.kinds) + (f" with a {_or_kinds(self.having)}" if self.having else "")
+        if not found:
+            raise MissionError(f"the map has no {what}", param=self.name)
+        if len(found) > 1:
+            which = " or ".join(f"the {world.label(n.id)} ({n.id})" for n in found[:8])
+            raise MissionError(f"which {what} do you mean: {which}? Name it: "
+                               f"{self.name}={found[0].id}", param=self.name)
+        return found[0].id
 
 
 @dataclass
@@ -610,6 +692,27 @@ class Mission:
                 spec.check(value)
             values[name] = value
         return values
+
+    def resolve_in_map(self, given: dict[str, Any] | None, world: Any) -> dict[str, Any]:
+        """``given`` checked against the belief map for every parameter that declares
+        ``kinds`` (given or defaulted; runtime parameters are not: the executive checks
+        their type, enum and bounds when they are set), with ``pick_only`` defaults filled
+        in: what to submit. Raises
+        MissionError(param=) at the first value the map refutes. No map: ``given`` as is."""
+        out = dict(given or {})
+        if world is None or not callable(getattr(world, "find", None)):
+            return out
+        with getattr(world, "lock", None) or contextlib.nullcontext():  # skills may be moving things
+            for name, spec in self.parameters.items():
+                if not spec.kinds:
+                    continue
+                if name in out:
+                    out[name] = spec.check_in_map(out[name], world)
+                elif spec.default is not None and not spec.runtime:
+                    value = spec.check_in_map(plain(spec.default), world)
+                    if value != spec.default:
+                        out[name] = value
+        return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -780,7 +883,12 @@ class _Compiler:
                           runtime=bool(spec.get("runtime", False)),
                           enum=plain(enum) if isinstance(enum, list) else None,
                           items=items if items in TYPES else None,
-                          description=str(spec.get("description", "")), line=line)
+                          description=str(spec.get("description", "")), line=line,
+                          minimum=_bound(spec.get("minimum")), maximum=_bound(spec.get("maximum")),
+                          kinds=_names(spec.get("kinds")), having=_names(spec.get("having")),
+                          sentinels=_names(spec.get("sentinels")),
+                          pick_only=spec.get("pick_only") is True)
+            self.check_param_spec(p, file, line)
             if p.runtime and not allow_runtime:
                 self.error(f"subtree parameter {name}: only mission parameters can be runtime",
                            file, line)
@@ -791,6 +899,23 @@ class _Compiler:
                     self.error(f"parameter {name}: default {err.message}", file, line)
             out[name] = p
         return out
+
+    def check_param_spec(self, p: ParamSpec, file: str, line: int) -> None:
+        """What the schema cannot say about a parameter's map and bound declarations."""
+        types = _alternatives(p.type)
+        if (p.minimum is not None or p.maximum is not None) and \
+                not any(t in ("integer", "number") for t in types):
+            self.error(f"parameter {p.name}: minimum and maximum are for integer and number "
+                       f"parameters", file, line)
+        if p.minimum is not None and p.maximum is not None and p.minimum > p.maximum:
+            self.error(f"parameter {p.name}: minimum {p.minimum:g} is above maximum "
+                       f"{p.maximum:g}", file, line)
+        if p.kinds and not any(t in ("node_id", "string") for t in types):
+            self.error(f"parameter {p.name}: kinds are for node_id and string parameters",
+                       file, line)
+        if not p.kinds and (p.having or p.sentinels is not None or p.pick_only):
+            self.error(f"parameter {p.name}: having, sentinels and pick_only need kinds",
+                       file, line)
 
     # -- entry -------------------------------------------------------------------------
     def compile(self, path: str) -> Mission | None:
@@ -1313,6 +1438,33 @@ _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = 60
 _REPR.maxlist = _REPR.maxdict = 4
 _REPR.maxlevel = 2
+
+
+def _held_kinds(node: Any) -> set[str]:
+    """The kinds of the map nodes ``node`` holds, at any depth. (World.descendants answers
+    the same by walking the whole map, some 25 ms a node in a map of 10,000 objects; a
+    submit asks it of every appliance.)"""
+    out: set[str] = set()
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        for attr in ("objects", "switches", "children", "handles", "knobs", "parts"):
+            for child in getattr(n, attr, None) or ():
+                out.add(child.kind)
+                stack.append(child)
+    return out
+
+
+def _bound(value: Any) -> float | None:
+    return value if _is_number(value) else None
+
+
+def _names(value: Any) -> list[str] | None:
+    return [str(v) for v in value] if isinstance(value, list) else None
+
+
+def _or_kinds(kinds: list[str]) -> str:
+    return " or ".join(kinds)
 
 
 def _short(value: Any) -> str:

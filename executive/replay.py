@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -66,32 +67,91 @@ def timeline(events: list[dict]) -> list[tuple]:
             for e in events if e["e"] == "status"]
 
 
-def format_event(e: dict) -> str:
-    """One line of ``hearth log show``."""
-    head = f"{e.get('tick', 0):>6} {e.get('t', 0.0):>10.3f}s  "
+#: Characters a value takes in a printed event line (the log keeps it whole).
+VALUE_CHARS = 160
+_LONG_FLOAT = re.compile(r"-?\d+\.\d{4,}(?:e-?\d+)?")
+
+
+def readable(value: Any, limit: int = VALUE_CHARS) -> str:
+    """A value as a person reads it in one line: numbers to 3 decimals, mappings as
+    ``{k: v}``, poses as ``(x, y, z, yaw)``, long lists and texts cut with "..." and how much
+    was left out. (The execution log keeps every value whole.)"""
+    text = _readable(value, limit + 1)
+    return text if len(text) <= limit else text[:limit - 3].rstrip(", ") + "..."
+
+
+def readable_text(text: Any, limit: int = VALUE_CHARS) -> str:
+    """A message (a skill's feedback) with its long numbers rounded, cut to ``limit``."""
+    text = _LONG_FLOAT.sub(lambda m: _num(float(m.group())), str(text))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _num(v: float) -> str:
+    if v == 0 or 0.001 <= abs(v) < 1e7:
+        text = f"{v:.3f}".rstrip("0").rstrip(".")
+        return "0" if text in ("-0", "") else text
+    return f"{v:.2e}"
+
+
+def _readable(value: Any, budget: int) -> str:
+    if isinstance(value, bool) or value is None:
+        return repr(value)
+    if isinstance(value, float):
+        return _num(value)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, str):
+        # Values the log could not keep as JSON are their repr ("Pose(x=2.900486012820682, ...)").
+        text = _LONG_FLOAT.sub(lambda m: _num(float(m.group())), value)
+        return repr(text if len(text) <= budget else text[:budget] + "...")
+    if isinstance(value, (dict, list, tuple)):
+        items = list(value.items()) if isinstance(value, dict) else list(enumerate(value))
+        parts, used = [], 2
+        for i, (k, v) in enumerate(items):
+            part = _readable(v, max(budget - used, 8))
+            if isinstance(value, dict):
+                part = f"{k}: {part}"
+            if parts and used + len(part) > budget - 10:     # room to say what is left out
+                parts.append(f"+{len(items) - i} more")
+                break
+            parts.append(part)
+            used += len(part) + 2
+        inner = ", ".join(parts)
+        return "{" + inner + "}" if isinstance(value, dict) else "[" + inner + "]"
+    if hasattr(value, "x") and hasattr(value, "y"):      # a Pose
+        fields = [f for f in ("x", "y", "z", "yaw") if isinstance(getattr(value, f, None), float)]
+        return "(" + ", ".join(f"{f}={_num(getattr(value, f))}" for f in fields) + ")"
+    return _readable(repr(value), budget)
+
+
+def format_event(e: dict, t0: float = 0.0) -> str:
+    """One line of ``hearth log show`` (and ``hearth run --verbose``): tick, clock seconds
+    since ``t0`` (the run's start), what happened; values as :func:`readable` writes them."""
+    head = f"{e.get('tick', 0):>6} {e.get('t', 0.0) - t0:>9.3f}s  "
     kind = e["e"]
     path = e.get("path", "")
     if kind == "start":
-        return (head + f"start   {e['mission']} ({e['file']}) params={e.get('params')} "
+        return (head + f"start   {e['mission']} ({e['file']}) params={readable(e.get('params'))} "
                 f"at {e.get('tick_hz')} Hz, {e.get('clock')} clock")
     if kind == "end":
-        return head + f"end     {e['outcome']}: {e['reason']}  outputs={e.get('outputs')}"
+        return (head + f"end     {e['outcome']}: {e['reason']}  "
+                f"outputs={readable(e.get('outputs'))}")
     if kind == "run":
         return head + f"mission {e['state']}" + (f": {e['reason']}" if e.get("reason") else "")
     if kind == "status":
         extra = " (halted)" if e.get("halted") else ""
         return head + f"status  {path} {e['previous']} -> {e['status']}{extra}"
     if kind == "feedback":
-        return head + f"feedbk  {path}: {e['message']}"
+        return head + f"feedbk  {path}: {readable_text(e['message'])}"
     if kind == "write":
-        return head + f"write   {{{e['key']}}} = {e['value']!r}  by {path}"
+        return head + f"write   {{{e['key']}}} = {readable(e['value'])}  by {path}"
     if kind == "param":
-        return head + f"param   ${e['name']} = {e['value']!r}"
+        return head + f"param   ${e['name']} = {readable(e['value'])}"
     if kind == "restart":
-        return head + f"restart {path}: {e.get('changed')}"
+        return head + f"restart {path}: {readable(e.get('changed'))}"
     if kind == "map":
-        return head + (f"map     {e.get('node')}.{e.get('field')}: {e.get('old')!r} -> "
-                       f"{e.get('new')!r} ({e.get('source')})")
+        return head + (f"map     {e.get('node')}.{e.get('field')}: {readable(e.get('old'))} -> "
+                       f"{readable(e.get('new'))} ({e.get('source')})")
     if kind == "stopped":
         return head + f"stopped {path} (no longer halting)"
     if kind == "halted":
@@ -99,7 +159,38 @@ def format_event(e: dict) -> str:
             f", gave up on {e['timed_out']}" if e.get("timed_out") else "")
     if kind == "tick":
         return head + "tick"
-    return head + f"{kind} {json.dumps({k: v for k, v in e.items() if k not in ('e', 'tick', 't', 'run')})}"
+    rest = {k: v for k, v in e.items() if k not in ('e', 'tick', 't', 'run')}
+    return head + f"{kind} {readable(rest)}"
+
+
+def in_tick_order(events: list[dict]) -> list[dict]:
+    """Events as they happened within each tick.
+
+    A tick's ``write`` events are reported while the tree ticks, its ``status`` and
+    ``feedback`` events after it (the executive diffs the tree once per tick), so a log
+    holds a tick's writes first. Leaves finish in the order they were ticked, and a skill
+    writes while it ticks: each write belongs just before the status line of the node that
+    wrote it, and writes of nodes whose status did not change, before the next status line
+    that comes after them."""
+    out: list[dict] = []
+    writes: list[dict] = []
+    tick = None
+    for e in events:
+        if e.get("tick") != tick:
+            out.extend(writes)
+            writes = []
+            tick = e.get("tick")
+        if e["e"] == "write":
+            writes.append(e)
+            continue
+        if e["e"] == "status" and writes:
+            mine = [i for i, w in enumerate(writes) if w.get("path") == e.get("path")]
+            if mine:
+                out.extend(writes[:mine[-1] + 1])
+                writes = writes[mine[-1] + 1:]
+        out.append(e)
+    out.extend(writes)
+    return out
 
 
 class _ReplayClock:

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -26,3 +28,26 @@ def demo_world_path() -> Path:
 def demo_world():
     from worldmodel import load_world
     return load_world(DEMO_WORLD)
+
+
+def pytest_configure(config):
+    # Before any fixture, whatever its scope, copies the environment for a subprocess: the
+    # suite never keeps a map in the real ~/.local/share/hearth.
+    config._hearth_state = os.environ["HEARTH_STATE_DIR"] = tempfile.mkdtemp(
+        prefix="hearth-test-state-")
+
+
+def pytest_unconfigure(config):
+    state = getattr(config, "_hearth_state", None)
+    if state:
+        shutil.rmtree(state, ignore_errors=True)
+
+
+@pytest.fixture(autouse=True)
+def _state_dir(tmp_path_factory, monkeypatch):
+    """Each test keeps the maps it runs on in a state directory of its own
+    (``$HEARTH_STATE_DIR``; subprocesses inherit it): no test writes into
+    ~/.local/share/hearth, and no test starts from what another one learned."""
+    path = tmp_path_factory.mktemp("state")
+    monkeypatch.setenv("HEARTH_STATE_DIR", str(path))
+    return path

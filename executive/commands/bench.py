@@ -2,7 +2,9 @@
 
 A benchmark module defines ``run(args) -> dict`` and optionally ``add_arguments(parser)``
 (its own options, given after the name: ``hearth bench api --clients 10``) and a module
-docstring. It prints one JSON object.
+docstring. It prints one JSON object on stdout; progress goes to stderr: a line as each
+benchmark starts and ends, and one per case where a benchmark reports cases (its own
+``--verbose``, turned on here unless ``--no-progress``).
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import importlib
 import json
 import pkgutil
 import sys
+import time
 
 from executive.cliutil import integer_in, seed
 from hearth import benchmarks
@@ -33,6 +36,9 @@ def _common(p: argparse.ArgumentParser, default=None) -> None:
                    help="scenarios per figure, where used")
     p.add_argument("--jobs", type=integer_in(1, 256, "--jobs"), default=d(1),
                    help="parallel worker processes, where used")
+    p.add_argument("--no-progress", action="store_true", default=d(False),
+                   help="no progress lines on stderr (by default: one as each benchmark starts "
+                        "and ends, and one per case where a benchmark reports cases)")
 
 
 def register(sub) -> None:
@@ -61,17 +67,30 @@ def _own_options(name: str, module, extra: list[str], args: argparse.Namespace) 
             setattr(args, key, value)
 
 
+def _progress(args: argparse.Namespace, text: str) -> None:
+    if not args.no_progress:
+        print(f"hearth bench: {text}", file=sys.stderr, flush=True)
+
+
 def _run(args: argparse.Namespace) -> int:
     names = available() if args.name == "all" else [args.name]
     out = {}
-    for name in names:
+    for i, name in enumerate(names, 1):
         if name not in available():
             print(f"hearth bench: unknown benchmark {name!r}; known: {', '.join(available())}",
                   file=sys.stderr)
             return 2
         module = importlib.import_module(f"hearth.benchmarks.{name}")
+        given_verbose = any(a == "--verbose" for a in args.extra or [])
         _own_options(name, module, list(args.extra or []), args)
+        if hasattr(args, "verbose") and not given_verbose:
+            # A benchmark with cases reports each on stderr with its own --verbose.
+            args.verbose = not args.no_progress
+        of = f" ({i}/{len(names)})" if len(names) > 1 else ""
+        _progress(args, f"{name}{of} running...")
+        t0 = time.perf_counter()
         out[name] = module.run(args)
+        _progress(args, f"{name}{of} done in {time.perf_counter() - t0:.1f} s")
     result = out[names[0]] if len(names) == 1 else out
     print(json.dumps(result, indent=None if args.json else 2, sort_keys=True))
     return 0

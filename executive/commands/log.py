@@ -7,7 +7,10 @@ def register(sub) -> None:
                        description="Execution logs: show a run's timeline, or replay it "
                                    "offline against the logged skill results.")
     lsub = p.add_subparsers(dest="log_command", metavar="ACTION", required=True)
-    s = lsub.add_parser("show", help="print a run's timeline")
+    s = lsub.add_parser("show", help="print a run's timeline",
+                        description="Print a run's events, in the order they happened within "
+                                    "each tick, with clock seconds since the run started and "
+                                    "values cut to a readable length (the log keeps them whole).")
     s.add_argument("log")
     s.add_argument("--kinds", default=None,
                    help="comma-separated event kinds to show (e.g. status,run)")
@@ -19,16 +22,17 @@ def register(sub) -> None:
 
 
 def _show(args) -> int:
-    from executive.replay import format_event, read_log
+    from executive.replay import format_event, in_tick_order, read_log
 
     header, events, end = read_log(args.log)
     kinds = set(args.kinds.split(",")) if args.kinds else None
-    print(format_event(header))
-    for e in events:
+    t0 = float(header.get("t", 0.0))       # times since the run started (a wall clock's too)
+    print(format_event(header, t0))
+    for e in in_tick_order(events):
         if kinds is None or e["e"] in kinds:
-            print(format_event(e))
+            print(format_event(e, t0))
     if end is not None:
-        print(format_event(end))
+        print(format_event(end, t0))
     else:
         print("(no end line: the run was interrupted)")
     return 0

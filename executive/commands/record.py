@@ -7,8 +7,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from executive.cliutil import (DEFAULT_WORLD, add_run_arguments, make_clock, output_dir,
-                               parse_params, run_to_end, seed)
+from executive.cliutil import (DEFAULT_WORLD, add_run_arguments, belief_file, close_map,
+                               keep_map, make_clock, output_dir, parse_params, run_to_end, seed)
 
 
 def register(sub) -> None:
@@ -19,9 +19,11 @@ def register(sub) -> None:
                                    "directory, or with --format mcap a ROS 2 bag (rosbag2 "
                                    "directory, MCAP storage) that also carries the mission's "
                                    "events. With --scenario and no --world, the scenario's "
-                                   "belief.xml is the map. Exit 0 when the mission succeeds, "
-                                   "1 when it fails.")
-    add_run_arguments(p)
+                                   "belief.xml is the map. The map is left as it was (a "
+                                   "replay starts from it), unless --map-out names where to "
+                                   "keep what the mission learned. Exit 0 when the mission "
+                                   "succeeds, 1 when it fails.")
+    add_run_arguments(p, saves=False)
     p.add_argument("--out", type=output_dir, required=True, metavar="PATH",
                    help="recording directory (or bag directory) to write")
     p.add_argument("--format", choices=("hearth", "mcap"), default="hearth",
@@ -54,7 +56,11 @@ def _run(args) -> int:
     world_path = Path(args.world)
     if args.scenario and world_path == Path(str(DEFAULT_WORLD)):
         world_path = Path(args.scenario) / "belief.xml"
-    world = load_world(world_path, clock=clock)
+    args.world = str(world_path)
+    path = belief_file(args)          # world_path itself unless --map-out
+    world = load_world(path, clock=clock)
+    params = mission.resolve_in_map(params, world)
+    keeper = keep_map(args, world, path)
     sim = robot.create_adapter(world=world, scenario=args.scenario, clock=clock, seed=args.seed)
     rec = RecordingRobot(sim, args.out, info=dict(mission=str(args.mission), world=str(world_path),
                                                   scenario=args.scenario, params=params,
@@ -67,6 +73,7 @@ def _run(args) -> int:
         result = run_to_end(ex, mission, params, quiet=args.quiet)
     finally:
         rec.close()
+        close_map(keeper, quiet=args.quiet)
     n = len(rec.writer)
     print(f"{mission.name}: {result.outcome} ({result.reason}); recorded {n} capture"
           f"{'' if n == 1 else 's'} to {args.out}", file=sys.stderr if args.quiet else sys.stdout)

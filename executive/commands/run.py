@@ -4,20 +4,30 @@ from __future__ import annotations
 import sys
 import time
 
-from executive.cliutil import add_run_arguments, make_executive, run_to_end
+from executive.cliutil import (add_run_arguments, close_map, make_executive, outcome_line,
+                               run_to_end)
 
 
 def register(sub) -> None:
     p = sub.add_parser("run", help="run a mission",
                        description="Run a mission on the robot adapter made by "
                                    "robot.create_adapter (simulated home, scenario or "
-                                   "recording), printing the mission's progress. Exit 0 when "
-                                   "it succeeds, 1 when it fails or is cancelled.")
+                                   "recording), printing the mission's progress. The belief "
+                                   "map is kept on disk: what the mission learns is saved after "
+                                   "every change (--map-out, --no-save). Exit 0 when it "
+                                   "succeeds, 1 when it fails or is cancelled, 2 for bad input "
+                                   "(a parameter the map refutes included).")
     add_run_arguments(p)
     p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
                    help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
                         "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
-    p.add_argument("--quiet", action="store_true", help="print only the outcome")
+    out = p.add_mutually_exclusive_group()
+    out.add_argument("--quiet", action="store_true",
+                     help="print only the outcome line (on stdout)")
+    out.add_argument("--verbose", action="store_true",
+                     help="print every event (status changes, feedback, blackboard writes, map "
+                          "changes) in the order it happened within its tick; by default: the "
+                          "mission's events and each skill's outcome")
     add_groot2_arguments(p)
     p.add_argument("--groot2-linger", type=float, default=0.0, metavar="SECONDS",
                    help="with --groot2: keep publishing the ended mission this long (a "
@@ -49,7 +59,7 @@ def start_groot2(args, executive):
 
 def _run(args) -> int:
     from executive.foxglove import sink_from_args
-    mission, params, ex = make_executive(args)
+    mission, params, ex, keeper = make_executive(args)
     sink = sink_from_args(args, world=ex.world, clock=ex.clock)
     simulated = bool(getattr(ex.clock, "simulated", False))
     if sink is not None:
@@ -58,7 +68,7 @@ def _run(args) -> int:
             sink.wait_for_viewer(args.foxglove_wait)
     pub = start_groot2(args, ex)
     try:
-        result = run_to_end(ex, mission, params, quiet=args.quiet)
+        result = run_to_end(ex, mission, params, quiet=args.quiet, verbose=args.verbose)
         if pub is not None and args.groot2_linger > 0:
             time.sleep(args.groot2_linger)
     finally:
@@ -67,6 +77,6 @@ def _run(args) -> int:
         if sink is not None:
             sink.wait_for_viewers_to_leave(args.foxglove_wait)
             sink.close()
-    print(f"{mission.name}: {result.outcome} ({result.reason}) in {result.ticks} ticks, "
-          f"{result.duration:.2f} s; log {result.log_path}", file=sys.stderr if args.quiet else sys.stdout)
+        close_map(keeper, quiet=args.quiet)
+    print(outcome_line(mission, result), flush=True)
     return 0 if result.outcome == "succeeded" else 1

@@ -11,7 +11,8 @@ import argparse
 import os
 import sys
 
-from executive.cliutil import (DEFAULT_WORLD, MAX_TICK_HZ, MIN_TICK_HZ, integer_in,
+from executive.cliutil import (DEFAULT_WORLD, MAX_TICK_HZ, MIN_TICK_HZ, add_map_arguments,
+                               belief_file, close_map, integer_in, keep_map,
                                make_world_and_robot, number_in, tick_rate)
 from executive.commands.run import add_groot2_arguments, start_groot2
 from hearth import missions_dir
@@ -41,7 +42,10 @@ def register(sub) -> None:
     p.add_argument("--missions", action="append", default=None, metavar="PATH",
                    help="mission file or directory that can be asked for (repeatable; "
                         "default: missions/)")
-    p.add_argument("--world", default=str(DEFAULT_WORLD), help="world file (the belief map)")
+    p.add_argument("--world", default=str(DEFAULT_WORLD),
+                   help="world file: the belief map (default: the shipped demo home); what "
+                        "missions learn is saved into it after every change (the demo home: "
+                        "into a copy in $HEARTH_STATE_DIR), see --map-out and --no-save")
     p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
     p.add_argument("--recording", default=None, metavar="PATH",
                    help="recording to replay (a Hearth recording or a ROS 2 bag)")
@@ -50,6 +54,7 @@ def register(sub) -> None:
     p.add_argument("--tick-hz", type=tick_rate, default=10.0,
                    help=f"tick rate (Hz, {MIN_TICK_HZ:g} to {MAX_TICK_HZ:g}; default 10)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
+    add_map_arguments(p)
     p.add_argument("--autonomy", type=int, default=3, choices=range(4),
                    help="granted autonomy level: skills above it wait for an operator's "
                         "approval (0 observe, 1 move, 2 act on the home, 3 handle objects; "
@@ -98,7 +103,9 @@ def _serve(args: argparse.Namespace) -> int:
     from hearth.robot.clock import WallClock
 
     clock = WallClock()
-    world, robot = make_world_and_robot(args, clock)
+    path = belief_file(args)
+    world, robot = make_world_and_robot(args, clock, path)
+    keeper = keep_map(args, world, path)
     service = make_service(world, robot, args.missions or [str(DEFAULT_MISSIONS)], clock=clock,
                            tick_hz=args.tick_hz, runs_dir=args.runs_dir, granted=args.autonomy,
                            approval_timeout=args.approval_timeout)
@@ -123,6 +130,8 @@ def _serve(args: argparse.Namespace) -> int:
         shown = f"[{host}]" if ":" in host else host
         print(f"hearth serve: missions {names}; {scheme}://{shown}:{port}/ (API docs at /docs)",
               file=sys.stderr, flush=True)
+        if keeper is not None:
+            print(f"hearth serve: the map is kept in {keeper.path}", file=sys.stderr, flush=True)
         app = create_app(service, token=args.token, allowed_hosts=args.allowed_host)
         make_server(app, tls_cert=args.tls_cert, tls_key=args.tls_key).run(sockets=[sock])
     finally:
@@ -132,4 +141,5 @@ def _serve(args: argparse.Namespace) -> int:
         service.close()
         if sink is not None:
             sink.close()
+        close_map(keeper, quiet=True)
     return 0

@@ -1,9 +1,12 @@
 """`hearth step MISSION [--param k=v] [--ticks N]`: tick a mission by hand.
 
 Interactive commands: ``t [N]`` tick (N times), ``u NAME`` tick until the node NAME (a
-name or tree path) runs or finishes, ``p`` print the tree with statuses, ``b`` print the
-blackboard, ``c`` continue to the end, ``q`` cancel and quit. With ``--ticks N`` it ticks N
-times, printing events, then prints the tree and blackboard.
+name or tree path) runs or finishes, ``s NAME=VALUE`` set a runtime parameter (the next tick
+sees it; a watch on it restarts its branch), ``p`` print the tree with statuses, ``b`` print
+the blackboard, ``c`` continue to the end, ``q`` cancel and quit. When the mission ends the
+prompt stays, to look at the tree and blackboard, until ``q`` (or end of input). With
+``--ticks N`` it ticks N times, printing events, then prints the tree and blackboard. The
+belief map is kept on disk as `hearth run` keeps it (--map-out, --no-save).
 """
 from __future__ import annotations
 
@@ -15,8 +18,9 @@ from executive.cliutil import add_run_arguments, integer_in, make_executive
 if TYPE_CHECKING:
     from executive.executive import Executive
 
-HELP = ("t [N]: tick N times | u NAME: tick until NAME runs | p: tree | b: blackboard | "
-        "c: continue to the end | q: cancel and quit | h: help")
+HELP = ("t [N]: tick N times | u NAME: tick until NAME runs | s NAME=VALUE: set a runtime "
+        "parameter | p: tree | b: blackboard | c: continue to the end | q: cancel and quit | "
+        "h: help")
 
 
 def register(sub) -> None:
@@ -63,6 +67,15 @@ class Stepper:
                 self.blackboard = tree.blackboard()
         return done
 
+    def run_to_end(self) -> None:
+        """Tick until the mission ends (at the tick rate on a wall clock), keeping the
+        blackboard to look at afterwards."""
+        wall = not getattr(self.ex.clock, "simulated", False)
+        while not self.handle.done:
+            self.tick()
+            if wall and not self.handle.done:
+                self.ex.clock.sleep(self.ex.period)
+
     def until(self, name: str, limit: int = 100_000) -> bool:
         targets = [n.path for n in self.handle.mission.nodes()
                    if n.path == name or n.name == name or n.path.endswith("/" + name)]
@@ -82,10 +95,38 @@ class Stepper:
         return ascii_tree(self.handle.mission.root, self.statuses, self.feedback)
 
 
+def set_parameter(ex: Executive, mission, text: str) -> str:
+    """``NAME=VALUE`` for a runtime parameter of ``mission``, read per its declared type and
+    set on the executive; what to print (the change, or why not)."""
+    from executive.errors import MissionError
+    from executive.missionfile import parse_param_text
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    runtime = mission.runtime_parameters()
+    if not sep or name not in runtime:
+        known = ", ".join(runtime) or "none"
+        return f"s NAME=VALUE sets a runtime parameter of {mission.name} (runtime: {known})"
+    try:
+        typed = parse_param_text(name, mission.parameters[name].type, value.strip())
+        ex.set_parameter(name, typed)
+    except MissionError as err:
+        return str(err)
+    return f"${name} = {typed!r} from the next tick"
+
+
 def _run(args) -> int:
+    from executive.cliutil import close_map
+
+    mission, params, ex, keeper = make_executive(args)
+    try:
+        return _step(args, mission, params, ex)
+    finally:
+        close_map(keeper)
+
+
+def _step(args, mission, params, ex) -> int:
     from executive.render import blackboard_text
 
-    mission, params, ex = make_executive(args)
     handle = ex.submit(mission, **params)
     st = Stepper(ex, handle)
     if args.ticks is not None:
@@ -98,27 +139,39 @@ def _run(args) -> int:
             ex.run_until_idle(100_000)
         return 0
     print(HELP)
-    while not handle.done:
+    reported = False
+    while True:
+        if handle.done and not reported:
+            reported = True
+            print(st.tree())
+            print(f"{mission.name}: {handle.result.outcome} ({handle.result.reason}); "
+                  f"p: tree, b: blackboard, q: quit")
         try:
-            line = input(f"[tick {ex.current_tick or 0}] > ").strip()
+            line = input(f"[{'ended' if handle.done else f'tick {ex.current_tick or 0}'}] > ").strip()
         except EOFError:
             line = "q"
         cmd, _, arg = line.partition(" ")
-        if cmd in ("", "t"):
-            st.tick(int(arg) if arg.strip().isdigit() else 1)
-        elif cmd == "u" and arg:
-            st.until(arg.strip())
-        elif cmd == "p":
+        if cmd == "q":
+            if not handle.done:
+                handle.cancel("quit from hearth step")
+                ex.run_until_idle(100_000)
+                print(f"{mission.name}: {handle.result.outcome} ({handle.result.reason})")
+            break
+        if cmd == "p":
             print(st.tree())
         elif cmd == "b":
             print(blackboard_text(st.blackboard))
+        elif cmd in ("", "t", "u", "c", "s") and handle.done:
+            print(f"the mission has ended ({handle.result.outcome}); p: tree, b: blackboard, "
+                  f"q: quit")
+        elif cmd in ("", "t"):
+            st.tick(int(arg) if arg.strip().isdigit() else 1)
+        elif cmd == "u" and arg:
+            st.until(arg.strip())
         elif cmd == "c":
-            ex.run_until_idle()
-        elif cmd == "q":
-            handle.cancel("quit from hearth step")
-            ex.run_until_idle(100_000)
+            st.run_to_end()
+        elif cmd == "s":
+            print(set_parameter(ex, mission, arg))
         else:
             print(HELP)
-    print(st.tree())
-    print(f"{mission.name}: {handle.result.outcome} ({handle.result.reason})")
     return 0 if handle.result.outcome == "succeeded" else 1

@@ -53,7 +53,7 @@ def test_custom_node_types_are_in_the_model_with_their_ports():
     assert [p.get("name") for p in watch] == ["params"]
     assert root.find(".//Watch").get("params") == "presence"
     check = model.find("Condition[@ID='Check']")
-    assert check is not None and root.find(".//Check").get("expr") == "{presence} == home"
+    assert check is not None and root.find(".//Check").get("expr") == "{presence} != home"
     for_each = parse(export_mission(MISSIONS / "turn_off_oven.yaml")).find(
         "TreeNodesModel/Decorator[@ID='ForEach']")
     assert {p.get("name"): p.tag for p in for_each} == {

@@ -316,8 +316,8 @@ def test_go_to_rest_follows_presence_change_mid_run(make_executive):
     ex.run_until_idle(1000)
     sub = ex.make_skill
     assert h.result.outcome == "succeeded"
-    near = sub.made["/follow_presence/choose_rest_place/user_home/drive_near_user"]
-    away = sub.made["/follow_presence/choose_rest_place/drive_out_of_the_way"]
+    near = sub.made["/follow_presence/choose_rest_place/user_home/near_user/drive_near_user"]
+    away = sub.made["/follow_presence/choose_rest_place/user_away/drive_out_of_the_way"]
     assert near.halts == 1 and away.seen_inputs == [{"target": "kitchen_table", "parking": None}]
     assert robot.said == [] and robot.stops == 0
     assert ex.current is None
@@ -377,9 +377,10 @@ def test_test_mission_reports_never_ticked_nodes(mission_file, tmp_path, capsys)
                     "expect: succeeded\n")
     assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 0
     out = capsys.readouterr().out
-    assert "never ticked: /follow_presence/choose_rest_place/user_home/drive_near_user" in out
+    assert "never ticked: /follow_presence/choose_rest_place/user_home/near_user/drive_near_user" in out
     report = run_case("missions/go_to_rest.yaml", load_case(case))
-    assert report.outcome == "succeeded" and len(report.never_ticked) == 2
+    # away: the near-user branch (5 nodes), its fall-back (3) and the away give-up never run
+    assert report.outcome == "succeeded" and len(report.never_ticked) == 8
 
 
 # -- property: random trees load and either finish or are cancelled, every node terminated --
@@ -708,7 +709,7 @@ def test_example_case_file_for_go_to_rest(tmp_path, capsys):
                  "--runs-dir", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "outcome: succeeded (completed) after 45 ticks, 4.40 s simulated" in out
-    assert "never ticked: /follow_presence/choose_rest_place/user_home/announce" in out
+    assert "never ticked: /follow_presence/choose_rest_place/user_home/near_user/announce" in out
     (log,) = tmp_path.glob("*.jsonl")
     assert main(["log", "replay", str(log)]) == 0
 
