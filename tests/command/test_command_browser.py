@@ -78,7 +78,8 @@ class Page:
             const t0 = Date.now();
             (function check() {{
                 let v; try {{ v = ({expression}); }} catch (e) {{ v = "error: " + e; }}
-                if (JSON.stringify(v) === {json.dumps(json.dumps(want))} || Date.now() - t0 > {limit_ms}) resolve(v);
+                if (JSON.stringify(v) === {json.dumps(json.dumps(want, separators=(",", ":")))}
+                    || Date.now() - t0 > {limit_ms}) resolve(v);
                 else setTimeout(check, 25);
             }})();
         }})"""
@@ -338,19 +339,25 @@ def test_stop_all_cancels_the_queue_and_the_running_run(monitor, chromium):
 
 def test_runtime_parameter_is_set_from_the_page(monitor, chromium):
     srv = monitor()
-    run_id = srv.submit("long_test")
+    run_id = srv.submit("long_test", presence="away")
     page = chromium(srv.url + "/")
     assert page.wait_for(TEXT.format("run-id"), run_id) == run_id
     select = '#params [data-param="presence"] select'
-    # The mission's runtime parameter, with its enum as the choices.
+    # The mission's runtime parameter, with its enum as the choices and the run's own value
+    # (given at submit; the value the next run would get is still the default).
     assert page.wait_for(f'Array.from(document.querySelectorAll(\'{select} option\')).map(o => o.textContent)',
                          ["home", "away"]) == ["home", "away"]
-    page.js(f'(() => {{ const s = document.querySelector(\'{select}\'); s.value = JSON.stringify("away"); '
-            f's.dispatchEvent(new Event("change")); }})()')
-    assert page.wait_for(f'Array.from(document.querySelectorAll("#feedback li .msg")).some(m => m.textContent === "presence set to away")',
-                         True)
-    assert srv.client.get("/api/parameters").json()["presence"]["value"] == "away"
     assert page.js(f'JSON.parse(document.querySelector(\'{select}\').value)') == "away"
+    assert srv.client.get("/api/parameters").json()["presence"]["value"] == "home"
+    choose = (f'(v => {{ const s = document.querySelector(\'{select}\'); s.value = JSON.stringify(v); '
+              f's.dispatchEvent(new Event("change")); }})')
+    said = 'Array.from(document.querySelectorAll("#feedback li .msg")).some(m => m.textContent === "presence set to {}")'
+    for value in ("home", "away"):
+        page.js(f"{choose}({json.dumps(value)})")
+        # the running mission got it (its param event is in the log) and the page shows it
+        assert page.wait_for(said.format(value), True)
+        assert page.wait_for(f'JSON.parse(document.querySelector(\'{select}\').value)', value) == value
+    assert srv.client.get("/api/parameters").json()["presence"]["value"] == "away"
     srv.client.post(f"/api/runs/{run_id}/cancel")
 
 

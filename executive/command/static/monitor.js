@@ -326,6 +326,7 @@ function renderProgress(running) {
 // ---------------------------------------------------------------------------------------
 function showRun(run, spec, events) {
   shown = run;
+  runValues = Object.assign({}, run ? run.params : {});
   tree = spec ? buildTree(spec) : null;
   t0 = lastT = null;
   logOpen.clear();
@@ -418,7 +419,7 @@ function runEvent(kind, ev) {
     if (shown && ev.run === shown.id) {
       shown.status = ev.state;
       shown.reason = ev.reason;
-      if (!LIVE.has(ev.state)) refreshRunSoon();
+      if (!LIVE.has(ev.state)) { refreshRunSoon(); renderParamsSoon(); }
     }
     const words = ev.state === "running" && ev.reason === "started" ? "started" : `${ev.state}: ${ev.reason}`;
     logLine("run" + (ev.state === "failed" ? " bad" : ""), "run", words);
@@ -426,6 +427,8 @@ function runEvent(kind, ev) {
     const given = Object.entries(ev.params || {}).map(([k, v]) => `${k} ${fmt(v)}`).join(", ");
     logLine("run", "run", `queued${ev.priority ? " at priority " + ev.priority : ""}${given ? " · " + given : ""}`);
   } else if (kind === "param") {
+    runValues[ev.name] = ev.value;
+    renderParamsSoon();
     logLine("run", "parameter", `${ev.name} set to ${fmt(ev.value)}`);
   } else if (kind === "restart") {
     logLine("run", nodeName(ev.path), `restarted: ${fmt(ev.changed)} changed`, ev.path);
@@ -448,6 +451,7 @@ const runs = new Map();       // id -> run JSON, the recent ones
 let catalogue = {};           // mission name -> its /api/missions entry
 let params = {};              // runtime parameter name -> {value, type, enum, description}
 const approvals = new Map();
+let runValues = {};           // the shown run's runtime parameter values (given, then changed)
 
 function setRuns(list) {
   runs.clear();
@@ -497,19 +501,24 @@ function renderParams() {
     ? catalogue[shown.mission].parameters.filter(p => p.runtime).map(p => p.name) : null;
   const first = mine === null ? names : names.filter(n => mine.includes(n));
   const rest = names.filter(n => !first.includes(n));
+  // The shown run's own value while it runs (given at submit, then changed); else the value
+  // the next run gets.
+  const live = shown && LIVE.has(shown.status);
+  const value = n => live && first.includes(n) && n in runValues ? runValues[n] : params[n].value;
   if (!first.length) {
     box.append(el("i", {"class": "muted"}, mine === null || !names.length
       ? "no mission declares a runtime parameter" : `${shown.mission} has no runtime parameters`));
   }
-  first.forEach(n => box.append(paramEl(n)));
+  first.forEach(n => box.append(paramEl(n, value(n))));
   if (rest.length) {
     const d = el("details", {"class": "others"});
     d.append(el("summary", {}, `of other missions (${rest.length})`));
-    rest.forEach(n => d.append(paramEl(n)));
+    rest.forEach(n => d.append(paramEl(n, value(n))));
     box.append(d);
   }
 }
-function paramEl(name) {
+const renderParamsSoon = later(() => renderParams(), 50);
+function paramEl(name, value) {
   const p = params[name];
   const row = el("div", {"class": "param", "data-param": name});
   row.append(el("span", {"class": "pname"}, name));
@@ -523,19 +532,19 @@ function paramEl(name) {
   if (Array.isArray(p.enum) && p.enum.length) {
     control = el("select", {"aria-label": name});
     for (const v of p.enum) control.append(el("option", {"value": JSON.stringify(v)}, fmt(v)));
-    control.value = JSON.stringify(p.value);
+    control.value = JSON.stringify(value);
     control.onchange = () => put(JSON.parse(control.value));
   } else if (p.type === "boolean") {
     control = el("select", {"aria-label": name});
     control.append(el("option", {"value": "true"}, "yes"), el("option", {"value": "false"}, "no"));
-    control.value = String(Boolean(p.value));
+    control.value = String(Boolean(value));
     control.onchange = () => put(control.value === "true");
   } else {
     control = el("form", {});
     const numeric = p.type === "integer" || p.type === "number";
     const input = el("input", {"type": numeric ? "number" : "text", "aria-label": name,
                                "step": p.type === "integer" ? "1" : "any"});
-    input.value = p.value === null || p.value === undefined ? "" : String(p.value);
+    input.value = value === null || value === undefined ? "" : String(value);
     control.append(input, " ", el("button", {"type": "submit"}, "Set"));
     control.onsubmit = ev => {
       ev.preventDefault();
