@@ -30,7 +30,10 @@ models: $(STAMP)
 demo: models
 	$(VENV)/bin/hearth demo
 
+# Chromium for the monitor page's browser test (installed when root; otherwise the command is
+# printed and that test is skipped, saying why).
 test: models
+	scripts/sysdeps.sh --browser $(VENV)
 	$(PY) -m pytest -q
 
 bench: $(STAMP)

@@ -9,8 +9,9 @@ with 404 (unknown mission, run, parameter, request), 409 (ended run, reused idem
 decided request), 422 (bad parameters; FastAPI's own body checks answer 422 with ``detail``),
 401 (token), 421 (a Host that is not this server's), 413 (body too large), 503 (too many open
 event streams). The limits are the ``MAX_*`` constants below (docs/command-layer.md,
-"Limits"). The OpenAPI schema is at ``/openapi.json``, the interactive docs at ``/docs``, the
-monitor page at ``/``.
+"Limits"). The OpenAPI schema is at ``/openapi.json``, the interactive docs at ``/docs``
+(Swagger UI served from ``static/swagger-ui/``, so it works offline), the monitor page at
+``/`` (its scripts and styles under ``/static``).
 """
 from __future__ import annotations
 
@@ -25,7 +26,9 @@ from importlib import resources
 from typing import Any
 
 from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
+from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse, StreamingResponse
+from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field, field_validator
 
 from executive.command.service import CommandService, Conflict, NotFound
@@ -45,6 +48,10 @@ MAX_VALUE_BYTES = 4096
 MAX_EVENT_STREAMS = 64
 #: Ids in a path (runs, approval requests, parameter names).
 MAX_ID = 200
+#: A run's recent events in one answer (GET /api/runs/{id}/events, GET /api/state).
+MAX_RECENT_EVENTS = 5000
+#: Where the monitor page's assets and the vendored Swagger UI are served.
+STATIC = "/static"
 
 Key = Field(default=None, min_length=1, max_length=200,
             description="idempotency key: a retried request with the same key returns the "
@@ -336,6 +343,27 @@ def monitor_html() -> str:
     return resources.files("executive.command").joinpath("static/monitor.html").read_text("utf-8")
 
 
+def recent_events(service: CommandService, run_id: str, limit: int
+                  ) -> tuple[int, list[dict[str, Any]]]:
+    """The newest ``limit`` events of one run, oldest first, as the stream sends them
+    (``id``, ``event``, ``data``), and the last event number they are cut at: a client that
+    follows the stream from that number misses nothing and sees nothing twice."""
+    last = service.hub.last_seq
+    items, _ = service.hub.since(0, limit=10 ** 9, run=run_id)
+    mine = [it for it in items if it[2] == run_id and it[0] <= last][-limit:]
+    return last, [{"id": seq, "event": kind, "data": json.loads(text)}
+                  for seq, kind, _run, text, _ends in mine]
+
+
+def stop_all(service: CommandService, reason: str) -> list[str]:
+    """Cancel every run that has not ended: the queued ones first (so none starts when the
+    running one stops), then the running one. The ids cancelled."""
+    live = [r for r in reversed(service.runs(10 ** 9))       # oldest first
+            if r.handle.status in ("queued", "running", "halting")]
+    live.sort(key=lambda r: r.handle.status != "queued")
+    return [r.id for r in live if r.handle.cancel(reason)]
+
+
 def create_app(service: CommandService, token: str | None = None, *,
                allowed_hosts: Iterable[str] = (), max_streams: int = MAX_EVENT_STREAMS,
                max_body: int = MAX_BODY_BYTES) -> FastAPI:
@@ -347,10 +375,12 @@ def create_app(service: CommandService, token: str | None = None, *,
         service.hub.attach_loop(asyncio.get_running_loop())
         yield
 
+    # /docs is served below from vendored Swagger UI files (FastAPI's own page loads them
+    # from a CDN, which an offline robot cannot reach); ReDoc has no local copy: off.
     app = FastAPI(title="Hearth command API", version="1",
                   description="Start, watch and cancel missions; what the robot can be asked "
                               "for; operator approvals. See docs/command-layer.md.",
-                  lifespan=lifespan)
+                  lifespan=lifespan, docs_url=None, redoc_url=None)
     app.add_middleware(Guard, allowed_hosts=tuple(allowed_hosts), max_body=max_body)
     api = APIRouter(prefix="/api", dependencies=[Depends(_check_token(token))])
     # EventSource cannot set headers: the stream alone also takes ?token=.
@@ -383,10 +413,22 @@ def create_app(service: CommandService, token: str | None = None, *,
                     else [str(exc)])
         return _error(422, str(exc).splitlines()[0], param=exc.param, problems=problems)
 
-    # -- monitor ---------------------------------------------------------------------------
+    # -- monitor and docs ----------------------------------------------------------------------
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def monitor() -> str:
         return monitor_html()
+
+    app.mount(STATIC, StaticFiles(packages=[("executive.command", "static")]), name="static")
+
+    @app.get("/docs", response_class=HTMLResponse, include_in_schema=False)
+    def docs() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url=app.openapi_url, title=f"{app.title} - Swagger UI",
+            swagger_js_url=f"{STATIC}/swagger-ui/swagger-ui-bundle.js",
+            swagger_css_url=f"{STATIC}/swagger-ui/swagger-ui.css",
+            swagger_favicon_url=f"{STATIC}/swagger-ui/favicon-32x32.png",
+            # validatorUrl: no badge fetched from validator.swagger.io
+            swagger_ui_parameters={"validatorUrl": None})
 
     # -- what can be asked -----------------------------------------------------------------
     @api.get("/health", summary="liveness and counters")
@@ -456,14 +498,38 @@ def create_app(service: CommandService, token: str | None = None, *,
     def tree(run_id: str = Path(max_length=MAX_ID)) -> dict[str, Any]:
         return service.tree(run_id)
 
-    @api.get("/state", summary="what the monitor page loads first")
-    def state() -> dict[str, Any]:
+    @api.get("/runs/{run_id}/events",
+             summary="the run's most recent events, oldest first (as the stream sends them); "
+                     "follow the stream from last_event for what comes next")
+    def run_events(run_id: str = Path(max_length=MAX_ID),
+                   limit: int = Query(default=2000, ge=1, le=MAX_RECENT_EVENTS)
+                   ) -> dict[str, Any]:
+        service.run(run_id)    # 404
+        last, events = recent_events(service, run_id, limit)
+        return {"run": run_id, "last_event": last, "events": events}
+
+    @api.post("/stop", summary="stop everything: cancel the queued runs, then the running one",
+              responses={200: {"description": "the ids of the runs cancelled"}})
+    def stop(body: CancelRequest | None = None) -> dict[str, Any]:
+        reason = (body or CancelRequest(reason="stopped by a client")).reason
+        return {"cancelled": stop_all(service, reason)}
+
+    @api.get("/state", summary="what the monitor page loads first: the shown run with its "
+                               "tree and recent events, approvals, parameters, map changes")
+    def state(events: int = Query(default=2000, ge=0, le=MAX_RECENT_EVENTS)) -> dict[str, Any]:
         cur = service.current()
         recent = service.runs(1)
         shown = cur or (recent[0] if recent else None)
-        return {"last_event": service.hub.last_seq,
+        if shown is not None:
+            last, shown_events = recent_events(service, shown.id, events) if events else \
+                (service.hub.last_seq, [])
+        else:
+            last, shown_events = service.hub.last_seq, []
+        return {"last_event": last,
                 "run": shown.to_json() if shown else None,
                 "tree": service.tree(shown.id) if shown else None,
+                "events": shown_events,
+                "runs": [r.to_json() for r in service.runs(20)],
                 "approvals": [r.to_json() for r in service.approvals.list(pending_only=True)],
                 "granted_autonomy": service.approvals.granted,
                 "map": service.map_view()["recent_changes"][:20],

@@ -191,7 +191,9 @@ class CatalogueEntry:
     def to_json(self) -> dict[str, Any]:
         m = self.mission
         return {
-            "name": m.name, "description": m.description, "file": self.file,
+            # The file's name in its catalogue folder: the network never sees where the
+            # server's files are (nor can it name one: missions are asked for by name).
+            "name": m.name, "description": m.description, "file": Path(self.file).name,
             "parameters": [{"name": p.name, "type": p.type, "required": p.required and p.default is None,
                             "default": plain(p.default), "runtime": p.runtime,
                             "enum": plain(p.enum), "description": p.description}
