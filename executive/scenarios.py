@@ -29,19 +29,19 @@ default) drawn from the same placement distribution, walking the learned search 
 the object's true place, as ``RecordSearch`` would (map level: no rendering), so the run can
 compare the learned order (``learned=True``) with the fixed order from the map's prior.
 
-:func:`run_suite` runs cases in worker processes with the **spawn** start method: open3d's
-OpenMP thread pool deadlocks in forked children (open3d issues #1552, #6096, #7133).
+:func:`run_suite` runs cases on an engine of executive/suite.py: worker processes on this
+machine (started with **spawn**: open3d's OpenMP thread pool deadlocks in forked children,
+open3d issues #1552, #6096, #7133) or Ray tasks, each with a time limit.
 """
 from __future__ import annotations
 
 import hashlib
 import math
-import multiprocessing
 import os
 import re
 import time
 from collections import Counter, defaultdict
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional
 
@@ -422,47 +422,19 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
                       wrong_success=wrong)
 
 
-def _worker(case_dict: dict) -> dict:
-    # Keep each worker's numeric libraries on one thread: the workers are the parallelism.
-    try:
-        from threadpoolctl import threadpool_limits
-        threadpool_limits(1)
-    except ImportError:  # pragma: no cover
-        pass
-    try:
-        import open3d as o3d
-        o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
-    except ImportError:  # pragma: no cover
-        pass
-    try:
-        return asdict(run_case(Case(**case_dict)))
-    except Exception as err:  # noqa: BLE001 - one broken case must not lose the others
-        c = Case(**case_dict)
-        return asdict(CaseResult(mission=c.mission, seed=c.seed, achievable=c.achievable,
-                                 learned=c.learned, outcome="error",
-                                 reason=f"{type(err).__name__}: {err}", category="other",
-                                 correct=False, sim_time_s=0.0, wall_time_s=0.0,
-                                 world=c.world, target=c.target))
-
-
 def run_suite(cases: list[Case], jobs: int = 1,
-              progress: Optional[Callable[[dict], None]] = None) -> list[dict]:
-    """Run the cases, ``jobs`` at a time in spawned worker processes (1: in this process)."""
-    dicts = [asdict(c) for c in cases]
-    out = []
-    if jobs <= 1:
-        for d in dicts:
-            out.append(_worker(d))
-            if progress:
-                progress(out[-1])
-        return out
-    ctx = multiprocessing.get_context("spawn")
-    with ctx.Pool(processes=jobs, maxtasksperchild=None) as pool:
-        for r in pool.imap(_worker, dicts):
-            out.append(r)
-            if progress:
-                progress(r)
-    return out
+              progress: Optional[Callable[[dict], None]] = None, engine: str = "local",
+              address: Optional[str] = None, timeout: Optional[float] = None) -> list[dict]:
+    """Run the cases on an engine of executive/suite.py (``local``: ``jobs`` spawned worker
+    processes; ``ray``: one Ray task each, ``address`` the cluster) with a time limit per
+    case (``timeout`` seconds, default ``suite.DEFAULT_TIMEOUT_S``); ``progress`` gets each
+    result as it arrives. The results in the order of ``cases``; a case that raised, hung or
+    crashed its worker has outcome "error" (``error``: exception | timeout | crashed)."""
+    from executive import suite
+    eng = suite.make_engine(engine, jobs=jobs, address=address,
+                            timeout=timeout or suite.DEFAULT_TIMEOUT_S)
+    got = suite.run_cases(cases, eng, on_result=progress)
+    return [got[suite.case_key(c)] for c in cases]
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,6 +1,8 @@
-"""`hearth bench missions --json [--homes N] [--world W] [--scenarios K] [--jobs J]`: the named
-missions on generated homes and the demo home (executive/scenarios.py), in spawned worker
-processes.
+"""`hearth bench missions --json [--homes N] [--world W] [--scenarios K] [--jobs J]
+[--engine local|ray|local,ray] [--address ADDR] [--timeout S]`: the named missions on
+generated homes and the demo home (executive/scenarios.py), on an engine of
+executive/suite.py (the same as `hearth suite`): spawned worker processes here, or one Ray
+task per scenario.
 
 Worlds: by default the demo home and ``--homes`` generated homes (``home:SEED`` for seeds
 ``--seed`` .. ``--seed + N - 1``, made by worldmodel.homegen and cached); ``--world W`` (a
@@ -21,6 +23,14 @@ work shares the CPU.
 
 ``--verbose`` (or ``HEARTH_BENCH_VERBOSE=1``) prints one line per case on stderr as it
 finishes; ``--missions`` picks missions; ``--warmup`` sets the warm-up searches.
+
+Engines: ``engine``, ``scenarios_per_s`` (cases over the wall time, the engine's start
+included: a Ray start costs seconds) and ``errors_by_kind`` (exception / timeout / crashed).
+``--engine local,ray`` runs the same cases on both, one after the other: the summary is the
+first engine's, and ``engines`` gives each one's ``scenarios_per_s``, ``total_wall_s`` and
+``startup_s`` (until its first result), ``ray_over_local`` the ratio of their wall times, and
+``same_results`` whether every case gave the same result on both (all but
+``executive.suite.VARYING``), with the keys of those that did not in ``differing``.
 """
 from __future__ import annotations
 
@@ -40,6 +50,8 @@ def add_arguments(parser) -> None:
                         help="a world file to run on instead of generated homes (repeatable)")
     parser.add_argument("--no-demo", action="store_true", help="leave the demo home out")
     parser.add_argument("--verbose", action="store_true", help="per-case lines on stderr")
+    from executive.suite import add_engine_arguments
+    add_engine_arguments(parser, several=True)
 
 
 def worlds_of(args) -> list[str]:
@@ -51,7 +63,8 @@ def worlds_of(args) -> list[str]:
 
 
 def run(args) -> dict:
-    from executive.scenarios import run_suite, suite_cases, summarise
+    from executive import suite
+    from executive.scenarios import suite_cases, summarise
 
     n = args.scenarios or (2 if args.quick else 4)
     missions = tuple(m.strip() for m in getattr(args, "missions",
@@ -60,25 +73,64 @@ def run(args) -> dict:
     cases = suite_cases(n, seed=args.seed, missions=missions,
                         warmup=getattr(args, "warmup", 20), worlds=worlds)
     verbose = getattr(args, "verbose", False) or bool(os.environ.get("HEARTH_BENCH_VERBOSE"))
+    engines = getattr(args, "engine", None) or ["local"]
+    engines = [engines] if isinstance(engines, str) else list(engines)
+    jobs = max(1, int(args.jobs or 1))
+    runs = {}
+    for name in engines:
+        runs[name] = _run_on(name, cases, jobs, args, verbose)
+    first = runs[engines[0]]
+    results = first["results"]
+    out = {"scenarios_per_mission": n, "jobs": jobs, "seed": args.seed,
+           "worlds": worlds, "warmup_searches": getattr(args, "warmup", 20),
+           "cases_run": len(results), "engine": engines[0],
+           "total_wall_s": first["total_wall_s"], "scenarios_per_s": first["scenarios_per_s"],
+           "errors_by_kind": first["errors_by_kind"],
+           "load_average": [round(x, 2) for x in os.getloadavg()]}
+    if len(engines) > 1:
+        out["engines"] = {k: {f: v[f] for f in ("scenarios_per_s", "total_wall_s", "startup_s",
+                                                "describe", "errors_by_kind")}
+                          for k, v in runs.items()}
+        if "local" in runs and "ray" in runs:
+            out["ray_over_local"] = round(runs["ray"]["total_wall_s"]
+                                          / runs["local"]["total_wall_s"], 3)
+        a, b = (runs[e]["results"] for e in engines[:2])
+        differing = [x["key"] for x, y in zip(a, b)
+                     if suite.comparable(x) != suite.comparable(y)]
+        out["same_results"] = not differing
+        out["differing"] = differing
+    out.update(summarise(results))
+    return out
+
+
+def _run_on(name: str, cases, jobs: int, args, verbose: bool) -> dict:
+    from collections import Counter
+
+    from executive import suite
+    engine = suite.make_engine(name, jobs=jobs, address=getattr(args, "address", None),
+                               timeout=getattr(args, "timeout", suite.DEFAULT_TIMEOUT_S))
     done = [0]
+    first = [None]
+    t0 = time.perf_counter()
 
     def progress(r):
         done[0] += 1
+        if first[0] is None:
+            first[0] = time.perf_counter() - t0
         if verbose:
-            print(f"[{done[0]}/{len(cases)}] {r['world']} {r['mission']} {r['target']} seed "
-                  f"{r['seed']} {'learned' if r['learned'] else 'fixed'}"
+            print(f"[{name} {done[0]}/{len(cases)}] {r['world']} {r['mission']} {r['target']} "
+                  f"seed {r['seed']} {'learned' if r['learned'] else 'fixed'}"
                   f"{'' if r['achievable'] else ' (unachievable)'}: {r['outcome']} "
                   f"({r['reason']}) {r['sim_time_s']} s sim, {r['wall_time_s']} s wall"
                   + (" WRONG SUCCESS" if r.get("wrong_success") else ""),
                   file=sys.stderr, flush=True)
 
-    t0 = time.perf_counter()
-    results = run_suite(cases, jobs=max(1, int(args.jobs or 1)), progress=progress)
+    got = suite.run_cases(cases, engine, on_result=progress,
+                          log=lambda s: print(s, file=sys.stderr, flush=True))
     wall = time.perf_counter() - t0
-    out = {"scenarios_per_mission": n, "jobs": int(args.jobs or 1), "seed": args.seed,
-           "worlds": worlds, "warmup_searches": getattr(args, "warmup", 20),
-           "cases_run": len(results), "total_wall_s": round(wall, 1),
-           "scenarios_per_s": round(len(results) / wall, 3) if wall > 0 else None,
-           "load_average": [round(x, 2) for x in os.getloadavg()]}
-    out.update(summarise(results))
-    return out
+    results = [got[suite.case_key(c)] for c in cases]
+    return {"results": results, "total_wall_s": round(wall, 1),
+            "scenarios_per_s": round(len(results) / wall, 3) if wall > 0 else None,
+            "startup_s": round(first[0], 1) if first[0] is not None else None,
+            "describe": engine.describe(),
+            "errors_by_kind": dict(Counter(r["error"] for r in results if r.get("error")))}
