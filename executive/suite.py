@@ -17,9 +17,9 @@ A suite is a list of :class:`executive.scenarios.Case` run one by one by an **en
   (``suite_cases`` needs their maps to choose targets), and shipped like any world file: a
   worker never regenerates a home from its seed, so a cluster whose nodes have another numpy
   still runs the same home. Models this machine lacks are trained first, as Ray tasks, and
-  kept here too. Joining a cluster also ships Hearth's own code and missions (a Ray runtime
-  environment with ``py_modules``), so the cluster runs the submitter's version; the
-  third-party dependencies must be installed on its nodes.
+  kept here too. Joining a cluster also ships Hearth's own code and missions (zipped into the
+  object store; each task unpacks it first, executive/suite_boot.py), so the cluster runs the
+  submitter's version; the third-party dependencies must be installed on its nodes.
 
 Both engines run each scenario with one thread for every numeric library (BLAS through
 threadpoolctl, OpenMP through ``OMP_NUM_THREADS``, open3d's TBB pool through
@@ -552,8 +552,8 @@ def _ray_train(need: ModelNeed, bundle: Optional[dict]) -> tuple[str, bytes]:  #
 
 
 def _staged_code() -> list[str]:
-    """Hearth's packages copied into a temporary folder for a runtime environment, the
-    missions and the demo home inside ``hearth`` (as a wheel has them)."""
+    """Hearth's packages copied into a temporary folder, the missions and the demo home
+    inside ``hearth`` (as a wheel has them)."""
     import shutil
     import tempfile
 
@@ -570,6 +570,24 @@ def _staged_code() -> list[str]:
         if not (out / "hearth" / res).is_dir():
             shutil.copytree(hearth.resource_dir(res), out / "hearth" / res, ignore=ignore)
     return paths
+
+
+def _code_zip() -> tuple[str, bytes]:
+    """(fingerprint, zip) of Hearth's staged code, for executive/suite_boot.py."""
+    import hashlib
+    import io
+    import shutil
+    import zipfile
+    paths = _staged_code()
+    root = Path(paths[0]).parent
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(root.rglob("*")):
+            if f.is_file():
+                z.write(f, f.relative_to(root).as_posix())
+    shutil.rmtree(root, ignore_errors=True)
+    data = buf.getvalue()
+    return hashlib.sha256(data).hexdigest()[:16], data
 
 
 class RayEngine:
@@ -621,10 +639,17 @@ class RayEngine:
                       else f"cluster at {self.address}")
         self.slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
         opts: dict[str, Any] = dict(num_cpus=1, max_retries=0)
+        self._boot = None
         if self.ship_code:
-            opts["runtime_env"] = {"py_modules": _staged_code()}
+            # Ray takes a folder of code only at ray.init (a job's runtime environment): the
+            # code goes through the object store and each task unpacks it first.
+            from executive import suite_boot
+            ray.cloudpickle.register_pickle_by_value(suite_boot)
+            fp, data = _code_zip()
+            self._code = (fp, ray.put(data))
+            self._boot = ray.remote(suite_boot.boot).options(**opts)
         self._case = ray.remote(_ray_case).options(**opts)
-        self._train = ray.remote(_ray_train).options(**dict(opts, num_cpus=1))
+        self._train = ray.remote(_ray_train).options(**opts)
         mod = sys.modules.get(getattr(self.runner, "__module__", "") or "")
         if mod is not None and mod.__name__.split(".")[0] not in PACKAGES:
             # A runner of one's own (a test's stand-in) travels by value with the tasks.
@@ -651,7 +676,11 @@ class RayEngine:
                 continue
             log(f"training {describe_need(need)} on Ray (a minute or more) ...")
             bundle = self._bundle(need.world)[1] if need.world else None
-            training[need] = self._train.remote(need, bundle)
+            if self._boot is not None:
+                call = self.ray.cloudpickle.dumps(("_ray_train", (need,)))
+                training[need] = self._boot.remote(*self._code, call, bundle)
+            else:
+                training[need] = self._train.remote(need, bundle)
         for need, ref in training.items():
             try:
                 filename, data = ray.get(ref)
@@ -666,6 +695,10 @@ class RayEngine:
         case = task["case"]
         fp, bundle = self._bundle(case["world"])
         models = [self.refs[n] for n in model_needs([_Case(case)]) if n in self.refs]
+        if self._boot is not None:
+            call = self.ray.cloudpickle.dumps(
+                ("_ray_case", (case, task["key"], self.runner, self.timeout, fp)))
+            return self._boot.remote(*self._code, call, bundle, *models)
         return self._case.remote(case, task["key"], self.runner, self.timeout, fp, bundle,
                                  *models)
 
