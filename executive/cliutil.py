@@ -299,6 +299,9 @@ class RunPrinter:
             elif kind == "status" and node is not None and node.kind == "skill":
                 if e["status"] in ("SUCCESS", "FAILURE") and not e.get("halted"):
                     said = self._said(events, i, path)
+                    skill = getattr(node, "skill_name", "") or ""
+                    if skill and said.startswith(skill + ": "):
+                        said = said[len(skill) + 2:]      # the line names the skill already
                     mark = "ok  " if e["status"] == "SUCCESS" else "FAIL"
                     self._line(self._at(e) + f"{mark} {self._label(path)}"
                                + (f": {said}" if said else ""))

@@ -185,13 +185,22 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     # off on a cupboard front in a generated home.
     ok = bool(res.converged) and weakest >= cfg.min_weakest \
         and inside and alt is None and better and sharp >= cfg.min_sharpness
+    doubts = [what for bad, what in (
+        (not res.converged, "the registration did not converge"),
+        (weakest < cfg.min_weakest, f"the view constrains one direction too little "
+                                    f"(weakest {weakest:.3f} < {cfg.min_weakest})"),
+        (not inside, "the correction lies outside the searched range"),
+        (alt is not None, "another pose explains the view as well"),
+        (not better, "it explains the view no better than the believed pose"),
+        (sharp < cfg.min_sharpness, "a nearby pose explains the view as well"))
+        if bad]
     quality = dict(fitness=round(res.fitness, 4), coverage=round(res.coverage, 4),
                    residual_mm=round(res.residual * 1000, 3), converged=res.converged,
                    weakest=round(weakest, 4), landmarks=len(ids), points=len(src),
                    ambiguous=alt is not None, within_search=inside,
                    agreement=int(s_fix), agreement_believed=int(s_believed),
                    sharpness=round(sharp, 4),
-                   parts_used=parts_used)
+                   parts_used=parts_used, doubts=doubts)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
                             "registration": 1000 * (t4 - t2)})

@@ -88,7 +88,9 @@ class RefineLocalisation(_PerceptionSkill):
                                   landmarks=self.input("landmarks"))
         self.set_output("quality", fix.quality)
         if not fix.ok:
-            raise PerceptionError(f"fix not trusted ({fix.quality}); pose left unchanged")
+            why = "; ".join(fix.quality.get("doubts") or ()) or "too weak"
+            raise PerceptionError(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
+                                  f"(fitness {fix.quality['fitness']:.2f}); pose left unchanged")
         self.robot.apply_correction(Pose.from_matrix(fix.T_world_base))
         corr = dict(dx=fix.dx, dy=fix.dy, dyaw=fix.dyaw)
         self.set_output("correction", corr)
