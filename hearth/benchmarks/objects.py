@@ -1,148 +1,261 @@
-"""Small-object detection and verification on seeded cluttered table scenes.
+"""Small-object detection and verification on seeded cluttered scenes of any home.
 
-Each scene is the demo home's kitchen table (data/demo_home/world.xml) with its red cup, bowl,
-sugar container and blue cup at random places and yaws, one to four clutter boxes the map does
-not know, and an occluder box put between the camera and a random object so that objects are
-up to (and sometimes beyond) 50 % hidden. A Kinect-class camera about 1.3 m high looks at the
-table from a random side; the view is rendered with ``robot.sim.render_view`` (Kinect-class
-noise: lateral edge noise, axial noise, disparity quantisation, dropouts, colour noise). The detector gets the belief map (no clutter, objects at their old
-places) and tries every small object of the map as a candidate.
+Worlds (hearth/benchmarks/_worlds.py): by default the demo home and 2 generated homes
+(``home:SEED``, seeds ``--seed``, ``--seed + 1``); ``--homes N``, ``--world W`` (repeatable),
+``--no-demo``. ``--scenarios K``: scenes per world (default 60 on the demo home and 20 on
+each other world; 12 and 6 with ``--quick``).
+
+Each scene is one surface of the home where small objects stand (``_worlds.places``: table
+tops, open shelves, shelves inside cupboards and fridges, whose doors are then open), seen by
+the simulated robot's head camera from one of its furniture's parking positions (moved a few
+centimetres, the head aimed near the middle of what it sees of the surface). One to four of
+the home's own small objects (those that fit the surface and its free height) stand at random
+places of the surface that the camera sees and at random yaws, with one to four clutter
+boxes the map does not know (none a look-alike in size and colour of one of its objects), and an occluder box put between the camera and one object so
+that objects are up to (and sometimes beyond) 50 % hidden. The view is rendered with
+``hearth.robot.sim.render_view`` (Kinect-class noise: lateral edge noise, axial noise,
+disparity quantisation, dropouts, colour noise). The detector gets the belief map (no
+clutter, objects at their old places, the doors open as in truth) and the surface it looks
+at (as a mission's DetectObject gets the level it searches), and tries every small object of
+the map as a candidate. ``auto_surface_agreement``: the share of scenes where the detector,
+not told the surface, would pick that one (``perception.objects.expected_surfaces``).
 
 Scoring: an object counts when at most 50 % of it is hidden (the occlusion is measured by
 rendering it alone); an accepted hypothesis is a true positive when its object is in the scene
 and its position is within 3 cm (x, y), else a false positive; objects hidden more than 50 %
-are neither required nor, when found correctly, counted as false positives. ``red_blue_swaps``
-counts a cup reported as the other cup. ``ms_per_view_*`` is wall time of ``detect_objects``
-(on a machine shared with other jobs: see ``load_average_1min``); ``cpu_ms_per_view_median``
-is this process's CPU time. Reference (RAMCIP / HOBBIT, 2016 laptop): F1 37-100 % per object
-at 3-8 s per object, given as ratios (ours / theirs).
+are neither required nor, when found correctly, counted as false positives.
+``same_type_swaps`` counts an object reported where another object of the same type stands
+(a cup taken for the other cup). ``ms_per_view_*`` is wall time of ``detect_objects`` (on a
+machine shared with other jobs: see ``load_average_1min``); ``cpu_ms_per_view_median`` is
+this process's CPU time. ``per_kind_f1``: by surface kind (``top`` open above, ``shelf`` of
+open furniture, ``inside`` closed furniture); ``per_type_f1`` by object type;
+``per_object_f1`` (by object id) in each ``per_world`` entry. Reference (RAMCIP / HOBBIT,
+2016 laptop): F1 37-100 % per object at 3-8 s per object, given as ratios (ours / theirs).
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
-import statistics
 import time
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
-from perception.camera import Intrinsics, look_at
-from hearth import demo_world_path
+from hearth.benchmarks import _worlds
+from hearth.benchmarks._worlds import summary_stats
+from perception.camera import Intrinsics
 
-DEMO_WORLD = demo_world_path()
-TABLE = "kitchen_table"
-OBJECTS = ("red_cup", "bowl", "sugar", "blue_cup")
 REFERENCE = dict(f1_low=0.37, f1_high=1.0, ms_per_object_low=3000.0, ms_per_object_high=8000.0)
 MATCH_M = 0.03
+#: Scenes per world: (the demo home, any other world), normal and --quick.
+SCENES = dict(demo=60, other=20, demo_quick=12, other_quick=6)
 
 
 def add_arguments(parser) -> None:
-    pass
+    _worlds.add_arguments(parser, homes=2)
 
 
 # -- scenes (also used by benchmarks/nbv.py and tests/objects) --------------------------------
 
-def demo_world():
-    from worldmodel import load_world
-    return load_world(DEMO_WORLD)
-
-
-def box_object(oid: str, size, color, x: float, y: float, yaw: float):
-    """A SmallObject box (clutter or occluder) standing on a table at (x, y) in its frame."""
+def box_object(oid: str, size, color, pose):
+    """A SmallObject box (clutter or occluder) of ``size`` (x, y, z) standing at ``pose``
+    (its base centre, in its parent's frame)."""
     from worldmodel.nodes import Model, SmallObject, Visual
     from worldmodel.pose import Pose
     sx, sy, sz = size
     vis = Visual("box", Pose(0, 0, sz / 2), size=(sx, sy, sz), color=tuple(color), name="body")
-    return SmallObject(oid, "box", Pose(x, y, 0.75, 0, 0, yaw), color="",
-                       model=Model(visuals=[vis]))
+    return SmallObject(oid, "box", pose, color="", model=Model(visuals=[vis]))
 
 
-def _free(placed, x, y, r, sx=0.56, sy=0.36):
-    if abs(x) > sx or abs(y) > sy:
-        return False
-    return all(math.hypot(x - px, y - py) > r + pr + 0.01 for px, py, pr in placed)
+class Placer:
+    """Free spots of a surface: discs (u, v, radius) in the surface frame that do not overlap
+    each other and stay ``margin`` inside its extent."""
+
+    def __init__(self, place, margin: float = 0.0):
+        self.hx, self.hy = place.size[0] / 2 + margin, place.size[1] / 2 + margin
+        self.placed: list[tuple[float, float, float]] = []
+
+    def free(self, u: float, v: float, r: float, gap: float = 0.01) -> bool:
+        if abs(u) > self.hx - r or abs(v) > self.hy - r:
+            return False
+        return all(math.hypot(u - pu, v - pv) > r + pr + gap for pu, pv, pr in self.placed)
+
+    def add(self, u: float, v: float, r: float) -> None:
+        self.placed.append((u, v, r))
 
 
-def camera_around_table(world, rng, distance=(1.2, 1.7), height=(1.25, 1.35),
-                        angle=None) -> np.ndarray:
-    """``T_world_camera`` of a robot head camera at a random side of the table, looking at it."""
-    Tt = world.T_world(TABLE)
-    a = rng.uniform(-math.pi, math.pi) if angle is None else angle
-    r = rng.uniform(*distance)
-    eye = Tt[:3, 3] + (r * math.cos(a), r * math.sin(a), 0)
-    eye[2] = rng.uniform(*height)
-    target = Tt[:3, 3] + (rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), 0.75)
-    return look_at(eye, target)
+def _looks(world) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per small object of the map: (sorted x, y extents and height (m), HSV of its biggest
+    visual's colour)."""
+    from perception.objects import rgb_to_hsv
+    from worldmodel.geometry import small_object_meshes
+    out = []
+    for o in world.small_objects():
+        meshes = small_object_meshes(world, o, T_world_object=np.eye(4))
+        if not meshes:
+            continue
+        v = np.vstack([np.asarray(lm.mesh.vertices) for lm in meshes])
+        ext = v.max(0) - v.min(0)
+        big = max(meshes, key=lambda lm: lm.mesh.get_surface_area())
+        out.append((np.r_[np.sort(ext[:2]), ext[2]],
+                    rgb_to_hsv(np.asarray([big.color], float))[0]))
+    return out
 
 
-def cluttered_scene(rng, n_clutter=(1, 4), occlude: bool = True, base=None):
-    """(truth world, T_world_camera, occluded object id or None): the table's objects at random
-    places and yaws, clutter boxes, and an occluder between the camera and one object."""
-    from worldmodel.pose import Pose
-    truth = (base or demo_world()).copy()
-    placed = []
-    radii = dict(red_cup=0.075, blue_cup=0.075, bowl=0.08, sugar=0.057)
-    for oid in OBJECTS:
-        for _ in range(200):
-            x, y = rng.uniform(-0.5, 0.5), rng.uniform(-0.3, 0.3)
-            if _free(placed, x, y, radii[oid]):
-                break
-        placed.append((x, y, radii[oid]))
-        truth.move_object(oid, TABLE, Pose(x, y, 0.75, 0, 0, rng.uniform(-math.pi, math.pi)))
-    T_wc = camera_around_table(truth, rng)
+def distinct(looks, size, color, tolerance: float = 0.025) -> bool:
+    """Whether a box of ``size`` and ``color`` (RGB 0-1) can be told from every small object
+    of the map: clutter must be something the map does not know, not a look-alike of one of
+    its objects. A look-alike has a similar colour, a similar height and one side as wide as
+    one of the object's (one view shows a box's front face: its depth is not seen)."""
+    from perception.objects import color_agreement, rgb_to_hsv
+    sides, height = np.asarray(size[:2], float), float(size[2])
+    hsv = rgb_to_hsv(np.asarray([color], float))
+    for ext, h in looks:
+        if abs(ext[2] - height) < tolerance and \
+                np.any(np.abs(sides[:, None] - ext[None, :2]) < tolerance) and \
+                color_agreement(hsv, h[None])[0] > 0.5:
+            return False
+    return True
+
+
+def fitting_objects(world, place) -> list[str]:
+    """Small objects of the map that fit on ``place``: their radius and height within its
+    extent and free height."""
+    out = []
+    for o in world.small_objects():
+        r, h = _worlds.extent(world, o.id)
+        if 2 * r + 0.02 <= min(place.size) and h + 0.015 <= place.headroom:
+            out.append(o.id)
+    return out
+
+
+def camera_at(place, rng, view=None) -> np.ndarray:
+    """``T_world_camera`` of the head camera at one of the place's views (a random one), the
+    base moved up to 5 cm and turned up to 3 degrees, the head aimed up to 4 cm off."""
+    view = view or place.views[int(rng.integers(len(place.views)))]
+    x, y, yaw = view.base_pose
+    base = (x + rng.uniform(-0.05, 0.05), y + rng.uniform(-0.05, 0.05),
+            yaw + rng.uniform(-0.05, 0.05))
+    aim = view.aim + np.r_[rng.uniform(-0.04, 0.04, 2), 0.0]
+    return _worlds.head_camera(base, aim)
+
+
+@dataclass
+class ClutteredScene:
+    """One scene: the ``truth`` world, the camera, the map objects in it (``ids``), the one
+    an occluder hides (or None), and the discs already taken on the surface (``placer``)."""
+    truth: object
+    T_world_camera: np.ndarray
+    ids: list
+    hidden: Optional[str]
+    place: object
+    placer: Placer
+    looks: list
+
+
+def cluttered_scene(rng, place, base, n_objects=(1, 4), n_clutter=(1, 4), occlude: bool = True,
+                    T_world_camera=None, objects=None) -> ClutteredScene:
+    """Up to ``n_objects`` of the home's small objects (of ``objects``, default all that fit)
+    at random places of ``place`` that the camera sees, at random yaws, clutter boxes, and an
+    occluder between the camera and one object.
+    The furniture's other small objects are taken away (every object in view is one the
+    scene knows); doors of the place's furniture are open in truth when the place is inside it."""
+    truth = base.copy()
+    fits = [o for o in fitting_objects(truth, place) if objects is None or o in objects]
+    k = min(int(rng.integers(n_objects[0], n_objects[1] + 1)), len(fits))
+    chosen = [fits[i] for i in rng.permutation(len(fits))]
+    for o in list(truth.children_of(place.object_id)):
+        if getattr(o, "kind", "") == "SmallObject":
+            truth.remove_small_object(o.id)
+    if place.inside:
+        _worlds.opened(truth, place.object_id)
+    T_wc = camera_at(place, rng) if T_world_camera is None else T_world_camera
+    K = Intrinsics.kinect().scaled(0.5)
+    depth = _worlds._static_depth(truth, truth.room_of(place.object_id).id, K, T_wc)
+    spots = {}
+    placer = Placer(place)
+    ids = []
+    for oid in chosen:
+        if len(ids) >= k:
+            break
+        if oid not in truth:   # stood on this furniture: put back below
+            truth.add_small_object(copy.deepcopy(base.get(oid)), place.object_id)
+        r, h = _worlds.extent(truth, oid)
+        key = round(h, 2)
+        if key not in spots:
+            uv = _worlds.grid(place, step=0.02)
+            spots[key] = _worlds.visible_spots(truth, place, T_wc, K, (0.02, max(h - 0.01, 0.02)),
+                                               uv=uv, depth=depth, margin_px=10)
+        cand = [s for s in spots[key] if placer.free(s[0], s[1], r)]
+        if not cand:
+            continue
+        u, v = cand[int(rng.integers(len(cand)))]
+        placer.add(u, v, r)
+        truth.move_object(oid, place.object_id,
+                          place.to_parent(u, v, rng.uniform(-math.pi, math.pi)), place.relation)
+        ids.append(oid)
+    top = place.headroom - 0.015
+    looks = _looks(base)
     for i in range(int(rng.integers(n_clutter[0], n_clutter[1] + 1))):
-        size = (rng.uniform(0.04, 0.12), rng.uniform(0.04, 0.12), rng.uniform(0.05, 0.18))
-        color = rng.uniform(0.1, 0.9, 3)
+        for _ in range(20):
+            size = (rng.uniform(0.04, 0.12), rng.uniform(0.04, 0.12),
+                    rng.uniform(0.05, max(min(0.18, top), 0.05)))
+            color = rng.uniform(0.1, 0.9, 3)
+            if distinct(looks, size, color):
+                break
+        if size[2] > top:
+            break
         r = math.hypot(size[0], size[1]) / 2
         for _ in range(200):
-            x, y = rng.uniform(-0.5, 0.5), rng.uniform(-0.3, 0.3)
-            if _free(placed, x, y, r):
-                placed.append((x, y, r))
-                truth.add_small_object(box_object(f"clutter_{i}", size, color, x, y,
-                                                  rng.uniform(0, math.pi)), TABLE)
+            u, v = rng.uniform(-place.size[0] / 2, place.size[0] / 2), \
+                rng.uniform(-place.size[1] / 2, place.size[1] / 2)
+            if placer.free(u, v, r):
+                placer.add(u, v, r)
+                truth.add_small_object(box_object(f"clutter_{i}", size, color,
+                                                  place.to_parent(u, v, rng.uniform(0, math.pi))),
+                                       place.object_id)
                 break
     hidden = None
-    if occlude:
-        hidden = OBJECTS[int(rng.integers(len(OBJECTS)))]
-        p = truth.T_world(hidden)[:3, 3]
-        Tt = truth.T_world(TABLE)
-        cam = T_wc[:3, 3]
-        v = (cam - p)[:2]
+    if occlude and ids:
+        hidden = ids[int(rng.integers(len(ids)))]
+        hidden_r = _worlds.extent(truth, hidden)[0]
+        p = place.local_xy(truth.T_world(hidden)[:2, 3])[0]
+        cam = place.local_xy(T_wc[:2, 3])[0]
+        v = cam - p
         v /= np.linalg.norm(v)
         side = np.array([-v[1], v[0]])
         for _ in range(50):
-            q = p[:2] + v * rng.uniform(0.13, 0.22) + side * rng.uniform(-0.09, 0.09)
-            local = q - Tt[:2, 3]
-            size = (0.03, rng.uniform(0.06, 0.12), rng.uniform(0.10, 0.16))
-            if _free(placed, local[0], local[1], 0.03, 0.58, 0.38):
+            q = p + v * rng.uniform(hidden_r + 0.06, hidden_r + 0.15) + side * rng.uniform(-0.09, 0.09)
+            size = (0.03, rng.uniform(0.06, 0.12), min(rng.uniform(0.10, 0.16), top))
+            color = rng.uniform(0.1, 0.9, 3)
+            if placer.free(q[0], q[1], 0.03) and distinct(looks, size, color):
+                placer.add(q[0], q[1], 0.03)
                 yaw = math.atan2(v[1], v[0])
-                color = rng.uniform(0.1, 0.9, 3)
-                truth.add_small_object(box_object("occluder", size, color, local[0], local[1],
-                                                  yaw), TABLE)
+                truth.add_small_object(box_object("occluder", size, color,
+                                                  place.to_parent(q[0], q[1], yaw)),
+                                       place.object_id)
                 break
-    return truth, T_wc, hidden
+    return ClutteredScene(truth, T_wc, ids, hidden, place, placer, looks)
 
 
-def observe(truth, T_world_camera, rng, K: Intrinsics | None = None, scene=None):
-    """(depth m, colour uint8, noise-free Rendering) of the truth from ``T_world_camera``:
-    ``robot.sim.render_view`` (Kinect-class noise on depth and colour) when it is there."""
+def observe(truth, T_world_camera, rng, K: Intrinsics | None = None, scene=None, room=None):
+    """(depth m, colour uint8, noise-free Rendering) of the truth from ``T_world_camera``
+    (``robot.sim.render_view``: Kinect-class noise on depth and colour); ``room``: render
+    that room only (default: the room the camera stands in, else every room)."""
+    from hearth.robot.sim import render_view
     from perception.render import Scene
+    from worldmodel.frames import room_at
     from worldmodel.geometry import scene_meshes
     K = K or Intrinsics.kinect()
-    scene = scene or Scene(scene_meshes(truth, room_ids=[truth.room_of(TABLE).id]))
-    try:
-        from hearth.robot.sim import render_view
-    except ImportError:  # pragma: no cover - before the simulated robot landed
-        render_view = None
-    if render_view is not None:
-        f = render_view(truth, K, T_world_camera, rng, scene=scene)
-        return np.asarray(f.depth, np.float64), f.color, f.rendering
-    r = scene.render(K, T_world_camera)
-    d = r.depth.astype(np.float64).copy()
-    ok = d > 0
-    d[ok] += rng.standard_normal(ok.sum()) * (0.0012 + 0.0019 * (d[ok] - 0.4) ** 2)
-    color = np.clip(r.color.astype(np.float64) + rng.normal(0, 3, r.color.shape), 0, 255)
-    return d, color.astype(np.uint8), r
+    if scene is None:
+        if room is None:
+            r = room_at(truth, float(T_world_camera[0, 3]), float(T_world_camera[1, 3]))
+            room = r.id if r is not None else None
+        scene = Scene(scene_meshes(truth, room_ids=None if room is None else [room]))
+    f = render_view(truth, K, T_world_camera, rng, scene=scene)
+    return np.asarray(f.depth, np.float64), f.color, f.rendering
 
 
 def visible_fractions(truth, rendering, T_world_camera, K, ids) -> dict[str, float]:
@@ -159,7 +272,8 @@ def visible_fractions(truth, rendering, T_world_camera, K, ids) -> dict[str, flo
 
 
 def score(detection, truth, visible: dict[str, float]):
-    """(tp, fp, fn, position errors m, swaps) of a Detection against the truth."""
+    """(tp, fp, fn, position errors m, swaps) of a Detection against the truth. A swap is an
+    accepted hypothesis of one object at the place of another object of the same type."""
     tp = fp = swaps = 0
     errs, found = [], set()
     for h in detection.accepted:
@@ -172,92 +286,150 @@ def score(detection, truth, visible: dict[str, float]):
             errs.append(float(np.linalg.norm(h.position - truth.T_world(oid)[:3, 3])))
         else:
             fp += 1
-            other = {"red_cup": "blue_cup", "blue_cup": "red_cup"}.get(oid)
-            if other and np.linalg.norm(h.position[:2] - truth.T_world(other)[:2, 3]) < MATCH_M:
-                swaps += 1
+            kind = truth.get(oid).type if oid in truth else None
+            swaps += any(o != oid and truth.get(o).type == kind and np.linalg.norm(
+                h.position[:2] - truth.T_world(o)[:2, 3]) < MATCH_M for o in visible)
     fn = sum(1 for oid, v in visible.items() if v >= 0.5 and oid not in found)
     return tp, fp, fn, errs, swaps
-
-
-def _median(xs, nd=1):
-    xs = [x for x in xs if x is not None and math.isfinite(x)]
-    return round(statistics.median(xs), nd) if xs else None
-
-
-def _pct(xs, q, nd=1):
-    xs = [x for x in xs if x is not None and math.isfinite(x)]
-    return round(float(np.percentile(xs, q)), nd) if xs else None
 
 
 def f1(tp, fp, fn):
     return round(2 * tp / (2 * tp + fp + fn), 4) if tp + fp + fn else None
 
 
-def run(args) -> dict:
+# -- the benchmark ----------------------------------------------------------------------------
+
+def scenes_for(spec: str, args) -> int:
+    if args.scenarios:
+        return int(args.scenarios)
+    q = "_quick" if args.quick else ""
+    return SCENES[("demo" if spec == "demo" else "other") + q]
+
+
+def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], str]:
+    """Per-scene records of ``n`` scenes of one world, and a note when it has no place."""
     from types import SimpleNamespace
 
     from perception.errors import PerceptionError
-    from perception.objects import detect_objects
-    n = args.scenarios or (12 if args.quick else 80)
-    rng = np.random.default_rng(args.seed)
-    belief = demo_world()
-    base = demo_world()
-    K = Intrinsics.kinect()
-    T0 = camera_around_table(base, rng)
-    detect_objects(belief, *observe(base, T0, rng)[:2], K, T0)  # warm-up: models, caches
-    TP = FP = FN = SW = 0
-    errs, ms, cpu, per_obj, occl = [], [], [], {o: [0, 0, 0] for o in OBJECTS}, []
-    per_scene_f1 = []
-    for _ in range(n):
-        truth, T_wc, _hidden = cluttered_scene(rng, base=base)
+    from perception.objects import detect_objects, expected_surfaces
+    base = _worlds.load(spec)
+    ps = [p for p in _worlds.places(base) if fitting_objects(base, p)]
+    if not ps:
+        return [], "no surface with a view that one of its small objects fits on"
+    warm = ps[0]
+    T0 = camera_at(warm, rng)
+    belief0 = base.copy()
+    if warm.inside:
+        _worlds.opened(belief0, warm.object_id)
+    try:
+        detect_objects(belief0, *observe(belief0, T0, rng, K)[:2], K, T0)  # warm-up: models
+    except PerceptionError:
+        pass
+    out = []
+    for i in range(n):
+        place = ps[int(rng.integers(len(ps)))]
+        sc = cluttered_scene(rng, place, base)
+        truth, T_wc, ids = sc.truth, sc.T_world_camera, sc.ids
+        belief = base.copy()
+        if place.inside:
+            _worlds.opened(belief, place.object_id)
         depth, color, r = observe(truth, T_wc, rng, K)
-        vis = visible_fractions(truth, r, T_wc, K, OBJECTS)
-        occl.extend(1 - v for v in vis.values() if v > 0)
+        vis = visible_fractions(truth, r, T_wc, K, ids)
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            det = detect_objects(belief, depth, color, K, T_wc)
+            det = detect_objects(belief, depth, color, K, T_wc, surface=place.name)
         except PerceptionError:  # no surface found: every object missed
             det = SimpleNamespace(accepted=[])
-        ms.append((time.perf_counter() - t0) * 1000)
-        cpu.append((time.process_time() - c0) * 1000)
-        tp, fp, fn, e, sw = score(det, truth, vis)
-        TP, FP, FN, SW = TP + tp, FP + fp, FN + fn, SW + sw
-        per_scene_f1.append(f1(tp, fp, fn))
-        errs.extend(e)
-        for oid in OBJECTS:
-            sub = {oid: vis[oid]}
+        ms = (time.perf_counter() - t0) * 1000
+        cpu = (time.process_time() - c0) * 1000
+        tp, fp, fn, errs, sw = score(det, truth, vis)
+        per_obj = {}
+        for oid in ids:
             d1 = SimpleNamespace(accepted=[h for h in det.accepted if h.object_id == oid])
-            a, b, c, _, _ = score(d1, truth, sub)
-            per_obj[oid] = [per_obj[oid][0] + a, per_obj[oid][1] + b, per_obj[oid][2] + c]
+            per_obj[oid] = score(d1, truth, {oid: vis[oid]})[:3]
+        auto = expected_surfaces(belief, T_wc, K, depth)
+        out.append(dict(world=spec, place=place.name, kind=place.kind, tp=tp, fp=fp, fn=fn,
+                        auto_surface=bool(auto) and auto[0][0] == place.name,
+                        errs=errs, swaps=sw, ms=ms, cpu=cpu, objects=len(ids),
+                        occlusion=[1 - v for v in vis.values() if v > 0], per_object=per_obj,
+                        types={oid: truth.get(oid).type for oid in ids}))
+    return out, ""
+
+
+def summarise(records: list[dict]) -> dict:
+    """The benchmark's figures over a list of scene records."""
+    if not records:
+        return dict(scenes=0)
+    TP = sum(r["tp"] for r in records)
+    FP = sum(r["fp"] for r in records)
+    FN = sum(r["fn"] for r in records)
     F1 = f1(TP, FP, FN)
-    per_object_f1 = {o: f1(*v) for o, v in per_obj.items()}
-    ms_med = _median(ms)
-    n_obj_view = len(OBJECTS)
+    scene_f1 = [x for x in (f1(r["tp"], r["fp"], r["fn"]) for r in records) if x is not None]
+    errs = [e * 1000 for r in records for e in r["errs"]]
+    occl = [o for r in records for o in r["occlusion"]]
+    ms = [r["ms"] for r in records]
+    by_kind: dict = {}
+    for r in records:
+        k = by_kind.setdefault(r["kind"], [0, 0, 0])
+        for i, key in enumerate(("tp", "fp", "fn")):
+            k[i] += r[key]
+    by_type: dict = {}
+    by_object: dict = {}
+    for r in records:
+        for oid, v in r["per_object"].items():
+            for table, key in ((by_type, r["types"][oid]), (by_object, oid)):
+                t = table.setdefault(key, [0, 0, 0])
+                for i in range(3):
+                    t[i] += v[i]
+    ms_med = summary_stats(ms)
+    per_view = max(np.mean([r["objects"] for r in records]), 1.0)
+    out = dict(
+        scenes=len(records),
+        detection_f1=F1, precision=round(TP / (TP + FP), 4) if TP + FP else None,
+        recall=round(TP / (TP + FN), 4) if TP + FN else None,
+        true_positives=TP, false_positives=FP, false_negatives=FN,
+        same_type_swaps=sum(r["swaps"] for r in records),
+        per_kind_f1={k: f1(*v) for k, v in sorted(by_kind.items())},
+        per_type_f1={k: f1(*v) for k, v in sorted(by_type.items())},
+        scene_f1_min=min(scene_f1) if scene_f1 else None,
+        scene_f1_p10=summary_stats(scene_f1, 3, q=10),
+        pose_err_mm_median=summary_stats(errs), pose_err_mm_p90=summary_stats(errs, q=90),
+        occlusion_max=round(max(occl), 3) if occl else None,
+        occluded_over_25pct=sum(1 for o in occl if 0.25 < o <= 0.5),
+        objects_per_view_mean=round(float(per_view), 2),
+        auto_surface_agreement=round(float(np.mean([r["auto_surface"] for r in records])), 3),
+        ms_per_view_median=ms_med, ms_per_view_p90=summary_stats(ms, q=90),
+        cpu_ms_per_view_median=summary_stats([r["cpu"] for r in records]),
+        ratio_f1_to_reference_low=round(F1 / REFERENCE["f1_low"], 2) if F1 else None,
+        ratio_f1_to_reference_high=round(F1 / REFERENCE["f1_high"], 3) if F1 else None,
+        ratio_ms_per_object_to_reference_best=round(ms_med / per_view
+                                                    / REFERENCE["ms_per_object_low"], 4),
+        ratio_ms_per_object_to_reference_worst=round(ms_med / per_view
+                                                     / REFERENCE["ms_per_object_high"], 4),
+    )
+    if len({r["world"] for r in records}) == 1:
+        out["per_object_f1"] = {k: f1(*v) for k, v in sorted(by_object.items())}
+    return out
+
+
+def run(args) -> dict:
+    rng = np.random.default_rng(args.seed)
+    K = Intrinsics.kinect()
+    specs = _worlds.world_specs(args, homes=2)
+    records, skipped = [], {}
+    for spec in specs:
+        recs, why = run_world(spec, scenes_for(spec, args), rng, K)
+        records += recs
+        if why:
+            skipped[spec] = why
+    used = [s for s in specs if s not in skipped]
+    if not used:
+        raise _worlds.NoScenes(f"objects: {'; '.join(f'{s}: {w}' for s, w in skipped.items())}")
+    out = _worlds.report(records, summarise, used)
     try:
         load = round(os.getloadavg()[0], 2)
     except OSError:  # pragma: no cover
         load = None
-    return dict(
-        scenes=n, seed=args.seed,
-        detection_f1=F1, precision=round(TP / (TP + FP), 4) if TP + FP else None,
-        recall=round(TP / (TP + FN), 4) if TP + FN else None,
-        true_positives=TP, false_positives=FP, false_negatives=FN, red_blue_swaps=SW,
-        per_object_f1=per_object_f1,
-        scene_f1_min=min(x for x in per_scene_f1 if x is not None),
-        scene_f1_p10=_pct([x for x in per_scene_f1 if x is not None], 10, 3),
-        pose_err_mm_median=_median([e * 1000 for e in errs]),
-        pose_err_mm_p90=_pct([e * 1000 for e in errs], 90),
-        occlusion_max=round(max(occl), 3) if occl else None,
-        occluded_over_25pct=sum(1 for o in occl if 0.25 < o <= 0.5),
-        ms_per_view_median=ms_med, ms_per_view_p90=_pct(ms, 90),
-        cpu_ms_per_view_median=_median(cpu),
-        load_average_1min=load,
-        targets=dict(detection_f1=0.95, ms_per_view_median=300),
-        reference=REFERENCE,
-        ratio_f1_to_reference_low=round(F1 / REFERENCE["f1_low"], 2) if F1 else None,
-        ratio_f1_to_reference_high=round(F1 / REFERENCE["f1_high"], 3) if F1 else None,
-        ratio_ms_per_object_to_reference_best=round(ms_med / n_obj_view
-                                                    / REFERENCE["ms_per_object_low"], 4),
-        ratio_ms_per_object_to_reference_worst=round(ms_med / n_obj_view
-                                                     / REFERENCE["ms_per_object_high"], 4),
-    )
+    out.update(seed=args.seed, load_average_1min=load, skipped=skipped,
+               targets=dict(detection_f1=0.95, ms_per_view_median=300), reference=REFERENCE)
+    return out

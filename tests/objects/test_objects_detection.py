@@ -8,12 +8,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from hearth.benchmarks.objects import OBJECTS, box_object, cluttered_scene, observe, visible_fractions
+from hearth.benchmarks._worlds import places
+from hearth.benchmarks.objects import box_object, cluttered_scene, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
 from perception.objects import color_agreement, detect_objects, model_library
+from worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
+#: The small objects on the demo home's kitchen table.
+OBJECTS = ("red_cup", "bowl", "sugar", "blue_cup")
 
 
 def _south_view(world):
@@ -23,8 +27,8 @@ def _south_view(world):
 
 @pytest.fixture(scope="module")
 def table_view():
-    from hearth.benchmarks.objects import demo_world
-    world = demo_world()
+    from hearth.benchmarks._worlds import load
+    world = load("demo")
     T_wc = _south_view(world)
     depth, color, _ = observe(world, T_wc, np.random.default_rng(1), K)
     return world, T_wc, depth, color, detect_objects(world, depth, color, K, T_wc)
@@ -79,8 +83,8 @@ def test_an_unknown_box_is_not_taken_for_a_map_object(demo_world):
     truth = demo_world.copy()
     truth.remove_small_object("sugar")
     # A box of another size in a yellowish colour near where the sugar jar stood.
-    truth.add_small_object(box_object("clutter", (0.12, 0.05, 0.2), (0.9, 0.75, 0.3), 0.35, -0.2,
-                                      0.3), "kitchen_table")
+    truth.add_small_object(box_object("clutter", (0.12, 0.05, 0.2), (0.9, 0.75, 0.3),
+                                      Pose(0.35, -0.2, 0.75, 0, 0, 0.3)), "kitchen_table")
     T_wc = _south_view(truth)
     depth, color, _ = observe(truth, T_wc, np.random.default_rng(3), K)
     det = detect_objects(demo_world, depth, color, K, T_wc)
@@ -90,11 +94,13 @@ def test_an_unknown_box_is_not_taken_for_a_map_object(demo_world):
 
 def test_partly_occluded_objects_are_still_found(demo_world):
     rng = np.random.default_rng(11)
+    table = next(p for p in places(demo_world) if p.name == "kitchen_table/top")
     found = total = 0
     for _ in range(3):
-        truth, T_wc, hidden = cluttered_scene(rng, base=demo_world)
+        sc = cluttered_scene(rng, table, demo_world, n_objects=(4, 4), objects=OBJECTS)
+        truth, T_wc = sc.truth, sc.T_world_camera
         depth, color, r = observe(truth, T_wc, rng, K)
-        vis = visible_fractions(truth, r, T_wc, K, OBJECTS)
+        vis = visible_fractions(truth, r, T_wc, K, sc.ids)
         det = detect_objects(demo_world, depth, color, K, T_wc)
         acc = {h.object_id: h.position for h in det.accepted}
         for oid, v in vis.items():

@@ -6,10 +6,12 @@ import math
 import numpy as np
 import pytest
 
+from hearth.benchmarks._worlds import places
 from hearth.benchmarks.nbv import occluded_scene
 from hearth.benchmarks.objects import box_object, observe, visible_fractions
 from perception.camera import Intrinsics, look_at
 from perception.errors import PerceptionError
+from worldmodel.pose import Pose
 from perception.nbv import (NBVConfig, footprints, from_map, occupancy_voxels,
                             plan_next_best_view, _box_distance)
 
@@ -20,8 +22,9 @@ def _blocked_cup(world):
     """The blue cup with a tall box right in front of it as seen from the south."""
     truth = world.copy()
     p = truth.get("blue_cup").pose
-    truth.add_small_object(box_object("wall", (0.03, 0.16, 0.2), (0.3, 0.6, 0.3), p.x,
-                                      p.y - 0.13, math.pi / 2), "kitchen_table")
+    truth.add_small_object(box_object("wall", (0.03, 0.16, 0.2), (0.3, 0.6, 0.3),
+                                      Pose(p.x, p.y - 0.13, p.z, 0, 0, math.pi / 2)),
+                           "kitchen_table")
     T = truth.T_world("kitchen_table")
     T_wc = look_at(T[:3, 3] + (-0.1, -1.3, 1.3), truth.T_world("blue_cup")[:3, 3])
     return truth, T_wc
@@ -110,6 +113,7 @@ def test_no_hypothesis_is_an_error(demo_world):
 
 def test_generated_nbv_scenes_hide_the_target_from_the_first_view(demo_world):
     rng = np.random.default_rng(5)
-    truth, T1, target = occluded_scene(rng, demo_world)
+    table = next(p for p in places(demo_world) if p.name == "kitchen_table/top")
+    truth, T1, target, _ = occluded_scene(rng, table, demo_world)
     _, _, r = observe(truth, T1, rng, K)
     assert visible_fractions(truth, r, T1, K, [target])[target] < 0.6

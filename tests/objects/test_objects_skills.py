@@ -62,8 +62,9 @@ def test_detect_object_finds_the_moved_blue_cup_and_updates_the_map(demo_world):
 def test_detect_object_fails_when_the_object_is_hidden_but_still_gives_hypotheses(demo_world):
     truth = demo_world.copy()
     p = truth.get("blue_cup").pose
-    truth.add_small_object(box_object("wall", (0.03, 0.2, 0.22), (0.3, 0.6, 0.3), p.x,
-                                      p.y - 0.12, math.pi / 2), "kitchen_table")
+    truth.add_small_object(box_object("wall", (0.03, 0.2, 0.22), (0.3, 0.6, 0.3),
+                                      Pose(p.x, p.y - 0.12, p.z, 0, 0, math.pi / 2)),
+                           "kitchen_table")
     skill = make(DetectObject, demo_world, robot_at_table(truth), {"object": "blue_cup"},
                  {"hypotheses": "/hyps"})
     assert tick(skill) == py_trees.common.Status.FAILURE

@@ -44,8 +44,11 @@ def test_hsv_similarity_tells_blue_from_red_and_ignores_hue_of_greys():
 
 
 def _sequence(seed=3, frames=24):
+    from hearth.benchmarks import _worlds
     from hearth.benchmarks.tracking import run_scenario
-    return run_scenario(seed, frames)
+    world = _worlds.load("demo")
+    table = next(p for p in _worlds.places(world) if p.name == "kitchen_table/top")
+    return run_scenario(world, table, "blue_cup", seed, frames)
 
 
 def test_tracker_follows_a_cup_pushed_across_the_table():
@@ -57,18 +60,19 @@ def test_tracker_follows_a_cup_pushed_across_the_table():
 
 
 def test_particle_count_adapts_to_how_spread_the_belief_is():
-    from hearth.benchmarks.tracking import CUP, CUP_HALF_EXTENTS, DEMO_WORLD, PushScene
+    from hearth.benchmarks.tracking import PushScene, half_extents
     from perception.camera import look_at
     from worldmodel import load_world
-    world = load_world(DEMO_WORLD)
+    from hearth import demo_world_path
+    world = load_world(demo_world_path())
     rng = np.random.default_rng(0)
     K = Intrinsics.kinect(320, 240)
-    T_cup = world.T_world(CUP)
+    T_cup = world.T_world("blue_cup")
     T_wc = look_at(T_cup[:3, 3] + [0.0, -1.1, 0.6], T_cup[:3, 3])
-    sim = PushScene(world, K, T_wc, rng)
+    sim = PushScene(world, K, T_wc, rng, "blue_cup")
     r = sim.frame(T_cup)
     pts, cols = scene_cloud(r.depth, r.color, K, T_wc)
-    ref = reference_from_view(pts, cols, T_cup, CUP_HALF_EXTENTS)
+    ref = reference_from_view(pts, cols, T_cup, half_extents(world, "blue_cup"))
     cfg = TrackerConfig()
     tr = ParticleTracker(ref, T_cup, cfg, np.random.default_rng(1))
     seen = [tr.update(r.depth, r.color, K, T_wc).n_particles for _ in range(5)]
@@ -101,12 +105,12 @@ class PushingRobot:
     """Serves frames of the blue cup sliding 0.2 m/s along the table's x axis at 30 Hz."""
 
     def __init__(self, world):
-        from hearth.benchmarks.tracking import CUP, PushScene
+        from hearth.benchmarks.tracking import PushScene
         from perception.camera import look_at
         self.K = Intrinsics.kinect(320, 240)
-        self.T0 = world.T_world(CUP)
+        self.T0 = world.T_world("blue_cup")
         self.T_wc = look_at(self.T0[:3, 3] + [0.2, -1.2, 0.6], self.T0[:3, 3])
-        self.sim = PushScene(world, self.K, self.T_wc, np.random.default_rng(2))
+        self.sim = PushScene(world, self.K, self.T_wc, np.random.default_rng(2), "blue_cup")
         self.i = 0
 
     def truth(self, i):

@@ -23,20 +23,22 @@ def test_systematic_resampling_draws_each_particle_in_proportion_to_its_weight(w
 
 
 def _scene():
-    from hearth.benchmarks.tracking import CUP, CUP_HALF_EXTENTS, DEMO_WORLD, PushScene
+    from hearth import demo_world_path
+    from hearth.benchmarks.tracking import PushScene, half_extents
     from worldmodel import load_world
-    world = load_world(DEMO_WORLD)
+    world = load_world(demo_world_path())
     K = Intrinsics.kinect(320, 240)
-    T_cup = world.T_world(CUP)
+    T_cup = world.T_world("blue_cup")
     T_wc = look_at(T_cup[:3, 3] + [0.0, -1.1, 0.6], T_cup[:3, 3])
-    sim = PushScene(world, K, T_wc, np.random.default_rng(0))
+    sim = PushScene(world, K, T_wc, np.random.default_rng(0), "blue_cup")
     frames = []
     for i in range(4):
         T = T_cup.copy()
         T[0, 3] += 0.01 * i            # pushed 1 cm a frame
         frames.append(sim.frame(T))
     pts, cols = scene_cloud(frames[0].depth, frames[0].color, K, T_wc)
-    ref = reference_from_view(pts, cols, T_cup, CUP_HALF_EXTENTS, rng=np.random.default_rng(0))
+    ref = reference_from_view(pts, cols, T_cup, half_extents(world, "blue_cup"),
+                              rng=np.random.default_rng(0))
     return ref, T_cup, K, T_wc, frames
 
 

@@ -1,0 +1,82 @@
+"""`hearth bench objects|nbv|tracking --quick` on a tiny generated home: the pooled figures at
+the top level, the same per world, nothing taken from the demo home."""
+from __future__ import annotations
+
+import math
+
+from tests.benchmarks.conftest import bench_json
+
+
+def _in(value, lo, hi):
+    return value is not None and math.isfinite(value) and lo <= value <= hi
+
+
+def test_objects_bench_reports_pooled_and_per_world_figures_on_a_generated_home(capsys, tiny_home):
+    out = bench_json(capsys, "objects", "--quick", "--no-demo", "--world", str(tiny_home),
+                     "--scenarios", "3")
+    assert out["worlds"] == [str(tiny_home)] and out["skipped"] == {}
+    home = out["per_world"][str(tiny_home)]
+    assert out["scenes"] == home["scenes"] == 3
+    assert out["true_positives"] + out["false_negatives"] > 0     # objects were put in view
+    assert _in(out["detection_f1"], 0, 1) and out["detection_f1"] == home["detection_f1"]
+    assert set(out["per_kind_f1"]) <= {"top", "shelf", "inside"}
+    from worldmodel import load_world
+    world = load_world(tiny_home)
+    assert set(home["per_object_f1"]) <= {o.id for o in world.small_objects()}
+    assert set(out["per_type_f1"]) <= {o.type for o in world.small_objects()}
+    assert _in(out["ms_per_view_median"], 0, 60_000)
+    assert out["targets"] == {"detection_f1": 0.95, "ms_per_view_median": 300}
+
+
+def test_nbv_bench_reports_pooled_and_per_world_figures_on_a_generated_home(capsys, tiny_home):
+    out = bench_json(capsys, "nbv", "--quick", "--no-demo", "--world", str(tiny_home),
+                     "--scenarios", "2")
+    assert out["worlds"] == [str(tiny_home)]
+    home = out["per_world"][str(tiny_home)]
+    assert out["scenes"] == home["scenes"] == 2
+    assert out["scenes_tried"] >= 2
+    for key in ("recognised_within_two_views", "occlusion_avoided", "occlusion_below_half",
+                "random_view_occlusion_avoided"):
+        assert _in(out[key], 0, 1) and out[key] == home[key]
+    assert sum(k["scenes"] for k in out["per_kind"].values()) == 2
+
+
+def test_tracking_bench_reports_pooled_and_per_world_figures_on_a_generated_home(capsys, tiny_home):
+    out = bench_json(capsys, "tracking", "--quick", "--no-demo", "--world", str(tiny_home),
+                     "--scenarios", "1", "--frames", "12")
+    home = out["per_world"][str(tiny_home)]
+    assert out["scenarios"] == home["scenarios"] == 1
+    assert out["frames"] == 11
+    assert _in(out["centroid_err_cm_median"], 0, 100)
+    assert out["centroid_err_cm_median"] == home["centroid_err_cm_median"]
+    assert out["hz"] > 0 and out["particles_median"] >= 150
+    (kind, fig), = out["per_type"].items()
+    assert fig["scenarios"] == 1
+
+
+def test_default_worlds_are_the_demo_and_generated_homes(capsys):
+    from argparse import Namespace
+    from hearth.benchmarks._worlds import world_specs
+    assert world_specs(Namespace(seed=4, quick=False, homes=None, world=None)) == \
+        ["demo", "home:4", "home:5"]
+    assert world_specs(Namespace(seed=0, quick=True, homes=None, world=None, no_demo=True)) == \
+        ["home:0"]
+    assert world_specs(Namespace(seed=0, quick=False, homes=3, world=["a.xml"], no_demo=False)) == \
+        ["demo", "a.xml"]
+
+
+def test_a_world_without_any_surface_is_one_clear_line(capsys, tmp_path):
+    from executive.cli import main
+    from worldmodel import load_world
+    from worldmodel.io import save_world
+    from tests.benchmarks.conftest import make_tiny_home
+    path = make_tiny_home(tmp_path)
+    world = load_world(path)
+    for obj in world.large_objects():
+        obj.surfaces = []
+    bare = tmp_path / "bare.xml"
+    save_world(world, bare)
+    capsys.readouterr()
+    assert main(["bench", "objects", "--quick", "--no-demo", "--world", str(bare)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no surface" in err[0] and str(bare) in err[0]
