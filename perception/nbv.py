@@ -4,21 +4,24 @@ Given one or more object hypotheses (object id, ``T_world_object``, weight) and 
 RGB-D view, ``plan_next_best_view``:
 
 1. puts candidate base poses on two rings around the hypotheses (the base faces them; the
-   head camera looks at them from about 1.3 m);
+   head camera looks at them from about 1.3 m) and at the parking positions of the furniture
+   they stand on (the map's free floor from which that furniture is seen);
 2. drops those that collide with the map's large objects (their footprints, oriented boxes in
    each object's frame, in the current articulation state), leave the room, or come within the
    robot's radius of an obstacle observed in the current view;
 3. builds a voxel occupancy from the current view (observed surfaces, extruded a little away
    from the camera because the space right behind a seen surface is unknown and usually solid;
-   the hypotheses' own volumes are left free) and ray casts (open3d ``RaycastingScene``, Embree)
+   the hypotheses' own volumes are left free, and so are the points the map's furniture
+   explains: that furniture is ray cast as it is) and ray casts (open3d ``RaycastingScene``, Embree)
    from each candidate camera to points sampled on each hypothesised model surface: a point is
-   visible when neither the occupancy nor the model itself is hit first;
+   visible when neither the occupancy, nor the map's furniture near it (a cupboard's sides and
+   the shelf above, in their current articulation state), nor the model itself is hit first;
 4. with several hypotheses, measures how well the view separates them: the fraction of rays
    on which two hypotheses would show a different depth or colour;
 5. scores and sorts: best view first.
 
-Only what the current view saw is known to be occupied; elsewhere space counts as free (the
-map's large objects still block the base). Pure: map, arrays and hypotheses in, candidates out.
+Only what the current view saw and the map's furniture are known to be occupied; elsewhere
+space counts as free (the map's large objects also block the base). Pure: map, arrays and hypotheses in, candidates out.
 """
 from __future__ import annotations
 
@@ -38,7 +41,7 @@ from worldmodel.frames import room_at, to_room
 @dataclass(frozen=True)
 class NBVConfig:
     """Parameters of ``plan_next_best_view`` (metres, radians)."""
-    radii: tuple[float, ...] = (0.8, 1.2)  #: ring radii around the hypotheses' centre
+    radii: tuple[float, ...] = (0.7, 0.95, 1.25, 1.6)  #: ring radii around the hypotheses' centre
     n_angles: int = 24                     #: candidates per ring
     robot_radius: float = 0.30
     camera_height: float = 1.30
@@ -51,6 +54,9 @@ class NBVConfig:
     separation_weight: float = 1.0
     travel_weight: float = 0.05            #: score lost per metre from the current base
     max_range: float = 3.5
+    furniture_radius: float = 1.5          #: furniture this near the hypotheses can occlude them
+    furniture_explained: float = 0.02      #: seen points this near the map's furniture are its own
+    parking_candidates: bool = True        #: also try the supporting furniture's parking positions
 
 
 @dataclass
@@ -165,6 +171,34 @@ def _model_scene(world, object_id: str, T: np.ndarray) -> o3d.t.geometry.Raycast
     return scene
 
 
+def furniture_scene(world, centre, radius: float) -> o3d.t.geometry.RaycastingScene:
+    """A ray-casting scene of the map's large objects (without their small objects) whose
+    origin lies within ``radius`` (m) of the world point ``centre``, in their current
+    articulation state: what the map knows can hide a small object (shelves, sides, doors)."""
+    from worldmodel.geometry import object_meshes
+    scene = o3d.t.geometry.RaycastingScene()
+    c = np.asarray(centre, float)[:2]
+    for obj in world.large_objects():
+        if np.hypot(*(world.T_world(obj.id)[:2, 3] - c)) > radius:
+            continue
+        for lm in object_meshes(world, obj, children=False):
+            if len(lm.mesh.triangles):
+                scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+    return scene
+
+
+def parking_candidates(world, centre) -> list[tuple[float, float, float]]:
+    """World base poses (x, y, yaw) of the parking positions of the large object the world
+    point ``centre`` stands on or in (``World.support_at``), turned to face it."""
+    found = world.support_at(centre)
+    if found is None:
+        return []
+    out = []
+    for _, pose in world.parking_positions(found[0].id):
+        out.append((pose.x, pose.y, math.atan2(centre[1] - pose.y, centre[0] - pose.x)))
+    return out
+
+
 def _cast(scene, origin: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Distance to the first hit along rays from ``origin`` towards ``targets`` (inf: none)."""
     d = targets - origin
@@ -216,6 +250,8 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
             a = 2 * math.pi * (k + 0.5 * ri) / config.n_angles
             cands.append((centre[0] + r * math.cos(a), centre[1] + r * math.sin(a),
                           math.atan2(-math.sin(a), -math.cos(a)), ri))
+    if config.parking_candidates:
+        cands += [(x, y, yaw, len(config.radii)) for x, y, yaw in parking_candidates(world, centre)]
     xy = np.array([c[:2] for c in cands])
     ok = np.ones(len(cands), bool)
     for T, box in footprints(world, room.id):
@@ -237,8 +273,14 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
     # Occupancy near the object: rays from the rings to it stay within the outer ring.
     near = np.hypot(*(P[:, :2] - centre[:2]).T) < max(config.radii) + 0.2
     above = P[:, 2] > centre[2] + 0.015  # the supporting surface itself hides nothing above it
-    occ = occupancy_voxels(P[near & above & ~free], T_world_camera[:3, 3], config.voxel,
-                           config.shadow_depth)
+    seen = P[near & above & ~free]
+    # What the map's furniture explains is in its own scene, exactly: extruded, a shelf board's
+    # front edge would become a slab hiding what stands below it.
+    furn_scene = furniture_scene(world, centre, config.furniture_radius)
+    if len(seen):
+        d = furn_scene.compute_distance(o3d.core.Tensor(seen.astype(np.float32))).numpy()
+        seen = seen[d > config.furniture_explained]
+    occ = occupancy_voxels(seen, T_world_camera[:3, 3], config.voxel, config.shadow_depth)
     # Extruded shadows must not fill the hypotheses' volumes either.
     if len(occ):
         c = (occ + 0.5) * config.voxel
@@ -278,7 +320,8 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
             cand = facing & inimg
             t_self = _cast(scene, eye, pw)
             t_occ = _cast(occ_scene, eye, pw)
-            unblocked = (t_self > dist - 0.004) & (t_occ > dist - 0.01)
+            t_furn = _cast(furn_scene, eye, pw)
+            unblocked = (t_self > dist - 0.004) & (t_occ > dist - 0.01) & (t_furn > dist - 0.01)
             vis = cand & unblocked
             vis_frac.append(vis.sum() / cand.sum() if cand.sum() else 0.0)
             vis_surf.append(vis.sum() / len(pw))
