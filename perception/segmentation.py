@@ -1,6 +1,6 @@
 """Semantic segmentation of one RGB-D frame ("Find my mug", HOBBIT D3.2 appendix, section 3).
 
-Pipeline: over-segmentation into patches -> 14 features per patch -> random forest class
+Pipeline: over-segmentation into patches -> 17 features per patch -> random forest class
 probabilities -> pairwise Potts MRF over patch adjacency, solved by loopy belief propagation.
 Labels: floor, wall, ceiling, table, chair, cabinet, object, unknown.
 
@@ -13,12 +13,15 @@ eight horizontal directions) and split at depth discontinuities; connected compo
 (OpenCV) of equal (cell, bin) become patches; fragments below ``min_points`` are merged into
 the nearest patch (scipy's distance transform). Normals come from the smoothed depth image.
 
-**Features** (14, as in the paper): the scatter-matrix eigenvalues as pointness (l0),
+**Features** (14 as in the paper, and 3 of context): the scatter-matrix eigenvalues as pointness (l0),
 surfaceness (l1 - l0) and linearness (l2 - l1); the height above the floor of the centroid,
 the lowest and the highest point; the angle between the mean normal and the floor's up
 direction and the normals' circular standard deviation; mean and standard deviation of
 CIELAB L, a, b. Heights are world z: the floor is z = 0 and the camera pose is known (the
-paper fitted a floor plane to NYU frames because their camera pose was unknown).
+paper fitted a floor plane to NYU frames because their camera pose was unknown). Three more
+describe a patch's surroundings (``context_features``): the extent and height span of the
+plane it belongs to and how far the structure next to it rises above it; without them a coffee
+table's top, a chair's seat, a shelf and a drawer unit's top were alike.
 
 **Classifier.** ``PatchClassifier``: a scikit-learn ``RandomForestClassifier`` in estimator
 shape (parameters in the constructor, ``fit`` returns self, learned attributes end in ``_``).
@@ -53,10 +56,11 @@ from perception.errors import PerceptionError
 from perception.trained import read_time, trained_fields
 
 LABELS = ("floor", "wall", "ceiling", "table", "chair", "cabinet", "object", "unknown")
-N_FEATURES = 14
+N_FEATURES = 17
 FEATURE_NAMES = ("pointness", "surfaceness", "linearness", "centroid_height", "min_height",
                  "max_height", "normal_angle", "normal_circular_std", "L_mean", "a_mean",
-                 "b_mean", "L_std", "a_std", "b_std")
+                 "b_mean", "L_std", "a_std", "b_std",
+                 "plane_extent", "plane_height_span", "height_above")
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,8 @@ class SegmentationConfig:
     depth_jump_m: float = 0.02        # discontinuity threshold: this + depth_jump_rel * z
     depth_jump_rel: float = 0.03
     min_points: int = 30              # smaller fragments merge into a neighbour
+    coplanar_m: float = 0.03          # adjacent patches this close to one plane share it
+    context_radius_m: float = 0.3     # horizontal reach of ``height_above``
     unary_weight: float = read_time(1.0)         # lambda
     pair_sigma_m: float = read_time(0.5)         # sigma of the Potts term
     pair_weight: float = read_time(0.6)          # scales the Potts term relative to the unary
@@ -87,7 +93,7 @@ class SegmentationConfig:
 @dataclass
 class Patches:
     """The over-segmentation of one frame. ``ids`` (H, W): patch index per pixel (-1: no
-    depth); ``features`` (N, 14); ``centroids_world`` (N, 3); ``sizes`` (N,) pixels;
+    depth); ``features`` (N, 17); ``centroids_world`` (N, 3); ``sizes`` (N,) pixels;
     ``edges`` (E, 2) adjacent patch pairs; ``points_world`` (H, W, 3) float32 (NaN where no
     depth)."""
     ids: np.ndarray
@@ -143,7 +149,7 @@ def _points_camera(depth: np.ndarray, K: Intrinsics) -> np.ndarray:
 
 def extract_patches(depth: np.ndarray, color: np.ndarray, K: Intrinsics,
                     T_world_camera: np.ndarray, config: SegmentationConfig | None = None) -> Patches:
-    """Over-segment a frame and compute the 14 features per patch. ``depth`` metres (0 or NaN:
+    """Over-segment a frame and compute the 17 features per patch. ``depth`` metres (0 or NaN:
     no reading), ``color`` uint8 RGB, world z up with the floor at z = 0."""
     c = config or SegmentationConfig()
     depth = np.nan_to_num(np.asarray(depth, dtype=np.float32), nan=0.0)
@@ -239,8 +245,6 @@ def extract_patches(depth: np.ndarray, color: np.ndarray, K: Intrinsics,
     lsq = np.stack([np.bincount(lab, labc[:, i] ** 2, n) for i in range(3)], axis=1) / cnt[:, None]
     lstd = np.sqrt(np.maximum(lsq - lmean ** 2, 0))
     centroid = mu + t.astype(np.float64)
-    feats = np.column_stack([ev[:, 0], ev[:, 1] - ev[:, 0], ev[:, 2] - ev[:, 1], centroid[:, 2],
-                             zmin, zmax, angle, circ_std, lmean, lstd])
 
     # Adjacency: neighbouring pixels of different patches without a depth jump.
     a = np.concatenate([ids[:, :-1][~jump_r], ids[:-1, :][~jump_d]])
@@ -249,8 +253,61 @@ def extract_patches(depth: np.ndarray, color: np.ndarray, K: Intrinsics,
     lo, hi = np.minimum(a[ok], b[ok]).astype(np.int64), np.maximum(a[ok], b[ok]).astype(np.int64)
     pairs = np.unique(lo * n + hi)
     edges = np.stack([pairs // n, pairs % n], axis=1)
+    context = context_features(centroid, nmean, zmin, zmax, cnt, edges, c)
+    feats = np.column_stack([ev[:, 0], ev[:, 1] - ev[:, 0], ev[:, 2] - ev[:, 1], centroid[:, 2],
+                             zmin, zmax, angle, circ_std, lmean, lstd, context])
     return Patches(ids=ids, features=feats, centroids_world=centroid, sizes=cnt.astype(np.int64),
                    edges=edges, points_world=pts_world)
+
+
+def context_features(centroids: np.ndarray, normals: np.ndarray, zmin: np.ndarray,
+                     zmax: np.ndarray, sizes: np.ndarray, edges: np.ndarray,
+                     config: SegmentationConfig) -> np.ndarray:
+    """(N, 3) features of a patch's surroundings, which its own 14 cannot see: a coffee table's
+    top and a chair's seat are alike patch by patch, but the table top is one wide plane with
+    nothing tall above it and the seat is small with a backrest rising behind it.
+
+    - ``plane_extent``: the horizontal spread (m, the root of the largest eigenvalue of the
+      size-weighted covariance of centroid x, y) of the plane the patch belongs to: adjacent
+      patches with parallel mean normals (cosine > 0.95) within ``coplanar_m`` of each other's
+      plane, joined transitively (scipy connected components);
+    - ``plane_height_span``: highest minus lowest point of that plane (m): a wall, a cupboard
+      front and a drawer front differ;
+    - ``height_above``: how far the highest patch within ``context_radius_m`` horizontally
+      rises above this patch's top (m, 0 .. 2): the backrest over a seat, the shelf over a
+      shelf, nothing over a table top but the small objects on it.
+    """
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+    n = len(centroids)
+    if n == 0:
+        return np.zeros((0, 3))
+    a, b = edges[:, 0], edges[:, 1]
+    par = np.einsum("ij,ij->i", normals[a], normals[b]) > 0.95
+    gap = np.abs(np.einsum("ij,ij->i", normals[a], centroids[a] - centroids[b]))
+    keep = par & (gap < config.coplanar_m)
+    graph = sparse.coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(n, n))
+    _, region = connected_components(graph, directed=False)
+    w = sizes.astype(np.float64)
+    r = region.max() + 1
+    sw = np.bincount(region, w, r)
+    mx = np.bincount(region, w * centroids[:, 0], r) / sw
+    my = np.bincount(region, w * centroids[:, 1], r) / sw
+    dx, dy = centroids[:, 0] - mx[region], centroids[:, 1] - my[region]
+    cxx = np.bincount(region, w * dx * dx, r) / sw
+    cyy = np.bincount(region, w * dy * dy, r) / sw
+    cxy = np.bincount(region, w * dx * dy, r) / sw
+    top = 0.5 * (cxx + cyy) + np.sqrt(0.25 * (cxx - cyy) ** 2 + cxy ** 2)
+    extent = np.sqrt(np.maximum(top, 0))[region]
+    span = (np.full(r, -np.inf), np.full(r, np.inf))
+    np.maximum.at(span[0], region, zmax)
+    np.minimum.at(span[1], region, zmin)
+    height_span = (span[0] - span[1])[region]
+    tree = cKDTree(centroids[:, :2])
+    near = tree.query_ball_point(centroids[:, :2], config.context_radius_m)
+    highest = np.array([zmax[idx].max() for idx in near])
+    above = np.clip(highest - zmax, 0.0, 2.0)
+    return np.column_stack([extent, height_span, above])
 
 
 # -- classifier ------------------------------------------------------------------------------

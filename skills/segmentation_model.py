@@ -2,11 +2,12 @@
 
 ``load_or_train()`` gives the forest: from memory, from ``segmentation.joblib`` in
 ``$HEARTH_MODEL_DIR`` (default ``~/.cache/hearth``), or trained now on rendered random rooms
-(perception/segmentation_training.py, a minute or two on two cores) and stored
-(worldmodel/model_store.py). The rooms are random, not the user's home, so one forest serves
-every home: its file is keyed by the training configuration (``TrainingConfig`` and
+and generated homes (perception/segmentation_training.py, a few minutes on two cores) and
+stored (worldmodel/model_store.py). The rooms and homes are not the user's home, so one forest
+serves every home: its file is keyed by the training configuration (``TrainingConfig`` and
 ``SegmentationConfig.trained_fields``) only, and a file trained with other settings is stale
-and retrained. Training views get the simulated robot's Kinect noise (``noisy``).
+and retrained. Training views get the simulated robot's Kinect noise (``noisy``); the homes
+come from worldmodel.homegen (``training_home``; their meshes go to its cache directory).
 """
 from __future__ import annotations
 
@@ -26,13 +27,25 @@ MODEL_NAME = "segmentation"
 MODEL_FILE = model_store.path_of(MODEL_NAME, directory=Path(".")).name
 
 __all__ = ["MODEL_FILE", "MODEL_NAME", "ModelInfo", "TrainingConfig", "check", "class_of_node",
-           "get", "ground_truth", "load_or_train", "model_dir", "noisy", "render_random", "train"]
+           "get", "ground_truth", "load_or_train", "model_dir", "noisy", "render_random", "train",
+           "training_home"]
 
 
 def noise_model() -> Callable:
     """The simulated robot's Kinect noise model."""
     from hearth.robot.noise import add_kinect_noise
     return add_kinect_noise
+
+
+def training_home(seed: int):
+    """A generated home to train on (worldmodel.homegen, meshes in its cache directory)."""
+    from worldmodel.homegen import generate_home
+    return generate_home(seed)
+
+
+def _home_version() -> int:
+    from worldmodel import homegen
+    return int(getattr(homegen, "GENERATOR_VERSION", 1))
 
 
 def noisy(rendering, rng: np.random.Generator):
@@ -49,11 +62,11 @@ def render_random(seed: int, K=None, look_up: float = 0.0):
 def train(cfg: TrainingConfig | None = None, seg: SegmentationConfig | None = None,
           progress: Optional[Callable[[str, int, int], None]] = None) -> PatchClassifier:
     """A forest trained now with the robot's noise model (not stored)."""
-    return _training.train(cfg, seg, noise_model(), progress=progress)
+    return _training.train(cfg, seg, noise_model(), progress=progress, home=training_home)
 
 
 def _configuration(cfg: TrainingConfig, seg: SegmentationConfig) -> dict:
-    return _training.configuration(cfg, seg, noise_model())
+    return _training.configuration(cfg, seg, noise_model(), training_home, _home_version())
 
 
 def check(cfg: TrainingConfig | None = None, seg: SegmentationConfig | None = None,

@@ -77,7 +77,8 @@ def _segmentation(args: argparse.Namespace) -> int:
     from skills import segmentation_model as sm
 
     directory = Path(args.model_dir) if args.model_dir else None
-    cfg = sm.TrainingConfig(frames=8, n_estimators=8) if args.tiny else sm.TrainingConfig()
+    cfg = (sm.TrainingConfig(frames=8, n_estimators=8, homes=1, views_per_home=2) if args.tiny
+           else sm.TrainingConfig())
     if args.check:
         loaded = sm.check(cfg, directory=directory)
         print(f"segmentation forest: {'current' if loaded.ok else loaded.reason} ({loaded.path})")

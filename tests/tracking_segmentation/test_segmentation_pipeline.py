@@ -1,4 +1,4 @@
-"""Semantic segmentation: patches and their 14 features, the Potts MRF, the forest in
+"""Semantic segmentation: patches and their features, the Potts MRF, the forest in
 scikit-learn shape, ground truth from the map, the trained pipeline on held-out rooms, and
 model storage (stale models retrain)."""
 from __future__ import annotations
@@ -47,7 +47,7 @@ def test_floor_patches_lie_flat_at_zero_height(room_view):
 
 
 def test_segment_refuses_an_empty_frame():
-    clf = PatchClassifier(n_estimators=2).fit(np.random.default_rng(0).random((20, 14)),
+    clf = PatchClassifier(n_estimators=2).fit(np.random.default_rng(0).random((20, N_FEATURES)),
                                                np.arange(20) % 3)
     with pytest.raises(PerceptionError):
         segment(np.zeros((48, 64)), np.zeros((48, 64, 3), np.uint8), Intrinsics.kinect(64, 48),
@@ -72,7 +72,7 @@ def test_potts_lbp_smooths_a_lone_disagreeing_node():
 
 def test_patch_classifier_has_scikit_learn_estimator_shape():
     rng = np.random.default_rng(0)
-    X, y = rng.random((60, 14)), np.array([0, 1, 3] * 20)
+    X, y = rng.random((60, N_FEATURES)), np.array([0, 1, 3] * 20)
     X[:, 3] += y                               # learnable
     clf = PatchClassifier(n_estimators=5, random_state=0)
     assert clone(clf).get_params() == clf.get_params()
@@ -126,7 +126,7 @@ def test_model_is_stored_with_its_configuration_and_retrained_when_stale(tmp_pat
     from perception.segmentation import SegmentationConfig
     from skills import segmentation_model as sm
     from worldmodel import model_store
-    tiny = sm.TrainingConfig(frames=2, n_estimators=3, seed=5)
+    tiny = sm.TrainingConfig(frames=2, n_estimators=3, seed=5, homes=1, views_per_home=1)
     calls = []
     real = sm.train
     monkeypatch.setattr(sm, "train", lambda cfg, seg, progress=None: calls.append(cfg) or real(cfg, seg))
