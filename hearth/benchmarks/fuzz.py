@@ -313,7 +313,7 @@ def _registry() -> dict:
     return _REGISTRY
 
 
-_SAMPLE = {"string": "x", "node_id": "kitchen_table", "number": 1.0, "integer": 1,
+_SAMPLE = {"string": "x", "node_id": "no_such_table", "number": 1.0, "integer": 1,
            "boolean": True, "pose": {"x": 0.0, "y": 0.0}, "list": [], "dict": {}, "any": "x"}
 
 
@@ -502,7 +502,7 @@ HOSTILE_PATHS = ["../../etc/passwd", "/etc/passwd", "/dev/zero", "/proc/self/env
                  "missing.ply", "./ok.ply", "sub/../ok.ply", "sub/../../x.ply", "~/x.ply",
                  "C:\\x.ply", "etc/passwd", "sub/inner.ply", "//etc/passwd", ".", ""]
 HOSTILE_TEXT = ["", " ", "x" * 5000, "\u202e", "\u00e9t\u00e9", "a b", "<", "&", "1abc", "_",
-                "a" * 4097, "kitchen", "red_cup", "oven_knob_1", "\U0001F600", "true", "off"]
+                "a" * 4097, "kitchen", "no_such_cup", "no_such_knob_1", "\U0001F600", "true", "off"]
 _ATTRS = ["x", "y", "z", "roll", "pitch", "yaw", "radius", "length", "size", "scale", "color",
           "file", "pointcloud", "bounds", "lower", "upper", "state", "angle", "axis", "sizeX",
           "sizeY", "standoff", "depth", "id", "type", "default", "time", "searched", "found",
@@ -842,7 +842,8 @@ def fixed_cases() -> list[Case]:
     w("mesh_inside", first(r'(<model>)', r'\1<mesh file="sub/inner.ply" color="0.5 0.5 0.5"/>'),
       "accepted")
     w("pointcloud_proc", first(r'(<room id="kitchen")', r'\1 pointcloud="../../../proc/self/environ"'))
-    w("attribute_10MB", first(r'name="kitchen table"', 'name="' + "x" * 10_000_000 + '"'))
+    w("attribute_10MB", first(r'(<(?:LargeObject|LargeArticulatedObject) [^>]*)name="[^"]*"',
+                              r'\1name="' + "x" * 10_000_000 + '"'))
     w("rooms_20000", world.replace("</apartment>", "".join(
         f'<room id="fr{i}" name="r"/>' for i in range(20000)) + "</apartment>"))
     w("part_nesting_100", first(r"(</LargeArticulatedObject>)", "".join(
