@@ -549,7 +549,7 @@ class ParamSpec:
         """``value`` checked against the belief map ``world`` (a worldmodel World): the
         value to run with (``pick_only``: "" becomes the only matching node's id). Raises
         MissionError(param=name) in one line a person can act on: "no node 'nowhere' in the
-        map", "blue_cup is a SmallObject, not a LargeArticulatedObject", "fridge holds no
+        map", "mug_3 is a SmallObject, not a LargeArticulatedObject", "fridge holds no
         Knob", "nothing in the map matches 'zebra'". Values that are not strings are left to
         :meth:`check`."""
         if not self.kinds or world is None or not isinstance(value, str):
