@@ -77,6 +77,7 @@ def test_a_world_without_any_surface_is_one_clear_line(capsys, tmp_path):
     bare = tmp_path / "bare.xml"
     save_world(world, bare)
     capsys.readouterr()
-    assert main(["bench", "objects", "--quick", "--no-demo", "--world", str(bare)]) == 2
+    assert main(["bench", "objects", "--quick", "--no-demo", "--no-progress",
+                 "--world", str(bare)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no surface" in err[0] and str(bare) in err[0]
