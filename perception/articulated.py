@@ -33,6 +33,7 @@ from perception.registration import (
     depth_agreement, observed_view, register_6dof, register_joint, register_planar,
     render_reference, single_threaded_blas, transform,
 )
+from worldmodel.frames import joint_T
 from worldmodel.geometry import handle_visuals, knob_T, knob_visuals, model_visuals, object_meshes, visual_mesh
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part
 
@@ -306,8 +307,14 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
         out.timings_ms["part_reference"] = out.timings_ms.get("part_reference", 0.0) + 1000 * (t2 - t1)
         nxt = []
         for pid, (part, joint, best, samples, grid, scores) in coarse.items():
-            st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg,
-                              T_world_camera[:3, 3], _face_normal(world, part))
+            try:
+                normal = part_face(world, part).T_part_face[:3, 0]
+            except PerceptionError as err:
+                st = PartState(pid, part.joint.type, None, None, coarse_value=best,
+                               reason=err.message)
+            else:
+                st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg,
+                                  T_world_camera[:3, 3], normal)
             out.parts[pid] = st
             if st.value is not None:
                 states[pid] = st.value
@@ -363,44 +370,93 @@ def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: 
                      residual=res.residual, points=n_in, coarse_value=best)
 
 
-# -- handles -------------------------------------------------------------------------------
+# -- faces and handles ---------------------------------------------------------------------
 
-def _face_visual(world, part: Part):
-    vis = [v for v in model_visuals(part.model, world.apartment.library) if v.shape == "box"]
-    if not vis:
-        return None
-    faces = [v for v in vis if v.name == "face"] or [max(vis, key=lambda v: np.prod(v.size))]
-    return faces[0]
-
-
-def _face_normal(world, part: Part) -> np.ndarray:
-    """The part's face normal in the part frame: the thin axis of its face box (else +x)."""
-    v = _face_visual(world, part)
-    if v is None:
-        return np.array([1.0, 0.0, 0.0])
-    return v.pose.matrix()[:3, int(np.argmin(v.size))]
+@dataclass(frozen=True)
+class Face:
+    """A part's face, from its geometry. ``T_part_face``: origin at the centre of the face's
+    outer surface, +x its outward normal, y and z in its plane (z the in-plane axis nearest
+    the part's z, then y, then x); ``half_size``: (y, z) half sizes of its rectangle (m);
+    ``thickness``: its extent along the normal (m)."""
+    T_part_face: np.ndarray
+    half_size: tuple[float, float]
+    thickness: float
 
 
-def _face_corners(world, part: Part) -> np.ndarray:
-    """(8, 3) corners, part frame, of the part's face (the visual named "face", else its
-    largest box)."""
-    vis = [v for v in model_visuals(part.model, world.apartment.library) if v.shape == "box"]
-    if not vis:
-        raise PerceptionError("the part has no box face to find a handle on", node=part.id)
-    faces = [v for v in vis if v.name == "face"] or [max(vis, key=lambda v: np.prod(v.size))]
-    v = faces[0]
-    s = np.asarray(v.size) / 2
-    c = np.array([[x, y, z] for x in (-s[0], s[0]) for y in (-s[1], s[1]) for z in (-s[2], s[2])])
-    return transform(v.pose.matrix(), c)
+def _triangle_scatter(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, 3x3 sum over triangles of area * n n^T) of a triangle mesh."""
+    V = np.asarray(mesh.vertices)
+    F = np.asarray(mesh.triangles)
+    if len(F) == 0:
+        return V, np.zeros((3, 3))
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # 2 * area * n
+    a = np.linalg.norm(cr, axis=1)
+    ok = a > 1e-15
+    return V, (cr[ok].T / a[ok]) @ cr[ok] * 0.5
+
+
+def _parent_centre(world, part: Part) -> np.ndarray:
+    """The part's parent's geometric centre in the part frame at the part's closed state
+    (its lower limit, or 0 where that lies in the range): where "inside" is."""
+    parent = world.parent(part.id)
+    lib, base_dir = world.apartment.library, world.base_dir
+    pts = [np.asarray(visual_mesh(v, base_dir).vertices)
+           for v in model_visuals(parent.model, lib)] if getattr(parent, "model", None) else []
+    pts = [p for p in pts if len(p)]
+    c = (np.concatenate(pts).min(0) + np.concatenate(pts).max(0)) / 2 if pts else np.zeros(3)
+    j = part.joint
+    closed = min(max(0.0, j.lower), j.upper) if j.type != "fixed" else 0.0
+    T = np.linalg.inv(joint_T(j, closed))
+    return T[:3, :3] @ c + T[:3, 3]
+
+
+def part_face(world, part: Part) -> Face:
+    """The face of a door or drawer from its geometry, a box or a mesh (the visual named
+    "face", else the one with the largest surface): its normal is the thin axis of a box, or
+    for a mesh the dominant direction of its triangles' normals (the eigenvector of the
+    area-weighted normal scatter with the largest eigenvalue: a slab's two broad sides);
+    outward is the side its handles stand on, else the side away from its parent's centre.
+    Raises PerceptionError when the part has no geometry."""
+    lib, base_dir = world.apartment.library, world.base_dir
+    vis = model_visuals(part.model, lib)
+    cands = [v for v in vis if v.name == "face"] or vis
+    meshes = [(v, visual_mesh(v, base_dir)) for v in cands]
+    meshes = [(v, m) for v, m in meshes if len(m.triangles)]
+    if not meshes:
+        raise PerceptionError("the part has no geometry to find its face on", node=part.id)
+    v, mesh = max(meshes, key=lambda vm: vm[1].get_surface_area())
+    V, S = _triangle_scatter(mesh)
+    if v.shape == "box":
+        R = v.pose.matrix()[:3, :3]
+        n = R[:, int(np.argmin(v.size))]
+    else:
+        n = np.linalg.eigh(S)[1][:, 2]
+    centre = (V.min(0) + V.max(0)) / 2
+    if part.handles:
+        side = np.mean([(np.asarray(h.pose.position) - centre) @ n for h in part.handles])
+    else:
+        side = -(_parent_centre(world, part) - centre) @ n
+    if side < 0:
+        n = -n
+    ez = next((a - (a @ n) * n for a in np.eye(3)[[2, 1, 0]]
+               if np.linalg.norm(a - (a @ n) * n) > 0.7), None)
+    ez = ez / np.linalg.norm(ez)
+    ey = np.cross(ez, n)
+    dn, dy, dz = V @ n, V @ ey, V @ ez
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2] = n, ey, ez
+    T[:3, 3] = (dn.max() * n + (dy.min() + dy.max()) / 2 * ey + (dz.min() + dz.max()) / 2 * ez)
+    return Face(T, (float(np.ptp(dy)) / 2, float(np.ptp(dz)) / 2), float(np.ptp(dn)))
 
 
 @single_threaded_blas
 def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
                      part_ids: Optional[list[str]] = None, cfg=None,
                      observed: Optional[np.ndarray] = None) -> dict:
-    """Fine handle poses (perception.handles) for the registered parts with a known state.
-    Returns {handle_id: HandleEstimate or PerceptionError}."""
-    from perception.handles import HandleConfig, estimate_handle, face_extent_in_handle_frame
+    """Fine handle poses (perception.handles) for the registered parts with a known state,
+    on the face their part's geometry gives (``part_face``). Returns {handle_id:
+    HandleEstimate or PerceptionError}."""
+    from perception.handles import HandleConfig, estimate_handle
     cfg = cfg or HandleConfig()
     pts = reg.observed.points if observed is None else observed
     out = {}
@@ -412,15 +468,12 @@ def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
             if not st.known:
                 out[h.id] = PerceptionError(f"state of {pid} unknown: {st.reason}", node=h.id)
                 continue
-            T_prior = st.T_world_part @ h.pose.matrix()
-            corners = transform(st.T_world_part, _face_corners(world, part))
-            ext = face_extent_in_handle_frame(corners, T_prior)
-            lo = corners.min(0) - 0.15
-            hi = corners.max(0) + 0.15
-            near = pts[np.all((pts > lo) & (pts < hi), axis=1)]
             try:
-                out[h.id] = estimate_handle(near, st.T_world_part, ext, T_prior, h.radius,
-                                            h.length, h.standoff, T_world_camera[:3, 3], h.id, cfg)
+                face = part_face(world, part)
+                out[h.id] = estimate_handle(pts, st.T_world_part @ face.T_part_face,
+                                            face.half_size, st.T_world_part @ h.pose.matrix(),
+                                            h.radius, h.length, h.standoff,
+                                            T_world_camera[:3, 3], h.id, cfg)
             except PerceptionError as err:
                 out[h.id] = err
     return out

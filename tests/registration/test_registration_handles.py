@@ -18,19 +18,23 @@ def _view(visible_from=-0.15, visible_to=0.15, seed=0):
     (as rays see it: evenly across its silhouette) between ``visible_from`` and ``visible_to``
     along z."""
     rng = np.random.default_rng(seed)
-    y, z = np.meshgrid(np.arange(-0.2, 0.2, 0.004), np.arange(-0.4, 0.4, 0.004))
+    y, z = np.meshgrid(np.arange(-0.2, 0.2, 0.002), np.arange(-0.4, 0.4, 0.002))
     face = np.stack([np.full(y.size, -STANDOFF), y.ravel(), z.ravel()], axis=1)
     face = face[~((np.abs(face[:, 1]) < R) & (np.abs(face[:, 2]) < LENGTH / 2))]
-    yb, zb = np.meshgrid(np.arange(-R, R, 0.0015), np.arange(visible_from, visible_to, 0.003))
+    yb, zb = np.meshgrid(np.arange(-R, R, 0.0015), np.linspace(visible_from, visible_to, 101))
     xb = np.sqrt(np.maximum(R ** 2 - yb ** 2, 0))
     bar = np.stack([xb.ravel(), yb.ravel(), zb.ravel()], axis=1)
     pts = np.concatenate([face, bar])
     return pts + rng.normal(0, 0.0008, pts.shape)
 
 
+FACE = np.eye(4)
+FACE[0, 3] = -STANDOFF                       # the face's outer surface, +x out of it
+
+
 def _estimate(points, prior=np.eye(4), cfg=HandleConfig()):
-    return estimate_handle(points, np.eye(4), (-0.2, 0.2, -0.4, 0.4), prior, R, LENGTH,
-                           STANDOFF, np.array([1.2, 0.0, 0.0]), "h", cfg)
+    return estimate_handle(points, FACE, (0.2, 0.4), prior, R, LENGTH, STANDOFF,
+                           np.array([1.2, 0.0, 0.0]), "h", cfg)
 
 
 def test_a_fully_seen_bar_is_found_on_its_axis():
@@ -49,12 +53,21 @@ def test_the_round_bar_correction_moves_the_centroid_back_to_the_axis():
     assert abs(_estimate(pts).T_world_handle[0, 3]) < 0.0015
 
 
-def test_a_partly_hidden_bar_takes_its_height_from_the_map():
+def test_a_bar_hidden_at_one_end_takes_its_centre_from_the_end_it_shows():
     pts = _view(visible_from=0.02, visible_to=0.15)       # the lower part hidden
     prior = np.eye(4)
-    prior[:3, 3] = (0.003, -0.002, 0.004)                  # the registered model's guess
+    prior[:3, 3] = (0.003, -0.002, 0.012)                  # the registered model's guess
     est = _estimate(pts, prior)
-    assert est.prior_used
+    assert est.ends_seen == 1 and not est.prior_used
+    assert np.linalg.norm(est.T_world_handle[:3, 3]) < 0.002
+
+
+def test_a_bar_hidden_at_both_ends_takes_its_height_from_the_map():
+    pts = _view(visible_from=-0.1, visible_to=0.1)
+    prior = np.eye(4)
+    prior[:3, 3] = (0.003, -0.002, 0.004)
+    est = _estimate(pts, prior)
+    assert est.prior_used and est.ends_seen == 0
     assert est.T_world_handle[2, 3] == pytest.approx(0.004, abs=5e-5)
     assert np.linalg.norm(est.T_world_handle[:2, 3]) < 0.002
 
