@@ -473,7 +473,8 @@ def register_handles(world, reg: ObjectRegistration, T_world_camera: np.ndarray,
                 out[h.id] = estimate_handle(pts, st.T_world_part @ face.T_part_face,
                                             face.half_size, st.T_world_part @ h.pose.matrix(),
                                             h.radius, h.length, h.standoff,
-                                            T_world_camera[:3, 3], h.id, cfg)
+                                            T_world_camera[:3, 3], h.id, cfg,
+                                            prior_trusted=not reg.base_note)
             except PerceptionError as err:
                 out[h.id] = err
     return out

@@ -205,7 +205,7 @@ def estimate_handle(observed_world: np.ndarray, T_world_face: np.ndarray,
                     face_half_size: tuple[float, float], T_world_handle_prior: np.ndarray,
                     radius: float, length: float, standoff: float, camera_position: np.ndarray,
                     handle_id: str = "", cfg: HandleConfig = HandleConfig(),
-                    bar_axis: int = 2) -> HandleEstimate:
+                    bar_axis: int = 2, prior_trusted: bool = True) -> HandleEstimate:
     """The handle's fine pose from observed world points around a registered part.
 
     ``T_world_face``: the registered face (``part_face``): origin on its outer surface, +x its
@@ -214,6 +214,9 @@ def estimate_handle(observed_world: np.ndarray, T_world_face: np.ndarray,
     the map's handle frame, whose axis ``bar_axis`` (0, 1, 2) runs along the bar.
     ``radius``, ``length``, ``standoff``: the map's bar. ``observed_world``: every observed
     point of the view (world; the bar ends are checked against what lies behind them).
+    ``prior_trusted``: whether the prior's position can stand in for a bar hidden at both
+    ends (not when its object's base could not be registered: the map's pose may be
+    centimetres off).
     Raises PerceptionError when the face or the bar is not seen, or what is seen is not the
     bar the map describes.
     """
@@ -318,6 +321,9 @@ def estimate_handle(observed_world: np.ndarray, T_world_face: np.ndarray,
     lo_c = max(s_min - g_lo + length / 2, s_max - length / 2 - eps)
     hi_c = min(s_min + length / 2 + eps, s_max + g_hi - length / 2)
     seen = (math.isfinite(g_lo), math.isfinite(g_hi))
+    if not any(seen) and not prior_trusted:
+        raise _fail("neither end of the bar is seen and its object was not registered: where "
+                    "along the bar it is is unknown", handle_id)
     if not any(seen):
         s = float(np.clip((p_prior - p) @ z, min(lo_c, hi_c), max(lo_c, hi_c)))
     elif lo_c <= hi_c:

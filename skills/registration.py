@@ -100,19 +100,24 @@ class RefineLocalisation(_PerceptionSkill):
 
 class RegisterArticulated(_PerceptionSkill):
     """Register an articulated object part by part and write each part's state to the map;
-    parts seen edge-on or hidden are reported unknown and left as the map has them."""
+    parts seen edge-on or hidden are reported unknown and left as the map has them. The
+    missions look again from another parking position when ``unknown`` is not empty (it is
+    written also when no part could be read: then every part is unknown)."""
 
     NAME = "RegisterArticulated"
     DESCRIPTION = "read the state of an articulated object's doors and drawers"
-    INPUTS = (Port("object", "node_id"),)
+    INPUTS = (Port("object", "node_id"),
+              Port("parts", "list", required=False, default=None,
+                   description="only these parts (default: every part)"))
     OUTPUTS = (Port("states", "dict", required=False, description="part id -> deg (doors) / m"),
-               Port("unknown", "list", required=False))
+               Port("unknown", "list", required=False,
+                    description="the parts whose state could not be read from here"))
 
     def perceive(self) -> str:
         from perception.articulated import register_articulated
         oid = self.input("object")
         depth, K, T_wc = capture(self.robot)
-        reg = register_articulated(self.world, oid, depth, K, T_wc)
+        reg = register_articulated(self.world, oid, depth, K, T_wc, parts=self.input("parts"))
         states, unknown = {}, []
         for pid, st in reg.parts.items():
             if st.known and st.joint_type != "fixed":
@@ -120,11 +125,11 @@ class RegisterArticulated(_PerceptionSkill):
                 states[pid] = round(st.state, 3 if st.joint_type == "revolute" else 4)
             elif not st.known:
                 unknown.append(pid)
+        self.set_output("unknown", unknown)
         if not states:
             why = "; ".join(f"{p}: {st.reason}" for p, st in reg.parts.items())
             raise PerceptionError(f"{oid}: no part state read ({why or reg.base_note})")
         self.set_output("states", states)
-        self.set_output("unknown", unknown)
         said = ", ".join(f"{p} {v:g} {'deg' if reg.parts[p].joint_type == 'revolute' else 'm'}"
                          for p, v in states.items())
         return f"{oid}: {said or 'no part state read'}" + (
