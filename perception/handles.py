@@ -179,7 +179,12 @@ def _end_gap(end: np.ndarray, z: np.ndarray, cam: np.ndarray, radius: float, tre
     decides: mostly something behind (further than the bar's front) gives the gap, the bar or
     something nearer (the bar goes on, an occluder) or nothing up to ``max_probe`` (the image
     border, dropouts) gives inf. ``tree``: unit viewing directions of the observations,
-    ``ranges`` theirs, ``spacing`` their angular spacing (rad)."""
+    ``ranges`` theirs, ``spacing`` their angular spacing (rad).
+
+    What a probe sees of the bar itself is passed over: seen steeply (from above a vertical
+    bar, beside a horizontal one), the view just past an end meets the bar's own front or its
+    end cap (points within the bar's tube, not beyond its last point); the probes go on until
+    they see past it."""
     # Probes 1 mm apart along the axis, looked at when their viewing direction has moved a
     # whole observation on (the first 1.5 clear of the bar's last point, so the bar itself is
     # not taken for what lies past it; a bar seen end-on moves little in the image).
@@ -193,8 +198,14 @@ def _end_gap(end: np.ndarray, z: np.ndarray, cam: np.ndarray, radius: float, tre
         if np.linalg.norm(u - last) >= need:
             idx = tree.query_ball_point(u, spacing)
             if idx:
-                # most of it behind (a noisy point of the bar's edge may stray into the cone)
-                return d if np.mean(ranges[idx] > rng + radius) > 0.5 else math.inf
+                X = cam + tree.data[idx] * ranges[idx, None]
+                t = (X - end) @ z
+                radial = np.linalg.norm((X - end) - np.outer(t, z), axis=1)
+                own = (radial < radius + 0.003) & (t < 0.002)
+                if own.mean() <= 0.5:
+                    rest = ranges[idx][~own]
+                    # most of it behind (a noisy point of the bar's edge may stray into the cone)
+                    return d if np.mean(rest > rng + radius) > 0.5 else math.inf
             last, need = u, spacing
         d += 0.001
     return math.inf
@@ -316,7 +327,9 @@ def estimate_handle(observed_world: np.ndarray, T_world_face: np.ndarray,
     if s_max - s_min > length + 0.03:
         raise _fail(f"what stands out of the face is {(s_max - s_min) * 100:.0f} cm long, the "
                     f"handle {length * 100:.0f} cm: not the handle", handle_id)
-    g_lo, g_hi = _end_gaps(P_all, cam, p, z, s_min, s_max, radius, cfg.max_end_gap)
+    # (past the bar's own front and end cap, which may hide a radius or two beyond its end)
+    g_lo, g_hi = _end_gaps(P_all, cam, p, z, s_min, s_max, radius,
+                           cfg.max_end_gap + 2 * radius)
     eps = cfg.end_tolerance
     lo_c = max(s_min - g_lo + length / 2, s_max - length / 2 - eps)
     hi_c = min(s_min + length / 2 + eps, s_max + g_hi - length / 2)

@@ -111,3 +111,24 @@ def test_a_mesh_panel_without_a_handle_faces_away_from_its_parent(demo_world, tm
     n = face.T_part_face[:3, 0]
     assert abs(abs(n[1]) - 1) < 1e-9
     assert (centre - parent_centre_in_part) @ n > 0
+
+
+def test_both_ends_of_a_bar_seen_steeply_from_above_are_seen_to_be_ends(demo_world):
+    # 70 cm in front of the cupboard, the camera 1.4 m up: just past the bar's lower end the
+    # view meets the bar's own front, past its upper end its end cap; both are passed over
+    # and the face behind is found
+    To, Th = demo_world.T_world("cupboard"), demo_world.T_world(HANDLE)
+    eye = (To @ np.array([0.7, 0.1, 0, 1]))[:3]
+    eye[2] = 1.4
+    Tc = look_at(eye, Th[:3, 3])
+    truth = demo_world.copy()
+    truth.set_joint_state(DOOR, math.radians(20))
+    for seed in range(4):
+        depth = simulate_depth(truth, K, Tc, np.random.default_rng(seed))
+        reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+        est = register_handles(demo_world, reg, Tc)[HANDLE]
+        assert not isinstance(est, Exception), est
+        assert est.ends_seen == 2
+        assert not est.prior_used
+        T = truth.T_world(HANDLE)
+        assert np.linalg.norm(est.T_world_handle[:3, 3] - T[:3, 3]) < 0.010
