@@ -23,10 +23,8 @@ from hearth import demo_world_path
 ROOT = Path(__file__).resolve().parents[2]
 FOLDERS = ("perception", "skills", "executive", "hearth/benchmarks")
 ALLOWED = {"executive/commands/demo.py"}
-#: Files their owners are still converting (issue 13); remove each entry once it is clean.
-KNOWN_EXCEPTIONS: set[str] = {
-    "hearth/benchmarks/registration.py",     # the registration helper's (issue 13)
-}
+#: Files still being converted (none today); remove each entry once it is clean.
+KNOWN_EXCEPTIONS: set[str] = set()
 
 
 def _demo_words() -> tuple[set[str], set[str], set[str], set[tuple[str, ...]]]:
