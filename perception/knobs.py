@@ -103,10 +103,10 @@ class KnobConfig:
     theta_step_deg: float = 5.0
     max_theta_deg: float = 70.0
     fine_px_per_radius: float = read_time(12.0)
-    search_m: float = read_time(0.02)
-    search_radii: float = read_time(1.1)
+    search_m: float = read_time(0.014)
+    search_radii: float = read_time(0.6)
     offset_sigma_m: float = read_time(0.008)
-    offset_weight: float = read_time(0.02)
+    offset_weight: float = read_time(0.05)
     align_iterations: int = read_time(5)
     angle_stages: int = read_time(2)
     candidates: int = read_time(3)
@@ -789,7 +789,16 @@ class KnobReader:
         s_best = snap_to_state(best[1], prior)[0]
         rivals = [f for f in fine[1:] if snap_to_state(f[1], prior)[0] != s_best]
         score_best, angle, center_c = best
-        margin = score_best - (rivals[0][0] if rivals else 0.0)
+        if rivals:
+            margin = score_best - rivals[0][0]
+        else:
+            # every exact check ended in the best state (or none of another was allowed):
+            # the margin is the coarse one, the best angle over the best of another state
+            # among the allowed angles (0 when there is none: the state is not told apart)
+            i_best = _states_of(prior, [angle])[0]
+            others = np.flatnonzero(allowed & (state_of != i_best))
+            margin = float(curve[picks[0]] - curve[others].max()) if len(others) else 0.0
+            margin = max(0.0, min(margin, score_best))
         fine = [best] + rivals
         c_best = picks[0]
         center_k = rotate_xy(center_c, psi)              # canvas frame -> knob face frame

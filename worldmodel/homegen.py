@@ -910,10 +910,10 @@ def _knob_design(ctx: _Ctx, family: str, r: float, depth: float) -> dict:
     if family == "skirt":
         hs = _mm(depth * u(0.3, 0.5))
         rc = r * u(0.6, 0.75)
-        dot = r * 0.16
+        dot = rc * u(0.24, 0.3)
         return dict(base=Model([cyl(r, hs, z=hs / 2, color=body, name="skirt")]),
                     grip=Model([cyl(rc, depth - hs, z=hs + (depth - hs) / 2, color=grip_c, name="cap")]),
-                    marker=Model([cyl(dot, 0.001, y=rc - 1.6 * dot, z=depth + 0.0005, color=mark,
+                    marker=Model([cyl(dot, 0.001, y=rc - 1.25 * dot, z=depth + 0.0005, color=mark,
                                       name="dot")]))
     return {}
 
