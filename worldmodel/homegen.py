@@ -151,6 +151,10 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
               ("blue", "teal")]
 
 #: Knob designs: body colour, marker colour, radius range, depth range.
+#: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
+#: 2 = knob designs varied (KNOB_FAMILIES).
+GENERATOR_VERSION = 2
+
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
     ("black", (0.08, 0.08, 0.09), (0.92, 0.92, 0.9), (0.017, 0.024), (0.015, 0.024)),
@@ -929,20 +933,24 @@ def _ccw(poly):
 def _knobs(ctx: _Ctx, oid: str, count: int, place: Callable[[int], Pose],
            max_radius: float, pitch: Optional[float] = None) -> list[Knob]:
     """``count`` knobs of one design (radius at most ``max_radius``); ``place(i)`` gives the
-    i-th knob's pose, ``pitch`` (m) the distance between neighbours. The design's family
-    (KNOB_FAMILIES), colours and proportions, and whether the knobs are packed (radius up
-    to half the pitch: 2 radii apart) come from ``ctx.design_rng``. Each knob has its own
+    i-th knob's pose, ``pitch`` (m, given for a row along y) the distance between neighbours.
+    The design's family (KNOB_FAMILIES), colours and proportions, and whether a row is
+    packed (closed up to 2-2.2 radii apart, centred) come from ``ctx.design_rng``. Each knob has its own
     states; most are off."""
     _, body, marker, rr, dr = ctx.pick(KNOB_DESIGNS)
     r, depth = _mm(min(ctx.u(*rr), max_radius)), _mm(ctx.u(*dr))
     drng = ctx.design_rng
-    family, turn_stop = "plain", False
+    family, turn_stop, packed = "plain", False, None
     if drng is not None:
         family = KNOB_FAMILIES[int(drng.integers(len(KNOB_FAMILIES)))]
         turn_stop = bool(drng.random() < 0.5)
         if pitch is not None and drng.random() < 0.3:
-            r = _mm(min(pitch / float(drng.uniform(2.0, 2.2)), max(r, rr[0]), 0.032))
+            packed = r * float(drng.uniform(2.0, 2.2))      # the row closed up, centred
     design = _knob_design(ctx, family, r, depth)
+
+    def pose(i: int) -> Pose:
+        p = place(i)
+        return p if packed is None else replace(p, y=_mm(((count - 1) / 2 - i) * packed))
     sym = design.get("symmetry", 1)
     out = []
     for i in range(count):
@@ -951,7 +959,7 @@ def _knobs(ctx: _Ctx, oid: str, count: int, place: Callable[[int], Pose],
         choices = [s for s in states if (s.name != off) == on] or states
         st = choices[int(ctx.rng.integers(len(choices)))]
         turns = ("clockwise" if direction < 0 else "counterclockwise") if turn_stop else "either"
-        out.append(Knob(f"{oid}_knob_{i + 1}", place(i), states, st.name, angle=st.angle,
+        out.append(Knob(f"{oid}_knob_{i + 1}", pose(i), states, st.name, angle=st.angle,
                         radius=r, depth=depth, color=body, marker_color=marker,
                         off_state=off if explicit else "", turns=turns, **design))
     return out
