@@ -33,12 +33,12 @@ import numpy as np
 
 from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
 from perception.knobs import (
-    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, knob_shape, snap_to_state,
-    to_rgb,
+    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape,
+    off_axis_deg, snap_to_state, to_rgb,
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 8
+CODE_VERSION = 9
 
 _canon = canon   # the name earlier code imported
 
@@ -48,13 +48,15 @@ class TrainingConfig:
     """``validation_views``: views the gates are calibrated on (``validation_missing`` of them
     without the knob), drawn with ``seed``; ``margin_safety`` / ``margin_floor``: the state
     gate's threshold is the largest margin of a wrong validation reading times the safety,
-    and at least the floor; ``data``: how views are drawn (perception/knob_data.py). Every
+    and at least the floor (one threshold for views that are not hard, ``hard_view``, when
+    there are at least ``min_easy_readings`` of them, and one, never lower, for hard ones); ``data``: how views are drawn (perception/knob_data.py). Every
     field is part of the stored model's configuration."""
     validation_views: int = 400
     validation_missing: float = 0.25
     seed: int = 4
     margin_safety: float = 1.25
     margin_floor: float = 0.002
+    min_easy_readings: int = 40
     data: KnobDataConfig = field(default_factory=lambda: KnobDataConfig(at_states=True))
 
     def tiny(self) -> "TrainingConfig":
@@ -154,7 +156,9 @@ def validation_readings(reader: KnobReader, views) -> list[dict]:
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
-                        shape=v.believed.shape))
+                        shape=v.believed.shape,
+                        hard=hard_view(float(r.evidence.get("radius_px", 0.0)),
+                                       off_axis_deg(v.T_world_camera, v.believed))))
     return out
 
 
@@ -165,10 +169,23 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         np.array([[r["score"]] for r in looked] or [[0.0]]),
         np.array([r["present"] and r["near"] for r in looked] or [False]))
     passed = [r for r in readings if r["found"] and r["present"] and r["near"] and r["score"] > det.threshold_]
-    state = CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
-        np.array([[r["margin"]] for r in passed] or [[0.0]]),
-        np.array([r["right"] for r in passed] or [True]))
-    return KnobReader(reader.templates, det, state, reader.config)
+
+    def gate(rs):
+        return CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
+            np.array([[r["margin"]] for r in rs] or [[0.0]]), np.array([r["right"] for r in rs] or [True]))
+    # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
+    # never below the first, so that a few confident wrong readings far away do not make
+    # every near knob unknown, and a hard view needs what the hard views of validation needed
+    state = gate(passed)
+    easy = [r for r in passed if not r.get("hard")]
+    hard = gate([r for r in passed if r.get("hard")])
+    if len(easy) >= cfg.min_easy_readings:
+        state = gate(easy)
+        if hard.threshold_ < state.threshold_:
+            hard = state
+    else:
+        hard = state
+    return KnobReader(reader.templates, det, state, reader.config, state_gate_hard=hard)
 
 
 def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = KnobConfig(),

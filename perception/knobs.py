@@ -680,16 +680,30 @@ def snap_to_state(angle: float, prior: KnobPrior, proba=None, psi: float = 0.0) 
     return prior.state_names[k], float(max(0.0, 1.0 - d[k] / half))
 
 
+#: A view is *hard* for the state gate when the knob's radius in the image is under
+#: HARD_RADIUS_PX or the camera is more than HARD_OFF_AXIS_DEG off its axis.
+HARD_RADIUS_PX = 12.0
+HARD_OFF_AXIS_DEG = 45.0
+
+
+def hard_view(radius_px: float, off_axis: float) -> bool:
+    """Whether a view of a knob (its radius in pixels, degrees off its axis) is a hard one."""
+    return radius_px < HARD_RADIUS_PX or off_axis > HARD_OFF_AXIS_DEG
+
+
 class KnobReader:
     """Templates + gates + configuration: ``read`` gives one KnobReading per prior (module
     docstring). ``detect_gate`` (a ``CalibratedThreshold`` on the fit) says whether a knob is
     in its region; ``state_gate`` (on the margin over the best other state) whether its
-    state may be given."""
+    state may be given, and ``state_gate_hard`` the same for hard views (``hard_view``; None:
+    ``state_gate``)."""
 
     def __init__(self, templates: KnobTemplates, detect_gate: CalibratedThreshold,
-                 state_gate: CalibratedThreshold, config: KnobConfig = KnobConfig()):
+                 state_gate: CalibratedThreshold, config: KnobConfig = KnobConfig(),
+                 state_gate_hard: Optional[CalibratedThreshold] = None):
         self.templates, self.detect_gate, self.state_gate, self.config = (
             templates, detect_gate, state_gate, config)
+        self.state_gate_hard = state_gate_hard
         self._casters: dict = {}
 
     def __getstate__(self):
@@ -711,6 +725,14 @@ class KnobReader:
     def margin_threshold(self) -> float:
         cfg = self.config
         return cfg.margin_threshold if cfg.margin_threshold is not None else self.state_gate.threshold_
+
+    def margin_threshold_for(self, hard: bool) -> float:
+        """The state gate of a view (``hard_view``): the hard views' own when it has one."""
+        cfg = self.config
+        if cfg.margin_threshold is not None:
+            return cfg.margin_threshold
+        g = self.state_gate_hard if hard and getattr(self, "state_gate_hard", None) is not None else self.state_gate
+        return g.threshold_
 
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
              priors: Sequence[KnobPrior]) -> list[KnobReading]:
@@ -824,7 +846,8 @@ class KnobReader:
                                reason=f"no knob found in its region (fit {ev['score']:.2f})")
         state, c_snap = snap_to_state(r.angle, prior)
         ev["snap"] = round(1.0 - c_snap, 3)
-        need = self.margin_threshold * (cfg.off_margin_factor if state == prior.off_state else 1.0)
+        hard = hard_view(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
+        need = self.margin_threshold_for(hard) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
         if ev["margin"] <= need:

@@ -61,5 +61,6 @@ def load_or_train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfi
         raise PerceptionError(f"knob models for this home: {err}; run `hearth train knobs "
                               f"--world {_about(world)['file'] or 'WORLD'}`") from None
     if reader.config != knob:
-        reader = KnobReader(reader.templates, reader.detect_gate, reader.state_gate, knob)
+        reader = KnobReader(reader.templates, reader.detect_gate, reader.state_gate, knob,
+                            state_gate_hard=getattr(reader, "state_gate_hard", None))
     return reader, info
