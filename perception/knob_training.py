@@ -1,180 +1,222 @@
-"""Training the knob models (perception/knobs.py) for one home, from renderings of its knobs.
+"""Fitting the knob reader (perception/knobs.py) for one home, from its knobs as the map
+describes them.
 
-``train(world, cfg, knob)`` renders views of the knobs as ``world`` describes them (their
-designs, sizes, states and the appliances they sit on, see perception/knob_data.py), cuts
-windows from them and fits the detector (with one round of hard negatives and a threshold
-calibrated on validation views), the angle forest and the angle SVR; it returns a
-``KnobReader``. ``world_signature(world)`` is what of the home the result depends on, and
+``train(world, cfg, knob)`` makes the reader of ``world``'s knobs in seconds: the label-map
+templates of every knob shape of the home (``KnobTemplates.fit``: renderings, nothing
+learned), then the two gates calibrated on validation views rendered from the map
+(perception/knob_data.py: the home's own panels, neighbours, lighting and sensor noise, seeds
+other than the benchmark's):
+
+- ``detect_gate``: the fit (R^2) a knob's region needs to count as holding the knob, the
+  middle of the lowest-error range between regions with the knob found where it is and
+  regions without it (or with it found elsewhere);
+- ``state_gate``: the margin over the best other state a reading needs, just above the
+  largest margin of any validation reading whose state was wrong (times ``margin_safety``,
+  at least ``margin_floor``), so that no wrong reading of the validation views would pass.
+
+``world_signature(world)`` is what of the home the result depends on, and
 ``configuration(cfg, knob)`` everything else: together they key the stored model
-(worldmodel/model_store.py), so a model trained for one home stays current when another home
-is trained, and goes stale when a trained setting or a knob of its home changes.
+(worldmodel/model_store.py), so a model made for one home stays current when another home is
+trained, and goes stale when a trained setting or a knob of its home changes.
 
-Pure: the world object in, estimators out; nothing is read or written here.
+Pure: the world object in, estimators out; nothing is written here.
 """
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+import hashlib
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Callable, Optional
 
 import numpy as np
 
-from perception.knob_data import (
-    KnobDataConfig, KnobScenes, calibrate_threshold, hard_negatives, render_views, scene_negatives,
-    training_patches,
-)
+from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
 from perception.knobs import (
-    ANGLE_HOG, KnobAngleForest, KnobAngleSVR, KnobConfig, KnobDetector, KnobReader, hog_features,
+    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape,
+    off_axis_deg, snap_to_state, to_rgb,
 )
 
-#: Bump when the training data or the features change in a way the configuration misses.
-CODE_VERSION = 5
+#: Bump when the templates, the views or the gates change in a way the configuration misses.
+CODE_VERSION = 9
+
+_canon = canon   # the name earlier code imported
 
 
 @dataclass(frozen=True)
 class TrainingConfig:
-    """``views``: rendered knob views; ``angle_patches`` / ``positives`` / ``negatives``:
-    windows cut from each; ``scene_views``: views of other surfaces for negatives (4 windows
-    each); ``hard_negatives``: at most this many windows the first detector wrongly scores
-    high are added for a second fit (0: none); ``validation_views``: views (``validation_missing``
-    of them without the knob) on which the detector's threshold is calibrated
-    (``calibrate_threshold``; 0: the SVM's boundary, 0); ``seed``: training seeds are ``seed``
-    .. ``seed + 3`` (benchmarks use others). Every field is part of the stored model's
-    configuration."""
-    views: int = 3000
-    angle_patches: int = 4
-    positives: int = 3
-    negatives: int = 6
-    scene_views: int = 400
-    seed: int = 1
-    detector_C: float = 0.01
-    hard_negatives: int = 8000
-    validation_views: int = 600
-    validation_missing: float = 0.3
-    forest_trees: int = 100
-    svr_C_grid: tuple[float, ...] = (0.03, 0.3)
-    data: KnobDataConfig = field(default_factory=KnobDataConfig)
+    """``validation_views``: views the gates are calibrated on (``validation_missing`` of them
+    without the knob), drawn with ``seed``; ``margin_safety`` / ``margin_floor``: the state
+    gate's threshold is the largest margin of a wrong validation reading times the safety,
+    and at least the floor (one threshold for views that are not hard, ``hard_view``, when
+    there are at least ``min_easy_readings`` of them, and one, never lower, for hard ones); ``data``: how views are drawn (perception/knob_data.py). Every
+    field is part of the stored model's configuration."""
+    validation_views: int = 400
+    validation_missing: float = 0.25
+    seed: int = 4
+    margin_safety: float = 1.25
+    margin_floor: float = 0.002
+    min_easy_readings: int = 40
+    data: KnobDataConfig = field(default_factory=lambda: KnobDataConfig(at_states=True))
 
     def tiny(self) -> "TrainingConfig":
-        """A small configuration for tests (seconds, not minutes)."""
-        return replace(self, views=260, angle_patches=3, scene_views=40, forest_trees=30,
-                       svr_C_grid=(0.1,), hard_negatives=1000, validation_views=120)
+        """A small configuration for tests (seconds)."""
+        return replace(self, validation_views=80)
 
 
 # -- what the models depend on ------------------------------------------------------------------
 
-def _canon(value, drop: frozenset = frozenset()):
-    """A JSON-able, rounded copy of map nodes (dataclasses) without ``line`` fields, and
-    without the fields of ``value`` itself named in ``drop``."""
-    if is_dataclass(value):
-        return {f.name: _canon(getattr(value, f.name)) for f in fields(value)
-                if f.name != "line" and f.name not in drop}
-    if isinstance(value, (list, tuple)):
-        return [_canon(v) for v in value]
-    if isinstance(value, float):
-        return round(value, 6)
-    return value
+def _mesh_digests(world, knob) -> list:
+    """SHA-256 prefixes of the mesh files a knob's shape names (a changed file is another
+    design, though its name is the same)."""
+    from worldmodel.geometry import knob_parts
+    out = []
+    for _role, v, _turns in knob_parts(knob, world.apartment.library):
+        if v.shape == "mesh" and v.file:
+            path = Path(world.base_dir or ".") / v.file
+            try:
+                out.append(hashlib.sha256(path.read_bytes()).hexdigest()[:16])
+            except OSError:
+                out.append("unreadable")
+    return out
 
 
 def world_signature(world) -> dict:
-    """What of a home the knob models are trained from: every knob's design (radius, depth,
-    colours), where it sits on its appliance, how high its face is and how its axis leans
-    (the training cameras stand 0.25-2 m above the floor), and the geometry of the appliances
-    that carry knobs (their models, parts, joints and handles in the appliance's frame).
-    Left out: the knobs' discrete states (the models read any angle over the full turn; the
-    reader snaps it to the map's states when it reads), current knob angles and door states,
-    where an appliance stands in the home, and the rest of the furniture (seen behind the
-    knobs and used for negatives): they change as the robot works or the user edits the map,
-    and the models do not need retraining for them."""
+    """What of a home the knob reader is made from: every knob's shape (radius, depth,
+    colours, its base, grip and marker and the contents of their mesh files, symmetry),
+    where it sits on its appliance, how high its face is and how its axis leans (the views
+    stand 0.25-2 m above the floor), and the geometry of the appliances that carry knobs
+    (their models, parts, joints and handles in the appliance's frame). Left out: the knobs'
+    discrete states, which way they turn and their off state (the templates cover the full
+    turn; the reader snaps to the map's states when it reads), current knob angles and door
+    states, where an appliance stands in the home, and the rest of the furniture: they
+    change as the robot works or the user edits the map, and the reader needs no refitting
+    for them."""
     from worldmodel.geometry import model_visuals
     lib = world.apartment.library
     knobs, carriers = [], {}
     for k in sorted(world.knobs(), key=lambda k: k.id):
         T = world.T_world(k.id)
-        knobs.append(dict(_canon(k, frozenset({"state", "angle", "off_state", "states"})),
+        knobs.append(dict(canon(k, frozenset({"state", "angle", "off_state", "states", "turns"})),
+                          shape_models=[canon(model_visuals(m, lib)) for m in (k.base, k.grip, k.marker)
+                                        if m is not None],
+                          meshes=_mesh_digests(world, k),
                           face_height=round(float((T @ [0, 0, k.depth, 1])[2]), 4),
                           axis_z=round(float(T[2, 2]), 4)))
         obj = world.large_object_of(k.id)
         carriers.setdefault(obj.id, obj)
 
     def part(p):
-        return dict(id=p.id, model=_canon(model_visuals(p.model, lib)),
-                    joint=_canon(p.joint, frozenset({"state"})),
-                    handles=_canon(p.handles), parts=[part(c) for c in p.parts])
+        return dict(id=p.id, model=canon(model_visuals(p.model, lib)),
+                    joint=canon(p.joint, frozenset({"state"})),
+                    handles=canon(p.handles), parts=[part(c) for c in p.parts])
 
     return dict(knobs=knobs, appliances=[
-        dict(id=o.id, model=_canon(model_visuals(o.model, lib)),
-             handles=_canon(getattr(o, "handles", [])),
+        dict(id=o.id, model=canon(model_visuals(o.model, lib)),
+             handles=canon(getattr(o, "handles", [])),
              parts=[part(p) for p in getattr(o, "parts", [])])
         for o in carriers.values()])
 
 
 def configuration(cfg: TrainingConfig, knob: KnobConfig, noise: Optional[Callable] = None) -> dict:
-    """Everything but the home the models depend on: the training configuration, the reader's
-    trained fields (``KnobConfig.trained_fields``) and the sensor noise model."""
+    """Everything but the home the reader depends on: the training configuration, the
+    reader's trained fields (``KnobConfig.trained_fields``) and the sensor noise model."""
     return {"code_version": CODE_VERSION, "training": asdict(cfg), "reader": knob.trained_fields(),
             "noise": None if noise is None else f"{noise.__module__}.{noise.__qualname__}"}
 
 
-# -- training ---------------------------------------------------------------------------------------
+# -- fitting ----------------------------------------------------------------------------------------
 
 Progress = Callable[[str, int, int], None]
+
+
+def shapes_of(world) -> list:
+    """The ``KnobShape`` of every knob of the home (one per design)."""
+    lib = world.apartment.library
+    out = {}
+    for k in world.knobs():
+        s = knob_shape(k, lib, world.base_dir)
+        out.setdefault(s.key, s)
+    return list(out.values())
+
+
+def validation_readings(reader: KnobReader, views) -> list[dict]:
+    """The reader's evidence on rendered views (no gates): per view whether the knob was
+    there, found where it is (within half a radius of its true centre), the fit, the margin
+    and whether the state its angle snaps to is the true one."""
+    out = []
+    for v in views:
+        r = reader.evidence(to_rgb(v.image), v.K, v.T_world_camera, v.believed)
+        near = False
+        if r.found and v.present:
+            cx, cy = true_center_m(v)
+            near = math.hypot(r.detection.center_m[0] - cx, r.detection.center_m[1] - cy) <= 0.5 * v.truth.radius
+        state = snap_to_state(r.angle, v.believed)[0] if r.found else None
+        out.append(dict(present=bool(v.present), found=bool(r.found), near=near,
+                        score=float(r.evidence.get("score", 0.0)),
+                        margin=float(r.evidence.get("margin", 0.0)),
+                        right=bool(state == v.state), off=bool(state == v.believed.off_state),
+                        shape=v.believed.shape,
+                        hard=hard_view(float(r.evidence.get("radius_px", 0.0)),
+                                       off_axis_deg(v.T_world_camera, v.believed))))
+    return out
+
+
+def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> KnobReader:
+    """The reader with its gates fitted on validation readings (module docstring)."""
+    looked = [r for r in readings if r["found"] or not r["present"]]
+    det = CalibratedThreshold("fewest_errors").fit(
+        np.array([[r["score"]] for r in looked] or [[0.0]]),
+        np.array([r["present"] and r["near"] for r in looked] or [False]))
+    passed = [r for r in readings if r["found"] and r["present"] and r["near"] and r["score"] > det.threshold_]
+
+    def gate(rs):
+        return CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
+            np.array([[r["margin"]] for r in rs] or [[0.0]]), np.array([r["right"] for r in rs] or [True]))
+    # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
+    # never below the first, so that a few confident wrong readings far away do not make
+    # every near knob unknown, and a hard view needs what the hard views of validation needed
+    state = gate(passed)
+    easy = [r for r in passed if not r.get("hard")]
+    hard = gate([r for r in passed if r.get("hard")])
+    if len(easy) >= cfg.min_easy_readings:
+        state = gate(easy)
+        if hard.threshold_ < state.threshold_:
+            hard = state
+    else:
+        hard = state
+    return KnobReader(reader.templates, det, state, reader.config, state_gate_hard=hard)
 
 
 def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = KnobConfig(),
           noise: Optional[Callable] = None, progress: Optional[Progress] = None,
           jobs: int = -1) -> KnobReader:
-    """Render the training views of ``world``'s knobs, cut windows and fit the three
-    estimators. ``noise(rendering, rng)``: the sensor model applied to every view (e.g. the
-    simulated robot's Kinect noise); ``progress(stage, done, total)`` is called now and then;
-    ``jobs``: threads for the forest's trees and the SVR's fits (-1: every core). The angle
-    models are fitted in threads of their own while the detector is (scikit-learn's solvers
-    and OpenCV release the GIL); the result does not depend on the threads."""
+    """Make the reader of ``world``'s knobs: templates of their shapes, then the gates on
+    validation views. ``noise(rendering, rng)``: the sensor model applied to every view (e.g.
+    the simulated robot's Kinect noise); ``progress(stage, done, total)`` is called now and
+    then. ``jobs`` is accepted for compatibility (the work is a few seconds on one core)."""
     say = progress or (lambda stage, done, total: None)
+    shapes = shapes_of(world)
+    say(f"rendering templates of {len(shapes)} knob shape{'s' if len(shapes) != 1 else ''}", 0, len(shapes))
+    tm = KnobTemplates(px_per_radius=knob.px_per_radius, window_radii=knob.window_radii,
+                       alpha_step_deg=knob.alpha_step_deg, theta_step_deg=knob.theta_step_deg,
+                       max_theta_deg=knob.max_theta_deg).fit(shapes)
+    say("rendering templates", len(shapes), len(shapes))
+    # gates that let everything through until they are calibrated
+    open_gate = CalibratedThreshold("no_false_accepts", floor=-1.0).fit([[0.0]], [True])
+    reader = KnobReader(tm, open_gate, open_gate, knob)
+    if not cfg.validation_views:
+        return reader
     scenes = KnobScenes(world)
-    views = render_views(world, cfg.views, cfg.seed, cfg.data, knob, noise=noise, scenes=scenes,
-                         progress=lambda d, n: say("rendering knob views", d, n))
-    say("rendering knob views", cfg.views, cfg.views)
-    det_p, det_y, ang_p, ang_y = training_patches(views, cfg.seed + 1, knob, cfg.positives,
-                                                  cfg.negatives, cfg.angle_patches)
-    ang_f = hog_features(ang_p, ANGLE_HOG)      # once, for both angle models
-    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="angle-models") as pool:
-        say(f"fitting angle forest ({cfg.forest_trees} trees) and SVR on {len(ang_y)} windows, "
-            f"beside the detector", 0, 2)
-        forest = pool.submit(KnobAngleForest(n_estimators=cfg.forest_trees, random_state=cfg.seed,
-                                             n_jobs=jobs).fit, ang_f, ang_y)
-        svr = pool.submit(KnobAngleSVR(C_grid=cfg.svr_C_grid, random_state=cfg.seed,
-                                       n_jobs=jobs).fit, ang_f, ang_y)
-        detector = _fit_detector(world, views, det_p, det_y, scenes, cfg, knob, noise, say)
-        forest, svr = forest.result(), svr.result()
-    say("done", 3, 3)
-    return KnobReader(detector, forest, svr, knob)
-
-
-def _fit_detector(world, views, det_p, det_y, scenes, cfg: TrainingConfig, knob: KnobConfig,
-                  noise, say) -> KnobDetector:
-    """Negatives from other surfaces, a first fit, hard negatives and a second fit, and the
-    threshold calibrated on validation views."""
-    say("rendering other surfaces", 0, cfg.scene_views)
-    neg = scene_negatives(world, cfg.scene_views, cfg.seed + 2, knob, cfg.data, scenes=scenes)
-    say("rendering other surfaces", cfg.scene_views, cfg.scene_views)
-    det_p = np.concatenate([det_p, neg])
-    det_y = np.concatenate([det_y, np.zeros(len(neg), dtype=int)])
-    say(f"fitting detector (HOG + linear SVM, {len(det_y)} windows)", 0, 3)
-    detector = KnobDetector(C=cfg.detector_C).fit(det_p, det_y)
-    if cfg.hard_negatives:
-        hard = hard_negatives(views, detector, knob, limit=cfg.hard_negatives)
-        say(f"refitting detector with {len(hard)} hard negatives", 1, 3)
-        det_p = np.concatenate([det_p, hard])
-        det_y = np.concatenate([det_y, np.zeros(len(hard), dtype=int)])
-        detector = KnobDetector(C=cfg.detector_C).fit(det_p, det_y)
-    if cfg.validation_views:
-        val = render_views(world, cfg.validation_views, cfg.seed + 3,
-                           replace(cfg.data, missing_rate=cfg.validation_missing), knob, noise=noise,
-                           scenes=scenes, progress=lambda d, n: say("rendering validation views", d, n))
-        cal = calibrate_threshold(val, detector, knob)
-        detector.threshold_ = cal.threshold
-        detector.calibration_ = asdict(cal)
-        say(f"detector threshold {cal.threshold:+.3f} (validation: recall {cal.recall:.3f}, "
-            f"false detections {cal.false_positive_rate:.3f} of {cal.empty} empty regions)", 2, 3)
-    return detector
+    views = render_views(world, cfg.validation_views, cfg.seed,
+                         replace(cfg.data, missing_rate=cfg.validation_missing), knob, noise=noise,
+                         scenes=scenes, progress=lambda d, n: say("rendering validation views", d, n))
+    say("reading validation views", 0, len(views))
+    readings = validation_readings(reader, views)
+    reader = calibrate(reader, readings, cfg)
+    d, s = reader.detect_gate, reader.state_gate
+    say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"
+        f"{d.validation_['positives']} knobs, {d.validation_['negatives_passed']}/"
+        f"{d.validation_['negatives']} empty regions pass); margin > {s.threshold_:.4f} "
+        f"({s.validation_['negatives']} wrong readings, none pass)", len(views), len(views))
+    return reader

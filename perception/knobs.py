@@ -1,34 +1,63 @@
-"""Knob detection and reading (RAMCIP D3.1 5.2.1.2 to 5.2.1.4): HOG + linear SVM detector,
-HOG + random forest (36 classes of 10 degrees) and HOG + linear SVR (cos, sin) angle models,
-snapping to the knob's discrete states from the map.
+"""Knob reading by analysis by synthesis: each knob is rendered as the map describes it, at each
+angle it could stand at, from where the camera is, and compared with the image.
 
-Where RAMCIP slides a 48x48 window over a 4-level image pyramid of the raw image, we first
-**rectify** the region around each knob with the knob plane known from the map (the registered
-or believed knob pose): a homography maps the knob's front-face plane to a *canvas* in which
-the knob is seen head-on at a fixed scale (``KnobConfig.px_per_radius`` pixels per knob
-radius), whatever the distance (0.5-1.5 m) and the viewing angle (up to 60 degrees off-axis).
-The detector and the angle models then only have to cope with what rectification leaves:
-registration error (the knob is off the canvas centre: the search), a few percent of scale
-(a small pyramid of ``scales``), blur, noise, lighting and the cylinder's side seen obliquely.
-An angle read in the canvas is directly the knob's angle about its axis: the canvas axes are
-the knob frame's x (right) and y (up) at angle 0.
+RAMCIP D3.1 (5.2.1.2 to 5.2.1.4) detects knobs with HOG + SVM and reads their angle with
+models trained on pictures of one knob design; such models read the design they were
+trained on and little else. Here nothing is learned about a knob's look: the map gives its
+shape (``worldmodel.nodes.Knob``: base, grip, marker, symmetry; ``knob_shape``), and the
+reader asks which angle of that shape explains the pixels around the knob best.
+
+**Rectification.** The region around a knob is warped by a homography of its front-face
+plane (the plane z = ``KnobShape.face`` of its frame, from the map's registered or believed
+pose) into a *canvas* that shows the plane head-on at a fixed scale (pixels per knob radius),
+turned about the knob's axis so that the camera always lies towards canvas-up
+(``KnobPrior.canvas_frame``). Seen from a camera centre C, a canvas is the central
+projection of the knob onto that plane from C; turning the knob by ``a`` is turning C by
+``-a`` about the axis, so in the turned canvas the knob at angle ``a`` looks like the knob at
+``a - psi`` seen from the canvas's up side, whatever the azimuth of the view. What it looks
+like then depends on that relative angle and on how far off-axis the camera is (theta) only.
+
+**Templates** (``KnobTemplates``, fitted per home from the map's knob shapes: rendering, no
+learning): for every shape, off-axis angle (``theta_step_deg`` bins) and relative angle
+(``alpha_step_deg`` steps over 360/symmetry degrees), a *label map* of the canvas: which
+visual of the knob, and which way its surface faces (front, or a side facing up, left, down
+or right in the canvas), each pixel shows, or the background. Rays are parallel (the knob is
+small against its distance); the final check renders the exact perspective.
+
+**Scoring.** A label map says which pixels should look alike: the pixels of one label are
+one surface under one light. How well an image fits a label map is the share of its colour
+variance that the labels explain, R^2 = between-label variance / total variance over the
+window, in RGB (so a red tip on a black grip, equal in grey, still tells the angle). It is
+blind to gain, offset and the actual colours, so it holds under other lighting, cameras and
+renderers, and needs no rendering of colour at all; the colours of the map are not trusted.
+
+**Reading a knob** (``KnobReader.read``): (1) the canvas at the coarse scale; (2) where the
+knob is: the labels averaged over every angle (what the knob looks like whatever its angle)
+are fitted at every offset within ``search_m`` of where the map puts it (a soft-label
+regression, by correlation), with a Gaussian prior on the offset (the registration error);
+(3) the coarse angle: every template of the off-axis bin at that offset and its neighbours;
+(4) the best angle and the best angle of the best *other* state are rendered exactly (the
+real camera centre, perspective, fixed parts in place) at three angles each, at the fine
+scale, scored over small offsets; a parabola through the three gives the angle; (5) the
+state: the nearest state to the angle (modulo the symmetry), given only when the fit is
+good enough (``detect_gate``: a knob is there), the margin over the best other state is
+wide enough (``state_gate``, calibrated on rendered validation views so that no wrong
+reading passed it; an "off" reading needs more), and the angle lies well inside the state's
+half step. Otherwise "unknown", with the reason.
 
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
 shape (the constructor stores parameters, ``fit`` returns self, learned attributes end in
-``_``, every other method starts with ``check_is_fitted``, ``predict(X)`` never trains and
-answers what the reader uses); their ``X`` is *patches*: (N, P, P) uint8 grey windows with
-``P = WINDOW + 2 * BORDER`` (the 48x48 window plus a 2-pixel context border so that HOG
-gradients at the window's edge are those of the canvas), or the HOG features of patches.
-Training is perception/knob_training.py; storing the models is worldmodel/model_store.py,
-asked by skills/knob_models.py.
+``_``, every other method starts with ``check_is_fitted``). Training is
+perception/knob_training.py; storing the models is worldmodel/model_store.py, asked by
+skills/knob_models.py.
 
 Frames: ``T_world_camera`` maps camera points (OpenCV axes) to the world; a knob's
-``T_world_knob`` is its frame at angle 0 (``worldmodel.nodes.Knob``: +z out of the panel, the
-marker at +y at angle 0, angles counter-clockwise about +z); angles are radians in
-(-pi, pi].
+``T_world_knob`` is its frame at angle 0 (+z out of the panel, angles counter-clockwise about
++z); angles are radians in (-pi, pi].
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -36,52 +65,337 @@ from typing import Optional, Sequence
 
 import cv2
 import numpy as np
-from sklearn.base import BaseEstimator, ClassifierMixin, RegressorMixin
-from sklearn.ensemble import RandomForestClassifier
-from sklearn.svm import LinearSVC, LinearSVR
+from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from perception.camera import Intrinsics
 from perception.trained import read_time, trained_fields
 
-WINDOW = 48
-BORDER = 2
-PATCH = WINDOW + 2 * BORDER
-N_CLASSES = 36
-ANGLE_METHODS = ("forest", "svr", "fused")
+#: Face classes of a label: front (normal along the knob's axis), or a side facing canvas
+#: up, left, down, right.
+N_FACE = 5
+#: Face classes of the exact check's labels: front, then the sides in ``FINE_AZIMUTHS``
+#: directions (canvas frame) and two bands of steepness: about one flat face of a primitive,
+#: under one light, per label.
+FINE_AZIMUTHS = 36
+N_FACE_FINE = 1 + 2 * FINE_AZIMUTHS
+#: Ray origins of the parallel (template) rays stand this far out along the view (m).
+_FAR = 0.5
 
 
 @dataclass(frozen=True)
 class KnobConfig:
-    """``px_per_radius``: canvas pixels per knob radius (16: the knob's face is 32 px wide in
-    a 48 px window); ``search_px``: how far (canvas px at scale 1, 18 px = 2.5 cm for a 22 mm
-    knob) the knob may be from where the map puts it; ``scales``: the pyramid (canvas scale
-    factors); ``threshold``: SVM score a window needs (None: the detector's own
-    ``threshold_``, calibrated on validation views in training, else 0); ``nms_iou``: overlap
-    at which NMS drops the weaker window; ``angle_method``: forest, svr or fused (see ``KnobReader``);
-    ``min_confidence``: below it the state is "unknown"; ``max_off_axis_deg``: a knob seen
-    more obliquely is not read; ``angle_shifts_px``: the angle models read five windows, at
-    the detected centre and shifted this far left, right, up and down, and average (0: one
-    window), which makes them tolerant of a detection a few pixels off; ``view_aligned``: the
-    canvas is turned about the knob's axis so that the direction towards the camera is always
-    canvas-up (``KnobPrior.canvas_frame``). Fields declared ``read_time`` can change without
-    retraining; every other one is part of the stored model's configuration."""
-    px_per_radius: float = 16.0
-    search_px: int = 18
-    scales: tuple[float, ...] = (0.87, 1.0, 1.15)
-    threshold: Optional[float] = read_time(None)
-    nms_iou: float = read_time(0.3)
-    angle_method: str = read_time("fused")
-    fuse_gate_deg: float = read_time(15.0)
-    min_confidence: float = read_time(0.3)
+    """Trained (part of the stored templates): ``px_per_radius`` (coarse canvas pixels per
+    knob radius), ``window_radii`` (the template window's half width, in knob radii),
+    ``alpha_step_deg`` / ``theta_step_deg`` / ``max_theta_deg`` (template angle steps and the
+    most off-axis bin). Read time: ``fine_px_per_radius`` (the exact check's scale),
+    ``search_m`` / ``search_radii`` (how far from where the map puts it the knob is looked
+    for: the larger of the two), ``offset_sigma_m`` (the registration error the offset prior
+    assumes), ``fine_shift_px`` (offsets tried in the exact check), ``min_radius_px`` (a
+    knob smaller in the image is not read), ``max_off_axis_deg``, ``max_snap`` (the angle
+    must lie within this share of half a state step of its state), ``off_margin_factor``
+    (an "off" reading needs this many times the calibrated margin), ``min_confidence`` (a
+    reading less confident than this is "unknown"), ``threshold`` /
+    ``margin_threshold`` (override the calibrated gates; None: the fitted ones)."""
+    px_per_radius: float = 8.0
+    window_radii: float = 1.25
+    alpha_step_deg: float = 5.0
+    theta_step_deg: float = 5.0
+    max_theta_deg: float = 70.0
+    fine_px_per_radius: float = read_time(12.0)
+    search_m: float = read_time(0.014)
+    search_radii: float = read_time(0.6)
+    offset_sigma_m: float = read_time(0.008)
+    offset_weight: float = read_time(0.05)
+    align_iterations: int = read_time(5)
+    angle_stages: int = read_time(2)
+    candidates: int = read_time(3)
+    decimate_above_px: float = read_time(16.0)
+    min_radius_px: float = read_time(4.0)
     max_off_axis_deg: float = read_time(70.0)
-    angle_shifts_px: float = read_time(2.0)
-    view_aligned: bool = True
+    max_snap: float = read_time(0.7)
+    off_margin_factor: float = read_time(1.5)
+    min_confidence: float = read_time(0.0)
+    threshold: Optional[float] = read_time(None)
+    margin_threshold: Optional[float] = read_time(None)
 
     def trained_fields(self) -> dict:
-        """The fields the knob models are trained with (the others, declared ``read_time``,
-        change how a trained reader reads and need no retraining)."""
+        """The fields the templates are made with (the others, declared ``read_time``,
+        change how a reader reads and need no refitting)."""
         return trained_fields(self)
+
+
+# -- knob shapes ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class KnobShape:
+    """What the reader knows of a knob's look: its visuals as triangle meshes in the knob
+    frame at angle 0 (``vertices`` / ``triangles`` per visual, ``roles`` base/grip/marker,
+    ``turns``: False for a fixed base), its outline ``radius`` (m, the farthest point from the
+    axis), ``face`` (m, the frontmost z: the canvas plane), its ``symmetry``. ``key``: a
+    fingerprint of all of it (knobs of one design share it and their templates)."""
+    key: str
+    vertices: tuple
+    triangles: tuple
+    roles: tuple[str, ...]
+    turns: tuple[bool, ...]
+    radius: float
+    face: float
+    symmetry: int = 1
+
+    @property
+    def period(self) -> float:
+        """The angle (rad) after which the shape looks the same again."""
+        return 2 * math.pi / self.symmetry
+
+
+def knob_shape(knob, library: Optional[dict] = None, base_dir=None) -> KnobShape:
+    """The ``KnobShape`` of a map ``Knob`` (worldmodel.geometry ``knob_parts``: the described
+    shape, or the plain knob of format 1)."""
+    from worldmodel.geometry import knob_parts, visual_mesh
+    verts, tris, roles, turns = [], [], [], []
+    for role, v, t in knob_parts(knob, library):
+        m = visual_mesh(v, base_dir)
+        if len(m.triangles) == 0:
+            continue
+        verts.append(np.asarray(m.vertices, dtype=np.float64).round(7))
+        tris.append(np.asarray(m.triangles, dtype=np.int32))
+        roles.append(role)
+        turns.append(bool(t))
+    if not verts:
+        from perception.errors import PerceptionError
+        raise PerceptionError(f"knob {knob.id} has no shape to read")
+    allv = np.concatenate(verts)
+    radius = float(np.max(np.hypot(allv[:, 0], allv[:, 1])))
+    face = float(np.max(allv[:, 2]))
+    h = hashlib.sha256()
+    for v, t, r, tu in zip(verts, tris, roles, turns):
+        h.update(v.tobytes())
+        h.update(t.tobytes())
+        h.update(f"{r}:{tu}".encode())
+    h.update(str(int(knob.symmetry)).encode())
+    return KnobShape(h.hexdigest()[:16], tuple(verts), tuple(tris), tuple(roles), tuple(turns),
+                     radius, face, int(knob.symmetry))
+
+
+class _Caster:
+    """Ray casting against one shape: a scene of its turning visuals and one of its fixed
+    ones (open3d's Embree scenes; built on first use, not pickled), with each triangle's
+    visual, normal azimuth (about the knob's axis) and steepness."""
+
+    def __init__(self, shape: KnobShape):
+        import open3d as o3d
+        self.o3d = o3d
+        self.scenes, self.first, self.az, self.nz, self.part = [], [], [], [], []
+        for turning in (True, False):
+            scene = o3d.t.geometry.RaycastingScene()
+            first, az, nz, part = [], [], [], []
+            count = 0
+            for i, (v, t, tu) in enumerate(zip(shape.vertices, shape.triangles, shape.turns)):
+                if tu != turning:
+                    continue
+                mesh = o3d.t.geometry.TriangleMesh()
+                mesh.vertex.positions = o3d.core.Tensor(v.astype(np.float32))
+                mesh.triangle.indices = o3d.core.Tensor(t)
+                scene.add_triangles(mesh)
+                n = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+                n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+                first.append(count)
+                az.append(np.arctan2(-n[:, 0], n[:, 1]))      # 0: facing +y, +pi/2: facing -x
+                nz.append(np.abs(n[:, 2]))
+                part.append(np.full(len(t), i, dtype=np.int64))
+                count += len(t)
+            self.scenes.append(scene if count else None)
+            self.first.append(np.array(first + [count], dtype=np.int64))
+            self.az.append(np.concatenate(az + [np.zeros(1)]))
+            self.nz.append(np.concatenate(nz + [np.zeros(1)]))
+            self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
+
+    def labels(self, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray, fixed_turn: float,
+               fine: bool = False) -> np.ndarray:
+        """Labels (uint16, 0 = nothing) of rays given in the canvas frame with the knob's
+        origin at the canvas origin, for each of ``turns`` (B,): the turning visuals turned
+        by it (rad, counter-clockwise about +z), the fixed ones by ``fixed_turn``.
+        ``origins`` (3,) or (B, N, 3), ``dirs`` (N, 3) or (B, N, 3). The label is
+        1 + visual * classes + face class, the face class from the normal turned into the
+        canvas: front (along the axis), else which way it faces (4 sides, or with ``fine``
+        ``FINE_AZIMUTHS`` directions in two bands of steepness)."""
+        turns = np.atleast_1d(np.asarray(turns, dtype=float))
+        B = len(turns)
+        dirs = np.broadcast_to(dirs, (B,) + np.shape(dirs)[-2:])
+        N = dirs.shape[1]
+        origins = np.broadcast_to(origins, (B, N, 3))
+        best_t = np.full((B, N), np.inf)
+        label = np.zeros((B, N), dtype=np.uint16)
+        classes = N_FACE_FINE if fine else N_FACE
+        for k, scene in enumerate(self.scenes):
+            if scene is None:
+                continue
+            a = turns if k == 0 else np.full(B, float(fixed_turn))
+            c, s = np.cos(a)[:, None], np.sin(a)[:, None]
+            rays = np.empty((B, N, 6), np.float32)
+            # into the visuals' frame: turn the rays back by a
+            for off, v in ((0, origins), (3, dirs)):
+                rays[..., off] = c * v[..., 0] + s * v[..., 1]
+                rays[..., off + 1] = -s * v[..., 0] + c * v[..., 1]
+                rays[..., off + 2] = v[..., 2]
+            ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
+            t = ans["t_hit"].numpy().reshape(B, N)
+            hit = np.isfinite(t) & (t < best_t)
+            if not hit.any():
+                continue
+            gid = ans["geometry_ids"].numpy().reshape(B, N).astype(np.int64)
+            prim = ans["primitive_ids"].numpy().reshape(B, N).astype(np.int64)
+            no_hit = len(self.az[k]) - 1
+            tri = np.where(hit, self.first[k][np.minimum(gid, len(self.first[k]) - 1)] + prim, no_hit)
+            # each triangle's label for each turn (far fewer triangles than rays)
+            az = self.az[k][None, :] + a[:, None]        # the normal's azimuth in the canvas
+            nz = self.nz[k][None, :]
+            if fine:
+                sector = np.round(az / (2 * math.pi / FINE_AZIMUTHS)).astype(np.int64) % FINE_AZIMUTHS
+                face = np.where(nz > 0.97, 0, 1 + (nz > 0.5) * FINE_AZIMUTHS + sector)
+            else:
+                face = np.where(nz > 0.7, 0, 1 + np.round(az / (math.pi / 2)).astype(np.int64) % 4)
+            table = (1 + self.part[k][None, :] * classes + face).astype(np.uint16)
+            lab = np.take_along_axis(table, tri, axis=1)
+            label = np.where(hit, lab, label)
+            best_t = np.where(hit, t, best_t)
+        return label
+
+
+def _canvas_points(n: int, px_per_m: float, center=(0.0, 0.0)) -> np.ndarray:
+    """(n*n, 2) canvas-plane points (m) of an n x n canvas's pixel centres, row-major; canvas
+    right = +x, canvas up = +y, its centre pixel at ``center``."""
+    c = (n - 1) / 2.0
+    jj, ii = np.meshgrid(np.arange(n), np.arange(n))
+    return np.stack([(jj.ravel() - c) / px_per_m + center[0],
+                     -(ii.ravel() - c) / px_per_m + center[1]], -1)
+
+
+# -- templates -------------------------------------------------------------------------------------
+
+@dataclass
+class ShapeTemplates:
+    """One shape's templates: ``labels`` (T, A, n, n) uint8 label maps per off-axis bin and
+    relative angle (``alphas``, rad, over one period), ``counts`` (T, A, L) pixels per label,
+    ``soft`` (T, L, n, n) the label maps averaged over the angles and ``gram_inv`` (T, L, L)
+    the pseudo-inverse of their Gram matrix (the offset search's regression)."""
+    labels: np.ndarray
+    counts: np.ndarray
+    soft: np.ndarray
+    gram_inv: np.ndarray
+    alphas: np.ndarray
+    thetas: np.ndarray
+    n_labels: int
+
+
+class KnobTemplates(BaseEstimator):
+    """Label-map templates of knob shapes (module docstring). ``fit(shapes)`` renders them
+    (parallel rays at each bin's off-axis angle); nothing is learned. ``templates_``: shape
+    key -> ShapeTemplates; ``shapes_``: shape key -> KnobShape."""
+
+    def __init__(self, px_per_radius: float = 8.0, window_radii: float = 1.25,
+                 alpha_step_deg: float = 5.0, theta_step_deg: float = 5.0,
+                 max_theta_deg: float = 70.0):
+        self.px_per_radius = px_per_radius
+        self.window_radii = window_radii
+        self.alpha_step_deg = alpha_step_deg
+        self.theta_step_deg = theta_step_deg
+        self.max_theta_deg = max_theta_deg
+
+    @property
+    def window_px(self) -> int:
+        """Side of a template (pixels)."""
+        return 2 * int(math.ceil(self.window_radii * self.px_per_radius)) + 1
+
+    def fit(self, shapes: Sequence[KnobShape], y=None):
+        self.shapes_ = {}
+        self.templates_ = {}
+        for s in shapes:
+            if s.key not in self.templates_:
+                self.shapes_[s.key] = s
+                self.templates_[s.key] = self._render(s)
+        return self
+
+    def _render(self, shape: KnobShape) -> ShapeTemplates:
+        caster = _Caster(shape)
+        n = self.window_px
+        rho = self.px_per_radius / shape.radius
+        q = _canvas_points(n, rho)
+        n_alpha = max(1, int(round(360.0 / shape.symmetry / self.alpha_step_deg)))
+        alphas = np.arange(n_alpha) * (shape.period / n_alpha)
+        thetas = np.radians(np.arange(0.0, self.max_theta_deg + 1e-9, self.theta_step_deg))
+        L = 1 + len(shape.roles) * N_FACE
+        labels = np.zeros((len(thetas), n_alpha, n, n), np.uint8)
+        for ti, th in enumerate(thetas):
+            v = np.array([0.0, math.sin(th), math.cos(th)])     # towards the camera
+            origins = np.empty((len(q), 3))
+            origins[:, :2] = q + _FAR * v[:2]
+            origins[:, 2] = shape.face + _FAR * v[2]            # knob origin at z = -face
+            dirs = np.broadcast_to(-v, origins.shape)
+            lab = caster.labels(origins, dirs, alphas, 0.0)
+            labels[ti] = lab.reshape(n_alpha, n, n)
+        counts = np.stack([np.stack([np.bincount(labels[t, a].ravel(), minlength=L)
+                                     for a in range(n_alpha)]) for t in range(len(thetas))])
+        onehot = (labels[..., None] == np.arange(L)).mean(1)          # (T, n, n, L)
+        soft = np.moveaxis(onehot, -1, 1).astype(np.float32)          # (T, L, n, n)
+        flat = soft.reshape(len(thetas), L, -1).astype(np.float64)
+        gram_inv = np.stack([np.linalg.pinv(f @ f.T, rcond=1e-6, hermitian=True) for f in flat])
+        return ShapeTemplates(labels, counts.astype(np.float32), soft, gram_inv.astype(np.float32),
+                              alphas, thetas, L)
+
+    def bin_of(self, theta: float) -> int:
+        check_is_fitted(self)
+        return int(min(round(math.degrees(theta) / self.theta_step_deg),
+                       round(self.max_theta_deg / self.theta_step_deg)))
+
+
+class CalibratedThreshold(BaseEstimator, ClassifierMixin):
+    """A one-feature classifier: ``predict(X)`` is X[:, 0] > ``threshold_``. ``fit(X, y)``
+    chooses the threshold on validation readings: ``objective="fewest_errors"`` the middle of
+    the lowest step of (positives at or under it) + (negatives over it), as far from both
+    kinds of error as the validation set allows; ``"no_false_accepts"`` just above the
+    highest negative (times ``safety``, and at least ``floor``), so that no negative of the
+    validation set passes."""
+
+    def __init__(self, objective: str = "fewest_errors", safety: float = 1.0, floor: float = 0.0):
+        self.objective = objective
+        self.safety = safety
+        self.floor = floor
+
+    def fit(self, X, y):
+        x = np.asarray(X, dtype=float).reshape(len(X), -1)[:, 0]
+        y = np.asarray(y).astype(bool)
+        pos, neg = np.sort(x[y]), np.sort(x[~y])
+        if self.objective == "no_false_accepts":
+            top = float(neg[-1]) if len(neg) else self.floor
+            t = max(self.floor, top * self.safety if top > 0 else top)
+        elif self.objective == "fewest_errors":
+            cuts = np.unique(np.concatenate([pos, neg]))
+            if len(cuts) == 0:
+                t = self.floor
+            else:
+                cand = np.concatenate([[cuts[0] - 1e-3], (cuts[:-1] + cuts[1:]) / 2, [cuts[-1] + 1e-3]])
+                err = np.searchsorted(pos, cand, side="right") + (len(neg) - np.searchsorted(neg, cand, side="right"))
+                best = np.flatnonzero(err == err.min())
+                run = best[:np.argmax(np.diff(np.append(best, best[-1] + 2)) > 1) + 1]
+                t = float((cand[run[0]] + cand[run[-1]]) / 2)
+        else:
+            raise ValueError(f"objective must be fewest_errors or no_false_accepts, not {self.objective!r}")
+        self.threshold_ = float(t)
+        self.classes_ = np.array([0, 1])
+        self.n_features_in_ = 1
+        self.validation_ = dict(positives=int(len(pos)), negatives=int(len(neg)),
+                                positives_passed=int((pos > t).sum()),
+                                negatives_passed=int((neg > t).sum()))
+        return self
+
+    def decision_function(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return np.asarray(X, dtype=float).reshape(len(X), -1)[:, 0] - self.threshold_
+
+    def predict(self, X) -> np.ndarray:
+        return (self.decision_function(X) > 0).astype(int)
 
 
 # -- the knobs the map knows --------------------------------------------------------------------
@@ -89,13 +403,20 @@ class KnobConfig:
 @dataclass(frozen=True)
 class KnobPrior:
     """What the map says of one knob: its frame at angle 0 in the world (registered or
-    believed), radius and depth (m), and its discrete states (names, angles in rad)."""
+    believed), its outline radius and face height (m, from its shape), its discrete states
+    (names, angles in rad), its shape's key and symmetry, and its travel (``(lo, hi)`` rad:
+    the angles it can stand at, from its off state through its settings the way it turns;
+    None: any)."""
     knob_id: str
     T_world_knob: np.ndarray
     radius: float
     depth: float
     state_names: tuple[str, ...]
     state_angles: tuple[float, ...]
+    shape: str = ""
+    symmetry: int = 1
+    travel: Optional[tuple[float, float]] = None
+    off_state: str = ""
 
     def T_world_face(self) -> np.ndarray:
         """The knob's front face (z = depth) at angle 0."""
@@ -106,10 +427,7 @@ class KnobPrior:
     def canvas_frame(self, T_world_camera: np.ndarray, aligned: bool = True) -> tuple[np.ndarray, float]:
         """The face frame turned by ``psi`` about the knob's axis so that its +y points towards
         the camera (projected on the face plane), and ``psi`` (rad); (face frame, 0) when not
-        ``aligned``. Seen off-axis, the knob's cylindrical side shows on the face plane on the
-        side away from the camera; in this frame it always lies below the face, so the models
-        learn one appearance per relative angle instead of one per direction of view. A marker
-        at knob angle a is at a - psi in this frame."""
+        ``aligned``. A marker at knob angle a is at a - psi in this frame."""
         T = self.T_world_face()
         if not aligned:
             return T, 0.0
@@ -124,18 +442,66 @@ class KnobPrior:
         return T @ R, psi
 
 
+def knob_travel(knob) -> Optional[tuple[float, float]]:
+    """The angles (rad, ``lo <= hi``) a knob that turns one way (``Knob.turns``) can stand
+    at: from its off state through every setting that way; None for one that turns either
+    way (or a symmetric one whose travel covers its period)."""
+    if knob.turns == "either":
+        return None
+    sign = -1.0 if knob.turns == "clockwise" else 1.0
+    off = knob.state_angle(knob.off)
+    reach = max(((sign * (s.angle - off)) % (2 * math.pi)) for s in knob.states)
+    if reach >= 2 * math.pi / knob.symmetry - 1e-9:
+        return None
+    lo, hi = sorted((off, off + sign * reach))
+    return lo, hi
+
+
 def knob_priors(world, object_id: Optional[str] = None,
                 T_world_object: Optional[np.ndarray] = None) -> list[KnobPrior]:
     """Priors of every knob in the map (or of one object's knobs). ``T_world_object``: the
     object's registered pose, when it differs from the map's."""
     out = []
+    lib = world.apartment.library
     for k in world.knobs(object_id):
         T_wp = world.T_world(world.parent(k.id).id)
         if T_world_object is not None and object_id is not None:
             T_wp = T_world_object @ np.linalg.inv(world.T_world(object_id)) @ T_wp
-        out.append(KnobPrior(k.id, T_wp @ k.pose.matrix(), float(k.radius), float(k.depth),
-                             tuple(s.name for s in k.states), tuple(float(s.angle) for s in k.states)))
+        s = _shape_of(k, lib, world.base_dir)
+        out.append(KnobPrior(k.id, T_wp @ k.pose.matrix(), s.radius, s.face,
+                             tuple(x.name for x in k.states), tuple(float(x.angle) for x in k.states),
+                             s.key, s.symmetry, knob_travel(k), k.off))
     return out
+
+
+_SHAPES: dict = {}
+
+
+def canon(value, drop: frozenset = frozenset()):
+    """A JSON-able, rounded copy of map nodes (dataclasses) without ``line`` fields, and
+    without the fields of ``value`` itself named in ``drop``."""
+    from dataclasses import fields, is_dataclass
+    if is_dataclass(value):
+        return {f.name: canon(getattr(value, f.name)) for f in fields(value)
+                if f.name != "line" and f.name not in drop}
+    if isinstance(value, (list, tuple)):
+        return [canon(v) for v in value]
+    if isinstance(value, float):
+        return round(value, 6)
+    return value
+
+
+def _shape_of(knob, library, base_dir) -> KnobShape:
+    """``knob_shape``, cached by what it is made of (a map's knobs are read again and again)."""
+    key = repr((canon([knob.radius, knob.depth, knob.base, knob.grip, knob.marker,
+                        knob.base_fixed, knob.symmetry, knob.described]),
+                canon([library.get(m.ref) for m in (knob.base, knob.grip, knob.marker)
+                        if m is not None and m.ref]), str(base_dir)))
+    if key not in _SHAPES:
+        if len(_SHAPES) > 256:
+            _SHAPES.clear()
+        _SHAPES[key] = knob_shape(knob, library, base_dir)
+    return _SHAPES[key]
 
 
 # -- rectification ---------------------------------------------------------------------------------
@@ -154,9 +520,10 @@ def plane_homography(K: Intrinsics, T_world_camera: np.ndarray, T_world_plane: n
     return H_img_plane @ A
 
 
-def rectify(gray: np.ndarray, H_img_canvas: np.ndarray, size: int) -> np.ndarray:
-    """The ``size`` x ``size`` canvas seen through ``H_img_canvas`` (uint8)."""
-    return cv2.warpPerspective(gray, H_img_canvas, (size, size),
+def rectify(image: np.ndarray, H_img_canvas: np.ndarray, size: int) -> np.ndarray:
+    """The ``size`` x ``size`` canvas seen through ``H_img_canvas`` (the image's dtype and
+    channels)."""
+    return cv2.warpPerspective(image, H_img_canvas, (size, size),
                                flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                borderMode=cv2.BORDER_REPLICATE)
 
@@ -167,28 +534,17 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
 
 
+def to_rgb(image: np.ndarray) -> np.ndarray:
+    """An RGB uint8 image (a grey one repeated on three channels)."""
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=2)
+    return image if image.dtype == np.uint8 else np.clip(image, 0, 255).astype(np.uint8)
+
+
 def rotate_xy(xy, psi: float) -> tuple[float, float]:
     """A plane point turned by ``psi`` (rad, counter-clockwise)."""
     c, s = math.cos(psi), math.sin(psi)
     return (c * xy[0] - s * xy[1], s * xy[0] + c * xy[1])
-
-
-def canvas_homography(K: Intrinsics, T_world_camera: np.ndarray, prior: KnobPrior, px_per_m: float,
-                      size: int, center_m=(0.0, 0.0), cfg: KnobConfig = KnobConfig()) -> tuple[np.ndarray, float]:
-    """The homography of a knob's canvas (``plane_homography`` of ``KnobPrior.canvas_frame``)
-    centred at ``center_m`` (knob face x, y in m), and the canvas's turn ``psi``."""
-    T_c, psi = prior.canvas_frame(T_world_camera, cfg.view_aligned)
-    return plane_homography(K, T_world_camera, T_c, px_per_m, size, rotate_xy(center_m, -psi)), psi
-
-
-def face_patch(gray: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray, prior: KnobPrior,
-               center_m=(0.0, 0.0), scale: float = 1.0, cfg: KnobConfig = KnobConfig(),
-               size: int = PATCH) -> np.ndarray:
-    """A rectified patch of the knob's face plane centred at ``center_m`` (knob face x, y in
-    m), at ``scale`` times the canonical scale, in the canvas frame (view-aligned or not)."""
-    rho = cfg.px_per_radius * scale / prior.radius
-    H, _ = canvas_homography(K, T_world_camera, prior, rho, size, center_m, cfg)
-    return rectify(gray, H, size)
 
 
 def off_axis_deg(T_world_camera: np.ndarray, prior: KnobPrior) -> float:
@@ -198,269 +554,100 @@ def off_axis_deg(T_world_camera: np.ndarray, prior: KnobPrior) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
-# -- HOG ---------------------------------------------------------------------------------------------
+# -- scoring ---------------------------------------------------------------------------------------
 
-#: Detector HOG after RAMCIP 5.2.1.3: 6x6-pixel cells, 9 contrast-insensitive orientations,
-#: 2x2-cell L2-Hys blocks clipped at 0.2 (OpenCV's default), 1764 values per 48x48 window.
-DETECTOR_HOG = dict(win=(WINDOW, WINDOW), block=(12, 12), stride=(6, 6), cell=(6, 6), nbins=9)
-#: Angle HOG: 8x8 cells, 18 orientations over 360 degrees (signed: the dark marker on the light
-#: face has a direction), 2x2-cell blocks: 1800 values. RAMCIP used 12x12 cells with 36
-#: unsigned orientations; finer cells keep where the marker is, which the angle mostly is.
-ANGLE_HOG = dict(win=(WINDOW, WINDOW), block=(16, 16), stride=(8, 8), cell=(8, 8), nbins=18,
-                 signed=True)
-
-_HOGS: dict = {}
+def _box_sum(img: np.ndarray, n: int) -> np.ndarray:
+    """Sums over every n x n window (valid positions) of a 2-D float image."""
+    ii = cv2.integral(img.astype(np.float64))
+    return ii[n:, n:] - ii[:-n, n:] - ii[n:, :-n] + ii[:-n, :-n]
 
 
-def _hog_class():
-    """OpenCV's HOGDescriptor: in every OpenCV 4 wheel; OpenCV 5 moved it to the contrib
-    modules (opencv-contrib-python-headless 5.x binds it as ``cv2.HOGDescriptor`` again)."""
-    hog = getattr(cv2, "HOGDescriptor", None)
-    if hog is None:
-        from perception.errors import PerceptionError
-        raise PerceptionError(f"OpenCV {cv2.__version__} has no HOGDescriptor (OpenCV 5 moved it "
-                              "to the contrib modules): install opencv-contrib-python-headless "
-                              "or opencv-python-headless<5")
-    return hog
+def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) -> np.ndarray:
+    """R^2 of the soft-label regression of the RGB ``canvas`` (H, W, 3) float32 on ``soft``
+    (L, n, n) label maps at every valid window position: (H - n + 1, W - n + 1)."""
+    L, n, _ = soft.shape
+    N = n * n
+    keep = np.flatnonzero(np.diag(gram_inv) > 0)
+    chans = [np.ascontiguousarray(canvas[..., ch]) for ch in range(3)]
+    b = np.stack([np.stack([cv2.matchTemplate(c, soft[l], cv2.TM_CCORR) for c in chans])
+                  for l in keep])                                      # (L', 3, h, w)
+    G = gram_inv[np.ix_(keep, keep)]
+    explained = np.einsum("lchw,lm,mchw->hw", b, G, b)
+    sums = np.stack([_box_sum(c, n) for c in chans])
+    sq = sum(_box_sum(c * c, n) for c in chans)
+    mean_part = (sums ** 2).sum(0) / N
+    tv = sq - mean_part
+    return np.where(tv > 1e-6 * N, (explained - mean_part) / np.maximum(tv, 1e-9), 0.0)
 
 
-def hog_descriptor(spec: dict) -> "cv2.HOGDescriptor":
-    key = tuple(sorted((k, tuple(v) if isinstance(v, (list, tuple)) else v) for k, v in spec.items()))
-    if key not in _HOGS:
-        _HOGS[key] = _hog_class()(tuple(spec["win"]), tuple(spec["block"]), tuple(spec["stride"]),
-                                  tuple(spec["cell"]), int(spec["nbins"]), 1, -1.0,
-                                  cv2.HOGDescriptor_L2Hys, 0.2, False, 64,
-                                  bool(spec.get("signed", False)))
-    return _HOGS[key]
+def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_labels: int) -> np.ndarray:
+    """R^2 of piecewise-constant fits: ``patches`` (P, N, 3) pixel colours, ``labels`` (A, N)
+    label maps, ``counts`` (A, L) pixels per label. Returns (P, A)."""
+    from scipy.sparse import csr_matrix
+    P, N, _ = patches.shape
+    A = labels.shape[0]
+    rows = (np.arange(A)[:, None] * n_labels + labels.astype(np.int64)).ravel()
+    cols = np.tile(np.arange(N), A)
+    onehot = csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(A * n_labels, N))
+    X = np.ascontiguousarray(np.moveaxis(patches, 0, 1).reshape(N, P * 3), dtype=np.float32)
+    sums = np.asarray(onehot @ X).reshape(A, n_labels, P, 3)
+    inv_n = np.where(counts > 0, 1.0 / np.maximum(counts, 1), 0.0)            # (A, L)
+    bcv = np.einsum("alpc,al->pa", sums.astype(np.float64) ** 2, inv_n)
+    total = patches.sum(1)                                                    # (P, 3)
+    mean_part = (total ** 2).sum(1) / N
+    tv = (patches.astype(np.float64) ** 2).sum((1, 2)) - mean_part
+    bcv -= mean_part[:, None]
+    return np.where(tv[:, None] > 1e-6 * N, bcv / np.maximum(tv, 1e-9)[:, None], 0.0)
 
 
-def hog_features(patches: np.ndarray, spec: dict) -> np.ndarray:
-    """(N, D) float32 HOG of the 48x48 window inside each (N, PATCH, PATCH) patch."""
-    hog = hog_descriptor(spec)
-    patches = np.asarray(patches, dtype=np.uint8)
-    if patches.ndim == 2:
-        patches = patches[None]
-    loc = ((BORDER, BORDER),)
-    return np.stack([hog.compute(np.ascontiguousarray(p), (8, 8), (0, 0), loc).ravel()
-                     for p in patches]).astype(np.float32)
+def _candidates(curve: np.ndarray, allowed: np.ndarray, state_of: np.ndarray, k: int) -> list[int]:
+    """Indices of the ``k`` best local maxima of a circular score curve among the allowed
+    angles, best first, and the best allowed angle of another state than the first when
+    none of them is of one (the runner-up the margin is measured against)."""
+    c = np.where(allowed, curve, -np.inf)
+    peaks = [i for i in range(len(c)) if np.isfinite(c[i])
+             and c[i] >= c[i - 1] and c[i] >= c[(i + 1) % len(c)]]
+    peaks.sort(key=lambda i: -c[i])
+    picks = peaks[:k] or [int(np.argmax(c))]
+    if all(state_of[i] == state_of[picks[0]] for i in picks):
+        others = np.flatnonzero(allowed & (state_of != state_of[picks[0]]))
+        if len(others):
+            picks.append(int(others[np.argmax(curve[others])]))
+    return picks
 
 
-def hog_length(spec: dict) -> int:
-    """Values per window of a HOG spec."""
-    return int(hog_descriptor(spec).getDescriptorSize())
-
-
-def _features(X, spec: dict) -> np.ndarray:
-    """The estimators' input ``X``: (N, PATCH, PATCH) uint8 patches, or (N, D) HOG features of
-    them already computed with ``spec`` (the reader computes the angle HOG once for both
-    angle models)."""
-    X = np.asarray(X)
-    if X.ndim == 2 and X.shape[1] == hog_length(spec):
-        return X.astype(np.float32, copy=False)
-    if X.ndim != 3 or X.shape[1:] != (PATCH, PATCH):
-        raise ValueError(f"expected (n, {PATCH}, {PATCH}) patches or (n, {hog_length(spec)}) "
-                         f"HOG features, got shape {X.shape}")
-    return hog_features(X, spec)
-
-
-# -- estimators --------------------------------------------------------------------------------------
-
-class KnobDetector(BaseEstimator, ClassifierMixin):
-    """HOG + linear SVM: is a knob centred in this window? ``fit(X, y)`` with y 1 for a knob
-    centred within a few pixels at about the canonical scale, 0 otherwise. ``threshold_`` is
-    the score a window needs: the SVM's own boundary (0) after ``fit``, the calibrated one
-    once ``calibrate_threshold`` (perception/knob_data.py) has set it; ``predict`` and the
-    reader both use it."""
-
-    def __init__(self, C: float = 0.01, class_weight: str | None = "balanced", random_state: int = 0):
-        self.C = C
-        self.class_weight = class_weight
-        self.random_state = random_state
-
-    def fit(self, X, y):
-        F = _features(X, DETECTOR_HOG)
-        y = np.asarray(y).astype(int)
-        svm = LinearSVC(C=self.C, class_weight=self.class_weight, random_state=self.random_state,
-                        max_iter=5000)
-        svm.fit(F, y)
-        self.coef_ = svm.coef_.ravel().astype(np.float32)
-        self.intercept_ = float(svm.intercept_[0])
-        self.classes_ = np.array([0, 1])
-        self.n_features_in_ = F.shape[1]
-        self.threshold_ = 0.0
-        return self
-
-    def decision_function(self, X) -> np.ndarray:
-        check_is_fitted(self)
-        return _features(X, DETECTOR_HOG) @ self.coef_ + self.intercept_
-
-    def threshold_for(self, cfg: "KnobConfig") -> float:
-        """The score a window needs: the configured one, else ``threshold_``."""
-        check_is_fitted(self)
-        return float(cfg.threshold) if cfg.threshold is not None else float(self.threshold_)
-
-    def predict(self, X) -> np.ndarray:
-        """1 where a window scores over ``threshold_``, else 0."""
-        check_is_fitted(self)
-        return (self.decision_function(X) > self.threshold_).astype(int)
-
-    def scan(self, canvas: np.ndarray) -> np.ndarray:
-        """SVM scores of every window of a canvas at HOG block stride (6 px): (rows, cols),
-        window (i, j) has its top-left corner at (6 j, 6 i). One HOG pass per canvas (the
-        block histograms are shared between overlapping windows)."""
-        check_is_fitted(self)
-        hog = hog_descriptor(DETECTOR_HOG)
-        s = DETECTOR_HOG["stride"][0]
-        n = (canvas.shape[0] - WINDOW) // s + 1
-        m = (canvas.shape[1] - WINDOW) // s + 1
-        f = hog.compute(np.ascontiguousarray(canvas), (s, s), (0, 0)).reshape(n * m, -1)
-        return (f @ self.coef_ + self.intercept_).reshape(n, m)
+def _states_of(prior: "KnobPrior", angles: np.ndarray) -> np.ndarray:
+    """Index of the nearest state (modulo the period) of each angle (rad)."""
+    period = 2 * math.pi / max(1, prior.symmetry)
+    a = np.asarray(prior.state_angles)
+    d = np.abs(np.remainder(a[None, :] - np.asarray(angles)[:, None] + period / 2, period) - period / 2)
+    return np.argmin(d, 1)
 
 
 def _wrap(a):
-    return (np.asarray(a, dtype=float) + np.pi) % (2 * np.pi) - np.pi
-
-
-def angle_class(angles) -> np.ndarray:
-    """Class 0..35 of each angle: class c covers [10c - 5, 10c + 5) degrees."""
-    d = np.degrees(np.asarray(angles, dtype=float)) % 360.0
-    return (np.round(d / 10.0).astype(int)) % N_CLASSES
-
-
-class KnobAngleForest(BaseEstimator, ClassifierMixin):
-    """HOG + random forest over 36 classes of 10 degrees (RAMCIP 5.2.1.4). ``fit(X, angles)``
-    with angles in rad; ``predict(X)`` gives a continuous angle (rad): the probability-weighted
-    circular mean of the winning class and its two neighbours; ``predict_proba(X)`` the
-    (N, 36) class probabilities."""
-
-    def __init__(self, n_estimators: int = 100, max_features: str | float = "sqrt",
-                 min_samples_leaf: int = 1, random_state: int = 0, n_jobs: int | None = None):
-        self.n_estimators = n_estimators
-        self.max_features = max_features
-        self.min_samples_leaf = min_samples_leaf
-        self.random_state = random_state
-        self.n_jobs = n_jobs
-
-    def fit(self, X, angles):
-        F = _features(X, ANGLE_HOG)
-        y = angle_class(angles)
-        self.forest_ = RandomForestClassifier(
-            n_estimators=self.n_estimators, max_features=self.max_features,
-            min_samples_leaf=self.min_samples_leaf, random_state=self.random_state,
-            n_jobs=self.n_jobs).fit(F, y)
-        # reading is one small batch at a time: threads would cost more than they save
-        self.forest_.set_params(n_jobs=None)
-        self.classes_ = np.arange(N_CLASSES)
-        self.n_features_in_ = F.shape[1]
-        return self
-
-    def predict_proba(self, X) -> np.ndarray:
-        check_is_fitted(self)
-        F = _features(X, ANGLE_HOG)
-        p = self.forest_.predict_proba(F)
-        out = np.zeros((len(F), N_CLASSES))
-        out[:, self.forest_.classes_] = p
-        return out
-
-    def predict(self, X) -> np.ndarray:
-        check_is_fitted(self)
-        return proba_to_angle(self.predict_proba(X))
-
-
-def proba_to_angle(p: np.ndarray) -> np.ndarray:
-    """Continuous angles (rad) from (N, 36) class probabilities."""
-    best = p.argmax(1)
-    idx = (best[:, None] + np.array([-1, 0, 1])[None]) % N_CLASSES
-    w = np.take_along_axis(p, idx, 1)
-    a = np.radians(idx * 10.0)
-    return np.arctan2((w * np.sin(a)).sum(1), (w * np.cos(a)).sum(1))
-
-
-class KnobAngleSVR(BaseEstimator, RegressorMixin):
-    """HOG + two linear SVRs regressing cos and sin of the angle; ``predict(X)`` = atan2 (rad).
-    ``C`` is chosen from ``C_grid`` by ``cv``-fold cross-validation in ``fit`` (as RAMCIP did)
-    unless the grid has one value. ``n_jobs`` threads run the fits of ``fit`` (liblinear
-    releases the GIL; the result does not depend on it)."""
-
-    def __init__(self, C_grid: Sequence[float] = (0.03, 0.3), epsilon: float = 0.0,
-                 cv: int = 3, cv_samples: int = 3000, random_state: int = 0,
-                 n_jobs: int | None = None):
-        self.C_grid = C_grid
-        self.epsilon = epsilon
-        self.cv = cv
-        self.cv_samples = cv_samples
-        self.random_state = random_state
-        self.n_jobs = n_jobs
-
-    def _fit_one(self, X, y, C):
-        # The primal solver (squared epsilon-insensitive loss) is much faster than the dual
-        # one when there are more samples than HOG values, as in training.
-        return LinearSVR(C=C, epsilon=self.epsilon, loss="squared_epsilon_insensitive",
-                         dual=False, random_state=self.random_state, max_iter=2000).fit(X, y)
-
-    def _fit_all(self, jobs):
-        """``jobs``: (X, y, C) triples, fitted on ``n_jobs`` threads, in order."""
-        from joblib import Parallel, delayed
-        return Parallel(n_jobs=self.n_jobs, prefer="threads")(
-            delayed(self._fit_one)(X, y, C) for X, y, C in jobs)
-
-    def fit(self, X, angles):
-        X = _features(X, ANGLE_HOG)
-        a = np.asarray(angles, dtype=float)
-        Y = np.stack([np.cos(a), np.sin(a)], 1)
-        grid = list(self.C_grid)
-        if len(grid) > 1:
-            rng = np.random.default_rng(self.random_state)
-            # cross-validate on at most cv_samples samples: C hardly depends on more
-            sub = rng.permutation(len(X))[:self.cv_samples]
-            Xs, Ys, As = X[sub], Y[sub], a[sub]
-            fold = rng.integers(0, self.cv, len(Xs))
-            runs = [(C, f) for C in grid for f in range(self.cv)]
-            models = iter(self._fit_all([(Xs[fold != f], Ys[fold != f, i], C)
-                                         for C, f in runs for i in range(2)]))
-            e = {}
-            for C, f in runs:
-                te = fold == f
-                cos_m, sin_m = next(models), next(models)
-                pa = np.arctan2(sin_m.predict(Xs[te]), cos_m.predict(Xs[te]))
-                e.setdefault(C, []).append(np.median(np.abs(_wrap(pa - As[te]))))
-            errs = [float(np.mean(e[C])) for C in grid]
-            self.C_ = grid[int(np.argmin(errs))]
-            self.cv_errors_deg_ = [math.degrees(v) for v in errs]
-        else:
-            self.C_ = grid[0]
-        cos_m, sin_m = self._fit_all([(X, Y[:, i], self.C_) for i in range(2)])
-        self.coef_ = np.stack([cos_m.coef_, sin_m.coef_]).astype(np.float32)
-        self.intercept_ = np.array([float(np.ravel(cos_m.intercept_)[0]),
-                                    float(np.ravel(sin_m.intercept_)[0])], dtype=np.float32)
-        self.n_features_in_ = X.shape[1]
-        return self
-
-    def predict(self, X) -> np.ndarray:
-        check_is_fitted(self)
-        cs = _features(X, ANGLE_HOG) @ self.coef_.T + self.intercept_
-        return np.arctan2(cs[:, 1], cs[:, 0])
+    return np.remainder(np.asarray(a) + np.pi, 2 * np.pi) - np.pi
 
 
 # -- reading --------------------------------------------------------------------------------------
 
 @dataclass
 class KnobDetection:
-    """The best window of a knob's region: centre in the face plane (m, knob x and y at angle
-    0), pyramid scale, SVM score, the image pixel of the centre, and the turn ``psi`` (rad) of
-    the canvas it was found in (``KnobPrior.canvas_frame``)."""
+    """Where the knob was found: centre in the face plane (m, knob x and y at angle 0), the
+    image pixel of it, the fit there (``score``: R^2 of the best angle), and the turn ``psi``
+    (rad) of the canvas it was found in."""
     center_m: tuple[float, float]
-    scale: float
     score: float
     pixel: tuple[float, float]
-    candidates: int = 0
     psi: float = 0.0
+    scale: float = 1.0
 
 
 @dataclass
 class KnobReading:
     """One knob read. ``state`` is a state name or "unknown"; ``angle`` (rad) is None when no
-    knob was found; ``angles`` holds each angle model's estimate; ``confidence`` in [0, 1]."""
+    knob was found; ``confidence`` in [0, 1]; ``evidence``: the fit (``score``), the margin
+    over the best other state (``margin``, and that state: ``runner_up``), the snap (share of
+    half a state step) and the knob's radius in the image (``radius_px``)."""
     knob_id: str
     found: bool
     state: str = "unknown"
@@ -468,6 +655,7 @@ class KnobReading:
     confidence: float = 0.0
     detection: Optional[KnobDetection] = None
     angles: dict = field(default_factory=dict)
+    evidence: dict = field(default_factory=dict)
     reason: str = ""
 
     @property
@@ -475,167 +663,411 @@ class KnobReading:
         return None if self.angle is None else math.degrees(self.angle)
 
 
-def nms(boxes: list, scores: list, score_threshold: float, iou: float) -> list[int]:
-    """Indices kept by OpenCV's non-maximum suppression, best first."""
-    if not boxes:
-        return []
-    # NMSBoxes wants a non-negative threshold: shift the scores (the order is what counts)
-    keep = cv2.dnn.NMSBoxes(boxes, [float(s) - score_threshold for s in scores], 0.0, iou)
-    keep = [int(i) for i in np.asarray(keep).ravel()]
-    return sorted(keep, key=lambda i: -scores[i])
-
-
-def detect_knob(gray: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray, prior: KnobPrior,
-                detector: KnobDetector, cfg: KnobConfig = KnobConfig()) -> Optional[KnobDetection]:
-    """Search the knob's region (the map's knob position +- ``search_px``) over the pyramid;
-    None when no window scores above the threshold."""
-    size = WINDOW + 2 * cfg.search_px
-    threshold = detector.threshold_for(cfg)
-    boxes, scores, where = [], [], []
-    psi = 0.0
-    for s in cfg.scales:
-        rho = cfg.px_per_radius * s / prior.radius
-        H, psi = canvas_homography(K, T_world_camera, prior, rho, size, cfg=cfg)
-        score = detector.scan(rectify(gray, H, size))
-        st = DETECTOR_HOG["stride"][0]
-        for i, j in zip(*np.nonzero(score > threshold)):
-            # a window's box in metres on the plane, so that scales compare
-            cx = (j * st + (WINDOW - 1) / 2 - (size - 1) / 2) / rho
-            cy = -(i * st + (WINDOW - 1) / 2 - (size - 1) / 2) / rho
-            half = WINDOW / 2 / rho
-            boxes.append([cx - half, -cy - half, 2 * half, 2 * half])
-            scores.append(float(score[i, j]))
-            where.append((s, rho, cx, cy, score, i, j))
-    if not boxes:
-        return None
-    # NMSBoxes works in any unit; scale metres up so its integer-free maths has room.
-    keep = nms([[v * 1000 for v in b] for b in boxes], scores, threshold, cfg.nms_iou)
-    s, rho, cx, cy, score, i, j = where[keep[0]]
-    # Sub-window refinement: a parabola through the best score and its grid neighbours
-    # (the window grid is 6 px; the angle models want the centre within ~2 px).
-    st = DETECTOR_HOG["stride"][0]
-    dx = _parabola(score, i, j, 0) * st / rho
-    dy = -_parabola(score, i, j, 1) * st / rho
-    center = rotate_xy((cx + dx, cy + dy), psi)   # canvas frame -> knob face frame
-    p_world = prior.T_world_face() @ np.array([center[0], center[1], 0.0, 1.0])
-    pc = np.linalg.inv(T_world_camera) @ p_world
-    pixel = (K.fx * pc[0] / pc[2] + K.cx, K.fy * pc[1] / pc[2] + K.cy)
-    return KnobDetection(center, s, float(score[i, j]), (float(pixel[0]), float(pixel[1])), len(keep),
-                         psi)
-
-
-def _parabola(score: np.ndarray, i: int, j: int, axis: int) -> float:
-    """Offset (in grid steps, within +-0.5) of the peak of a parabola through the score at
-    (i, j) and its two neighbours along ``axis`` (0: columns, x; 1: rows, y)."""
-    if axis == 0:
-        if not 0 < j < score.shape[1] - 1:
-            return 0.0
-        a, b, c = score[i, j - 1], score[i, j], score[i, j + 1]
-    else:
-        if not 0 < i < score.shape[0] - 1:
-            return 0.0
-        a, b, c = score[i - 1, j], score[i, j], score[i + 1, j]
-    den = a - 2 * b + c
-    return 0.0 if den >= 0 else float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
-
-
-def snap_to_state(angle: float, prior: KnobPrior, proba: Optional[np.ndarray] = None,
-                  psi: float = 0.0) -> tuple[str, float]:
-    """The nearest discrete state to ``angle`` (rad) and a confidence: how far inside half a
-    state step of that state the angle lies (1 on the state, 0 half-way to the next), averaged,
-    when class probabilities are given, with the forest's probability mass within that half
-    step (a forest torn between states lowers it). The classes are angles in a canvas turned
-    by ``psi`` (class c is the knob angle 10 c degrees + psi)."""
+def snap_to_state(angle: float, prior: KnobPrior, proba=None, psi: float = 0.0) -> tuple[str, float]:
+    """The nearest discrete state to ``angle`` (rad; modulo the shape's period for a
+    symmetric knob) and how far inside half a state step of it the angle lies (1 on the
+    state, 0 half-way to the next)."""
+    period = 2 * math.pi / max(1, prior.symmetry)
     a = np.asarray(prior.state_angles)
-    d = np.abs(_wrap(a - angle))
+    d = np.abs(np.remainder(a - angle + period / 2, period) - period / 2)
     k = int(np.argmin(d))
     if len(a) > 1:
-        steps = np.abs(_wrap(np.diff(np.sort(a))))
-        half = float(np.min(steps[steps > 1e-6])) / 2 if np.any(steps > 1e-6) else np.pi
+        diffs = np.abs(np.remainder(a[:, None] - a[None, :] + period / 2, period) - period / 2)
+        diffs = diffs[diffs > 1e-6]
+        half = float(diffs.min()) / 2 if len(diffs) else period / 2
     else:
-        half = np.pi
-    conf = float(max(0.0, 1.0 - d[k] / half))
-    if proba is not None:
-        centres = np.radians(np.arange(N_CLASSES) * 10.0) + psi
-        near = np.abs(_wrap(centres - a[k])) <= half + 1e-9
-        conf = 0.5 * conf + 0.5 * float(proba[near].sum())
-    return prior.state_names[k], conf
+        half = period / 2
+    return prior.state_names[k], float(max(0.0, 1.0 - d[k] / half))
+
+
+#: A view is *hard* for the state gate when the knob's radius in the image is under
+#: HARD_RADIUS_PX or the camera is more than HARD_OFF_AXIS_DEG off its axis.
+HARD_RADIUS_PX = 12.0
+HARD_OFF_AXIS_DEG = 45.0
+
+
+def hard_view(radius_px: float, off_axis: float) -> bool:
+    """Whether a view of a knob (its radius in pixels, degrees off its axis) is a hard one."""
+    return radius_px < HARD_RADIUS_PX or off_axis > HARD_OFF_AXIS_DEG
 
 
 class KnobReader:
-    """Detector + angle models + configuration: ``read`` gives one KnobReading per prior.
+    """Templates + gates + configuration: ``read`` gives one KnobReading per prior (module
+    docstring). ``detect_gate`` (a ``CalibratedThreshold`` on the fit) says whether a knob is
+    in its region; ``state_gate`` (on the margin over the best other state) whether its
+    state may be given, and ``state_gate_hard`` the same for hard views (``hard_view``; None:
+    ``state_gate``)."""
 
-    ``angle_method``: "forest" (36-class random forest, continuous from its probabilities),
-    "svr" (cos/sin linear SVR), or "fused" (the circular mean of both when the SVR's lies
-    within ``fuse_gate_deg`` of the forest's, else the forest's: the forest is robust, the
-    SVR occasionally far off: where they agree, their errors partly cancel). Confidence = the detection's (a logistic of the SVM
-    score's margin over the threshold) times the state's (``snap_to_state``)."""
+    def __init__(self, templates: KnobTemplates, detect_gate: CalibratedThreshold,
+                 state_gate: CalibratedThreshold, config: KnobConfig = KnobConfig(),
+                 state_gate_hard: Optional[CalibratedThreshold] = None):
+        self.templates, self.detect_gate, self.state_gate, self.config = (
+            templates, detect_gate, state_gate, config)
+        self.state_gate_hard = state_gate_hard
+        self._casters: dict = {}
 
-    def __init__(self, detector: KnobDetector, forest: KnobAngleForest, svr: KnobAngleSVR,
-                 config: KnobConfig = KnobConfig()):
-        if config.angle_method not in ANGLE_METHODS:
-            raise ValueError(f"angle_method must be one of {ANGLE_METHODS}")
-        self.detector, self.forest, self.svr, self.config = detector, forest, svr, config
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d["_casters"] = {}
+        return d
+
+    def caster(self, key: str) -> _Caster:
+        if key not in self._casters:
+            self._casters[key] = _Caster(self.templates.shapes_[key])
+        return self._casters[key]
+
+    @property
+    def detect_threshold(self) -> float:
+        cfg = self.config
+        return cfg.threshold if cfg.threshold is not None else self.detect_gate.threshold_
+
+    @property
+    def margin_threshold(self) -> float:
+        cfg = self.config
+        return cfg.margin_threshold if cfg.margin_threshold is not None else self.state_gate.threshold_
+
+    def margin_threshold_for(self, hard: bool) -> float:
+        """The state gate of a view (``hard_view``): the hard views' own when it has one."""
+        cfg = self.config
+        if cfg.margin_threshold is not None:
+            return cfg.margin_threshold
+        g = self.state_gate_hard if hard and getattr(self, "state_gate_hard", None) is not None else self.state_gate
+        return g.threshold_
 
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
-             priors: Sequence[KnobPrior], method: Optional[str] = None) -> list[KnobReading]:
+             priors: Sequence[KnobPrior]) -> list[KnobReading]:
+        rgb = to_rgb(np.asarray(image))
+        T_wc = np.asarray(T_world_camera, dtype=float)
+        return [self.read_one(rgb, K, T_wc, p) for p in priors]
+
+    # one knob ------------------------------------------------------------------------------
+    def evidence(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior):
+        """The knob's fit: a KnobReading with ``found`` and ``angle`` (no gates applied, no
+        state) and, when it could be looked at, ``evidence`` (score, margin, runner_up)."""
         cfg = self.config
-        method = method or cfg.angle_method
-        gray = to_gray(image)
-        readings, patches, found = [], [], []
-        for prior in priors:
-            if off_axis_deg(T_world_camera, prior) > cfg.max_off_axis_deg:
-                readings.append(KnobReading(prior.knob_id, False, reason="seen too obliquely"))
-                continue
-            pc = np.linalg.inv(T_world_camera) @ prior.T_world_face()[:, 3]
-            if pc[2] <= 0.05:
-                readings.append(KnobReading(prior.knob_id, False, reason="behind the camera"))
-                continue
-            u, v = K.fx * pc[0] / pc[2] + K.cx, K.fy * pc[1] / pc[2] + K.cy
-            if not (0 <= u < K.width and 0 <= v < K.height):
-                readings.append(KnobReading(prior.knob_id, False, reason="outside the image"))
-                continue
-            det = detect_knob(gray, K, T_world_camera, prior, self.detector, cfg)
-            if det is None:
-                readings.append(KnobReading(prior.knob_id, False, reason="no knob found in its region"))
-                continue
-            readings.append(KnobReading(prior.knob_id, True, detection=det))
-            d = cfg.angle_shifts_px * prior.radius / (cfg.px_per_radius * det.scale)
-            shifts = [(0.0, 0.0)] + ([(d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)] if d > 0 else [])
-            for sx, sy in shifts:
-                c = (det.center_m[0] + sx, det.center_m[1] + sy)
-                patches.append(face_patch(gray, K, T_world_camera, prior, c, det.scale, cfg))
-            found.append((len(readings) - 1, prior))
-        if not found:
-            return readings
-        n_views = len(patches) // len(found)
-        X = hog_features(np.stack(patches), ANGLE_HOG)
-        proba = self.forest.predict_proba(X).reshape(len(found), n_views, N_CLASSES).mean(1)
-        # the models read angles in the (turned) canvas: add its turn back
-        psi = np.array([readings[idx].detection.psi for idx, _ in found])
-        a_rf = _wrap(proba_to_angle(proba) + psi)
-        s_svr = self.svr.predict(X).reshape(len(found), n_views)
-        a_svr = _wrap(np.arctan2(np.sin(s_svr).sum(1), np.cos(s_svr).sum(1)) + psi)
-        gate = math.radians(cfg.fuse_gate_deg)
-        for n, (idx, prior) in enumerate(found):
-            r = readings[idx]
-            fused = (_circular_mean(a_rf[n], a_svr[n]) if abs(_wrap(a_svr[n] - a_rf[n])) <= gate
-                     else a_rf[n])
-            r.angles = {"forest": float(a_rf[n]), "svr": float(a_svr[n]), "fused": float(fused)}
-            r.angle = r.angles[method]
-            state, c_state = snap_to_state(r.angle, prior, proba[n], psi[n])
-            margin = r.detection.score - self.detector.threshold_for(cfg)
-            c_det = 1.0 / (1.0 + math.exp(-2.0 * margin))
-            r.confidence = float(c_state * c_det)
-            if r.confidence >= cfg.min_confidence:
-                r.state = state
-            else:
-                r.reason = f"unsure ({state} at {r.confidence:.2f})"
-        return readings
+        tm = self.templates
+        if prior.shape not in tm.templates_:
+            from perception.errors import PerceptionError
+            raise PerceptionError(f"knob {prior.knob_id}: its shape is not among the reader's "
+                                  "templates (the models were made for another home)")
+        shape = tm.shapes_[prior.shape]
+        tpl = tm.templates_[prior.shape]
+        theta = math.radians(off_axis_deg(T_wc, prior))
+        if math.degrees(theta) > cfg.max_off_axis_deg:
+            return KnobReading(prior.knob_id, False, reason="seen too obliquely")
+        T_cam_face = np.linalg.inv(T_wc) @ prior.T_world_face()
+        pc = T_cam_face[:3, 3]
+        if pc[2] <= 0.05:
+            return KnobReading(prior.knob_id, False, reason="behind the camera")
+        u, v = K.fx * pc[0] / pc[2] + K.cx, K.fy * pc[1] / pc[2] + K.cy
+        if not (0 <= u < K.width and 0 <= v < K.height):
+            return KnobReading(prior.knob_id, False, reason="outside the image")
+        r_px = K.fx * prior.radius / float(np.linalg.norm(pc))
+        if r_px < cfg.min_radius_px:
+            return KnobReading(prior.knob_id, False, evidence=dict(radius_px=round(r_px, 2)),
+                               reason=f"too small in the image ({r_px:.1f} px radius)")
+        T_c, psi = prior.canvas_frame(T_wc)
+        C = (np.linalg.inv(T_c) @ np.append(T_wc[:3, 3], 1.0))[:3]       # camera, canvas frame
+
+        # (1)-(2) where the knob is: the angle-averaged labels at every offset
+        rho = tm.px_per_radius / prior.radius
+        n = tm.window_px
+        search_m = max(cfg.search_m, cfg.search_radii * prior.radius)
+        S = int(math.ceil(search_m * rho))
+        size = n + 2 * S
+        H = plane_homography(K, T_wc, T_c, rho, size)
+        canvas = rectify(rgb, H, size).astype(np.float32)
+        ti = tm.bin_of(theta)
+        r2 = offset_scores(canvas, tpl.soft[ti], tpl.gram_inv[ti])
+        off = (np.arange(2 * S + 1) - S) / rho
+        prior_pen = (off[None, :] ** 2 + off[:, None] ** 2) / (2 * cfg.offset_sigma_m ** 2)
+        inside = (off[None, :] ** 2 + off[:, None] ** 2) <= search_m ** 2
+        score = np.where(inside, r2 - cfg.offset_weight * prior_pen, -np.inf)
+        i0, j0 = np.unravel_index(int(np.argmax(score)), score.shape)
+
+        # (3) the coarse angle: every template at that offset and its neighbours
+        cells = [(i, j) for i in range(i0 - 1, i0 + 2) for j in range(j0 - 1, j0 + 2)
+                 if 0 <= i <= 2 * S and 0 <= j <= 2 * S]
+        patches = np.stack([canvas[i:i + n, j:j + n].reshape(-1, 3) for i, j in cells])
+        flat = tpl.labels[ti].reshape(len(tpl.alphas), -1)
+        coarse = label_scores(patches, flat, tpl.counts[ti], tpl.n_labels)          # (P, A)
+        best_cell = int(np.argmax(coarse.max(1)))
+        ci, cj = cells[best_cell]
+        curve = coarse[best_cell]
+        center = (off[cj], -off[ci])                     # canvas frame (canvas up = -rows)
+        knob_angles = _wrap(tpl.alphas + psi)            # relative angle -> knob angle
+        allowed = self._allowed(prior, knob_angles)
+        if not allowed.any():
+            allowed[:] = True
+        state_of = _states_of(prior, knob_angles)
+        picks = _candidates(curve, allowed, state_of, cfg.candidates)
+
+        # (4) the exact check of the candidates at the fine scale
+        fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
+                            [tpl.alphas[c] for c in picks], psi, r_px)
+        fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
+        fine.sort(key=lambda f: -f[0])
+        best = fine[0]
+        s_best = snap_to_state(best[1], prior)[0]
+        rivals = [f for f in fine[1:] if snap_to_state(f[1], prior)[0] != s_best]
+        score_best, angle, center_c = best
+        if rivals:
+            margin = score_best - rivals[0][0]
+        else:
+            # every exact check ended in the best state (or none of another was allowed):
+            # the margin is the coarse one, the best angle over the best of another state
+            # among the allowed angles (0 when there is none: the state is not told apart)
+            i_best = _states_of(prior, [angle])[0]
+            others = np.flatnonzero(allowed & (state_of != i_best))
+            margin = float(curve[picks[0]] - curve[others].max()) if len(others) else 0.0
+            margin = max(0.0, min(margin, score_best))
+        fine = [best] + rivals
+        c_best = picks[0]
+        center_k = rotate_xy(center_c, psi)              # canvas frame -> knob face frame
+        p_world = prior.T_world_face() @ np.array([center_k[0], center_k[1], 0.0, 1.0])
+        pcam = np.linalg.inv(T_wc) @ p_world
+        pixel = (K.fx * pcam[0] / pcam[2] + K.cx, K.fy * pcam[1] / pcam[2] + K.cy)
+        det = KnobDetection((float(center_k[0]), float(center_k[1])), float(score_best),
+                            (float(pixel[0]), float(pixel[1])), float(psi))
+        ev = dict(score=round(float(score_best), 4), margin=round(float(margin), 4),
+                  runner_up=(snap_to_state(fine[1][1], prior)[0] if len(fine) > 1 else None),
+                  coarse_score=round(float(curve[c_best]), 4), radius_px=round(r_px, 2))
+        return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
+                           angles={"fused": float(angle)}, evidence=ev)
+
+    def read_one(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior) -> KnobReading:
+        r = self.evidence(rgb, K, T_wc, prior)
+        if not r.found:
+            return r
+        cfg = self.config
+        ev = r.evidence
+        if ev["score"] <= self.detect_threshold:
+            return KnobReading(prior.knob_id, False, evidence=ev,
+                               reason=f"no knob found in its region (fit {ev['score']:.2f})")
+        state, c_snap = snap_to_state(r.angle, prior)
+        ev["snap"] = round(1.0 - c_snap, 3)
+        hard = hard_view(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
+        need = self.margin_threshold_for(hard) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
+        c_margin = ev["margin"] / max(need, 1e-6)
+        r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
+        if ev["margin"] <= need:
+            r.reason = (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
+                        f"needs {need:.3f})")
+        elif 1.0 - c_snap > cfg.max_snap:
+            r.reason = f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
+        elif r.confidence < cfg.min_confidence:
+            r.reason = f"unsure ({state}: confidence {r.confidence:.2f} under {cfg.min_confidence:.2f})"
+        else:
+            r.state = state
+        return r
+
+    def _allowed(self, prior: KnobPrior, angles: np.ndarray) -> np.ndarray:
+        return np.array([allowed_angle(prior, a) for a in angles])
+
+    def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px):
+        """The exact check (module docstring, step 4): the knob rendered as the camera sees
+        it, a ray through every image pixel around it from the real camera centre, at
+        relative angles around each of ``alphas0`` (rad; the best coarse angle first), with
+        its centre at the canvas offset ``center`` (m) and then where it fits best. A knob
+        larger than ``decimate_above_px`` in the image is read in every other row and column
+        of the image (point samples still, so the rendering models them exactly). Each
+        label's pixels are sampled into the fine canvas exactly as the image is (bilinearly:
+        soft label maps, ``_Window``) and the maps are fitted to the image (R^2). The
+        offset: Gauss-Newton on a rendering (``_Window.settle``). The angle: renderings half a
+        template step either side, a parabola through the best three (walking while an end
+        is the best); for the first candidate the offset again, then the same at a sixth of
+        a step. Returns [(R^2, knob angle, centre in the canvas frame)] per candidate."""
+        cfg, tm = self.config, self.templates
+        if r_px > cfg.decimate_above_px:
+            rgb = rgb[::2, ::2]
+            K = Intrinsics(K.fx / 2, K.fy / 2, K.cx / 2, K.cy / 2, rgb.shape[1], rgb.shape[0])
+        rho = cfg.fine_px_per_radius / prior.radius
+        n = 2 * int(math.ceil(tm.window_radii * cfg.fine_px_per_radius)) + 1
+        caster = self.caster(prior.shape)
+        R_canvas_cam = np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]
+        max_shift = cfg.search_m * rho
+
+        def look(c) -> Optional[_Window]:
+            win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, c), n)
+            if win.box is None:
+                return None
+            o = np.array([c[0], c[1], -shape.face])
+            dirs = win.rays_camera() @ R_canvas_cam.T
+            win.render = lambda alphas: caster.labels(C - o, dirs, alphas, -psi, fine=True)
+            win.c = c
+            return win
+
+        def settle(win: _Window, alpha: float) -> Optional[_Window]:
+            t = win.settle(win.render([alpha])[0], cfg.align_iterations, max_shift)
+            if np.hypot(*t) <= 0.05:
+                return win
+            return look((win.c[0] + t[0] / rho, win.c[1] + t[1] / rho))
+
+        win = look(center)
+        win = settle(win, alphas0[0]) if win is not None else None
+        if win is None:
+            return [(0.0, float(_wrap(a + psi)), center) for a in alphas0]
+        step = math.radians(tm.alpha_step_deg) / 2
+
+        def search(win, starts, st, known=None):
+            """Parabolic search of each start angle (one rendering for all of them)."""
+            xs = [-st, 0.0, st]
+            fits = iter(win.fit(lab) for lab in win.render([a + x for a in starts for x in xs]))
+            out = []
+            for a in starts:
+                found = {x: next(fits) for x in xs}
+                for _ in range(2):         # walk while an end is the best
+                    top = max(found, key=found.get)
+                    if top not in (min(found), max(found)):
+                        break
+                    x = top + (st if top == max(found) else -st)
+                    found[x] = win.fit(win.render([a + x])[0])
+                top = max(found, key=found.get)
+                y1, ym, yp = found[top], found.get(top - st), found.get(top + st)
+                if ym is not None and yp is not None and ym - 2 * y1 + yp < 0:
+                    x = float(np.clip(0.5 * (ym - yp) / (ym - 2 * y1 + yp), -0.5, 0.5))
+                    out.append((float(y1 - 0.25 * (ym - yp) * x), a + top + x * st))
+                else:
+                    out.append((float(y1), a + top))
+            return out
+
+        found = search(win, [float(a) for a in alphas0], step)
+        out = [(sc, float(_wrap(a + psi)), win.c) for sc, a in found]
+        if cfg.angle_stages > 1:
+            top = int(np.argmax([f[0] for f in found]))
+            moved = settle(win, found[top][1])
+            if moved is not None:
+                sc, a = search(moved, [found[top][1]], step / 3)[0]
+                out[top] = (sc, float(_wrap(a + psi)), moved.c)
+        return out
 
 
-def _circular_mean(a: float, b: float) -> float:
-    return float(math.atan2(math.sin(a) + math.sin(b), math.cos(a) + math.cos(b)))
+class _Window:
+    """The fine canvas window of an image (``H``: window px -> image px) and how rendered
+    label images of the pixels it covers (the box ``box`` = (u0, v0, u1, v1)) become soft
+    label maps of the window: each window pixel takes the labels of its four image
+    neighbours with the bilinear weights ``cv2.warpPerspective`` gives it, so the maps mix
+    labels exactly as the image mixes colours. Shifting the maps by ``t`` (window px,
+    canvas x right, y up) samples the rendered labels elsewhere (no new rendering)."""
+
+    def __init__(self, image: np.ndarray, K: Intrinsics, H: np.ndarray, n: int, pad: int = 3):
+        self.n, self.H, self.K = n, H, K
+        self.window = rectify(image, H, n).astype(np.float32)
+        X = self.window.reshape(-1, 3).astype(np.float64)
+        self.X = X
+        total = X.sum(0)
+        self.sum_sq = float((X * X).sum())
+        self.mean_part = float((total * total).sum()) / len(X)
+        self.tv = self.sum_sq - self.mean_part
+        jj, ii = np.meshgrid(np.arange(n, dtype=np.float64), np.arange(n, dtype=np.float64))
+        self.jj, self.ii = jj.ravel(), ii.ravel()
+        uv = self._image_points(0.0, 0.0)
+        if uv is None:
+            self.box = None
+            return
+        u0, v0 = int(np.floor(uv[0].min())) - pad, int(np.floor(uv[1].min())) - pad
+        u1, v1 = int(np.ceil(uv[0].max())) + pad + 1, int(np.ceil(uv[1].max())) + pad + 1
+        u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, K.width), min(v1, K.height)
+        self.box = (u0, v0, u1, v1) if u1 - u0 >= 2 and v1 - v0 >= 2 else None
+
+    def _image_points(self, tx: float, ty: float):
+        """Image coordinates (2, N) of the window pixels shifted by -t (the knob moved by t)."""
+        p = self.H @ np.stack([self.jj - tx, self.ii + ty, np.ones_like(self.jj)])
+        if np.any(p[2] <= 0):
+            return None
+        return p[:2] / p[2]
+
+    def rays_camera(self) -> np.ndarray:
+        """Camera-frame directions (z = 1) through every pixel centre of the box."""
+        u0, v0, u1, v1 = self.box
+        uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
+        K = self.K
+        return np.stack([(uu.ravel() - K.cx) / K.fx, (vv.ravel() - K.cy) / K.fy, np.ones(uu.size)], 1)
+
+    def _sampling(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """The four box pixels (4, N) each window pixel mixes, and their bilinear weights,
+        with the knob shifted by ``t`` (cached for no shift)."""
+        key = (float(t[0]), float(t[1]))
+        if key == (0.0, 0.0) and getattr(self, "_sampling0", None) is not None:
+            return self._sampling0
+        u0, v0, u1, v1 = self.box
+        w, h = u1 - u0, v1 - v0
+        uv = self._image_points(*key)
+        x = np.clip(uv[0] - u0, 0, w - 1)
+        y = np.clip(uv[1] - v0, 0, h - 1)
+        x0 = np.minimum(np.floor(x).astype(np.int64), w - 2)
+        y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
+        fx, fy = x - x0, y - y0
+        base = y0 * w + x0
+        idx = np.stack([base, base + 1, base + w, base + w + 1])
+        wts = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy])
+        if key == (0.0, 0.0):
+            self._sampling0 = (idx, wts)
+        return idx, wts
+
+    def maps(self, labels: np.ndarray, t=(0.0, 0.0)) -> np.ndarray:
+        """(L', N) soft label maps of a rendered box label image (flat), shifted by ``t``."""
+        idx, wts = self._sampling(t)
+        present = np.flatnonzero(np.bincount(labels))
+        lut = np.zeros(int(present[-1]) + 1, np.int64)
+        lut[present] = np.arange(len(present))
+        N = self.n * self.n
+        rows = lut[labels[idx]] * N + np.arange(N)
+        return np.bincount(rows.ravel(), wts.ravel(), minlength=len(present) * N).reshape(len(present), N)
+
+    def _solve(self, W: np.ndarray):
+        G = W @ W.T
+        b = W @ self.X
+        G.flat[::len(G) + 1] += 1e-6
+        try:
+            mu = np.linalg.solve(G, b)
+        except np.linalg.LinAlgError:
+            mu = np.linalg.lstsq(G, b, rcond=None)[0]
+        return mu, b
+
+    def fit(self, labels: np.ndarray, t=(0.0, 0.0)) -> float:
+        """R^2 of the least-squares mix of a rendering's soft label maps (each label one
+        colour) to the window."""
+        if self.tv <= 1e-6 * len(self.X):
+            return 0.0
+        mu, b = self._solve(self.maps(labels, t))
+        return (float(np.vdot(b, mu)) - self.mean_part) / self.tv
+
+    def settle(self, labels: np.ndarray, iterations: int, max_shift: float) -> np.ndarray:
+        """The shift t (px, canvas x right, y up) of the rendered knob that fits the window
+        best: Gauss-Newton (Lucas-Kanade) with the model image's gradient."""
+        n = self.n
+        t = np.zeros(2)
+        for _ in range(iterations):
+            W = self.maps(labels, t)
+            mu, _ = self._solve(W)
+            model = (W.T @ mu).reshape(n, n, 3)
+            gy, gx = np.gradient(model, axis=(0, 1))
+            # the knob moved by t: model(q - t); d/dt = -grad (canvas y up: rows down)
+            J = np.stack([-gx.ravel(), gy.ravel()], 1)
+            r = (self.X.reshape(n, n, 3) - model).ravel()
+            A = J.T @ J
+            if np.linalg.cond(A) > 1e10:
+                break
+            step = np.clip(np.linalg.solve(A, J.T @ r), -1.5, 1.5)
+            t = t + step
+            if np.hypot(*t) > max_shift:
+                t = t * (max_shift / np.hypot(*t))
+            if np.all(np.abs(step) < 0.02):
+                break
+        return t
+
+
+def allowed_angle(prior: KnobPrior, angle: float, margin: float = math.radians(15)) -> bool:
+    """Whether a knob angle (rad) lies within the knob's travel (``KnobPrior.travel``, widened
+    by ``margin``; modulo its period for a symmetric knob)."""
+    if prior.travel is None:
+        return True
+    lo, hi = prior.travel
+    period = 2 * math.pi / max(1, prior.symmetry)
+    mid, half = (lo + hi) / 2, (hi - lo) / 2 + margin
+    d = abs(math.remainder(angle - mid, period))
+    return d <= half
 
 
 def read_knobs(image, K, T_world_camera, priors, reader: KnobReader) -> tuple[list[KnobReading], float]:

@@ -2,7 +2,7 @@
 
 ``load_or_train(world)`` gives the ``KnobReader`` trained for ``world``'s knobs: from memory,
 from ``$HEARTH_MODEL_DIR`` (default ``~/.cache/hearth``, file ``knobs-<home>.joblib``), or
-trained now (perception/knob_training.py, about a minute on two cores) and stored
+made now (perception/knob_training.py: a few seconds) and stored
 (worldmodel/model_store.py). Each home has its own file, keyed by what of it the training
 depends on (``world_signature``: its knobs and the appliances carrying them), so homes do not
 invalidate each other; a file trained with other trained settings (``TrainingConfig``,
@@ -61,5 +61,6 @@ def load_or_train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfi
         raise PerceptionError(f"knob models for this home: {err}; run `hearth train knobs "
                               f"--world {_about(world)['file'] or 'WORLD'}`") from None
     if reader.config != knob:
-        reader = KnobReader(reader.detector, reader.forest, reader.svr, knob)
+        reader = KnobReader(reader.templates, reader.detect_gate, reader.state_gate, knob,
+                            state_gate_hard=getattr(reader, "state_gate_hard", None))
     return reader, info

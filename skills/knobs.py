@@ -39,7 +39,7 @@ class ReadKnobs(Skill):
                Port("unknown", "list", required=False))
 
     def setup(self, **kwargs) -> None:
-        """Loads the knob models of this home (trains them on first use: about a minute, once
+        """Loads the knob models of this home (makes them on first use: a few seconds, once
         per home)."""
         super().setup(**kwargs)
         self.reader = kwargs.get("knob_reader")

@@ -7,7 +7,7 @@ angles can be overridden without touching the map (to render a hypothesis).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Optional
@@ -18,7 +18,7 @@ import open3d as o3d
 from worldmodel.nodes import (
     Handle, Knob, LargeArticulatedObject, LargeObject, Model, Part, Room, SmallObject, Visual,
 )
-from worldmodel.frames import joint_T, knob_T
+from worldmodel.frames import joint_T, knob_T, rotation_about_axis
 from worldmodel.pose import Pose
 
 WALL_HEIGHT = 2.5
@@ -95,16 +95,50 @@ def handle_visuals(h: Handle) -> list[Visual]:
     return out
 
 
-def knob_visuals(k: Knob) -> list[Visual]:
-    """A cylinder from the panel (z=0) to z=depth and a marker bar on its front face from the
-    centre towards +y (the knob frame already includes the knob's angle)."""
-    r = k.radius
-    return [
-        Visual("cylinder", Pose(0, 0, k.depth / 2), radius=r, length=k.depth, color=k.color,
-               name="knob"),
-        Visual("box", Pose(0, 0.45 * r, k.depth + 0.001), size=(0.22 * r, 0.9 * r, 0.002),
-               color=k.marker_color, name="marker"),
-    ]
+#: The roles of a knob's shape, back to front (``Knob.base``, ``grip``, ``marker``).
+KNOB_ROLES = ("base", "grip", "marker")
+
+
+def knob_parts(k: Knob, library: Optional[dict] = None) -> list[tuple[str, Visual, bool]]:
+    """The knob's shape as ``(role, visual, turns)`` in its frame at angle 0: the described
+    base, grip and marker (a visual's ``name`` defaults to its role; ``turns`` is False for a
+    fixed base), or for a plain knob (``Knob.described`` False) the format-1 knob: a cylinder
+    of ``radius`` from the panel (z = 0) to z = ``depth`` in ``color`` and a marker bar of
+    ``marker_color`` on its face from the centre towards +y. ``library``: the apartment's
+    models, for shapes given by ``ref``."""
+    if not k.described:
+        r = k.radius
+        return [
+            ("base", Visual("cylinder", Pose(0, 0, k.depth / 2), radius=r, length=k.depth,
+                            color=k.color, name="knob"), True),
+            ("marker", Visual("box", Pose(0, 0.45 * r, k.depth + 0.001), size=(0.22 * r, 0.9 * r, 0.002),
+                              color=k.marker_color, name="marker"), True),
+        ]
+    out = []
+    for role in KNOB_ROLES:
+        model = getattr(k, role)
+        if model is None:
+            continue
+        if model.ref is not None and library is None:
+            raise ValueError(f"knob {k.id}: its {role} names library model {model.ref!r}; "
+                             "pass the library")
+        for v in model_visuals(model, library or {}):
+            out.append((role, v if v.name else replace(v, name=role),
+                        not (role == "base" and k.base_fixed)))
+    return out
+
+
+def knob_visuals(k: Knob, library: Optional[dict] = None, angle: Optional[float] = None) -> list[Visual]:
+    """The knob's visuals in its frame turned to ``angle`` (default: its current angle), the
+    frame ``knob_T(k, angle)`` gives: what turns as described, a fixed base turned back so
+    that it stays where it is on the panel (see ``knob_parts``)."""
+    a = k.angle if angle is None else angle
+    out = []
+    for _role, v, turns in knob_parts(k, library):
+        if not turns and a != 0.0:
+            v = replace(v, pose=Pose.from_matrix(rotation_about_axis((0, 0, 1), -a) @ v.pose.matrix()))
+        out.append(v)
+    return out
 
 
 def room_visuals(room: Room) -> list[Visual]:
@@ -150,8 +184,8 @@ def _part_meshes(out, part: Part, T_world_parent, owner, library, base_dir, stat
     for h in part.handles:
         _emit(out, handle_visuals(h), T @ h.pose.matrix(), h.id, owner, base_dir)
     for k in part.knobs:
-        _emit(out, knob_visuals(k), T @ knob_T(k, states.get(k.id) if states else None), k.id,
-              owner, base_dir)
+        a = states.get(k.id) if states else None
+        _emit(out, knob_visuals(k, library, a), T @ knob_T(k, a), k.id, owner, base_dir)
     for c in part.parts:
         _part_meshes(out, c, T, owner, library, base_dir, states)
 
@@ -170,8 +204,8 @@ def object_meshes(world, obj: LargeObject, T_world_object: Optional[np.ndarray] 
         for h in obj.handles:
             _emit(out, handle_visuals(h), T @ h.pose.matrix(), h.id, obj.id, base_dir)
         for k in obj.knobs:
-            _emit(out, knob_visuals(k), T @ knob_T(k, states.get(k.id) if states else None),
-                  k.id, obj.id, base_dir)
+            a = states.get(k.id) if states else None
+            _emit(out, knob_visuals(k, library, a), T @ knob_T(k, a), k.id, obj.id, base_dir)
         for p in obj.parts:
             _part_meshes(out, p, T, obj.id, library, base_dir, states)
     if children:

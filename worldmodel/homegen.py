@@ -151,6 +151,10 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
               ("blue", "teal")]
 
 #: Knob designs: body colour, marker colour, radius range, depth range.
+#: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
+#: 2 = knob designs varied (KNOB_FAMILIES).
+GENERATOR_VERSION = 2
+
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
     ("black", (0.08, 0.08, 0.09), (0.92, 0.92, 0.9), (0.017, 0.024), (0.015, 0.024)),
@@ -309,6 +313,9 @@ class _Ctx:
     library: dict
     room_name: str = ""
     knobs_left: int = 8
+    #: knob designs are drawn from a generator of their own, so that varying them leaves the
+    #: rest of a seed's home (layout, states, objects) as it was
+    design_rng: Optional[np.random.Generator] = None
 
     def u(self, lo: float, hi: float) -> float:
         return float(self.rng.uniform(lo, hi))
@@ -798,10 +805,12 @@ def fridge(ctx: _Ctx) -> Piece:
                  reach=[tuple(_handle_point(p)) for p in parts], headroom=headroom)
 
 
-def _knob_states(ctx: _Ctx) -> tuple[list[KnobState], str, bool]:
+def _knob_states(ctx: _Ctx, symmetry: int = 1) -> tuple[list[KnobState], str, bool, float]:
     """2-12 discrete states turning either way; the off state named one of OFF_NAMES, at
-    angle 0 or not, listed first, last or in the middle. Returns (states in file order, off
-    state name, whether the off state must be named explicitly)."""
+    angle 0 or not, listed first, last or in the middle. A knob whose shape repeats every
+    360/``symmetry`` degrees keeps all its states within that (so no two look the same).
+    Returns (states in file order, off state name, whether the off state must be named
+    explicitly, the direction it turns: -1 clockwise, +1 counter-clockwise)."""
     n = ctx.i(*ctx.cfg.knob_states)
     off = ctx.pick(OFF_NAMES)
     style = ctx.pick(["digits", "temperatures", "words", "digits max"])
@@ -823,6 +832,8 @@ def _knob_states(ctx: _Ctx) -> tuple[list[KnobState], str, bool]:
     direction = ctx.pick([-1.0, 1.0])
     step = math.radians(ctx.u(20, 45))
     step = min(step, math.radians(300) / max(n - 1, 1))
+    if symmetry > 1:
+        step = min(step, math.radians(340 / symmetry) / n)
     a0 = 0.0 if ctx.chance(0.75) else ctx.pick([-1.0, 1.0]) * math.radians(ctx.pick([30, 45, 90]))
     if abs(a0) > 0 and abs(a0) + step * (n - 1) > math.radians(320):
         a0 = 0.0
@@ -837,24 +848,120 @@ def _knob_states(ctx: _Ctx) -> tuple[list[KnobState], str, bool]:
         k = ctx.i(1, max(1, len(states) - 1)) if len(states) > 1 else 1
         listed = states[:k] + [off_state] + states[k:]
     explicit = not (off == "off" and listed[0] is off_state and ctx.chance(0.5))
-    return listed, off, explicit
+    return listed, off, explicit, direction
+
+
+#: The knob design families ``_knob_design`` draws from (docs/world-format.md, "Knobs"):
+#: "plain" (format 1: a cylinder with a marker bar, colours from KNOB_DESIGNS), "bar" (a disc
+#: with a plain bar grip across it: symmetric, read modulo 180 degrees), "tip" (a disc with a
+#: grip bar and a coloured tip at one end), "pointer" (a fixed bezel on the panel and a
+#: pointer-shaped grip given as a mesh, a line marker on it), "skirt" (a wide skirt with a
+#: cap and a coloured dot).
+KNOB_FAMILIES = ("plain", "bar", "tip", "pointer", "skirt")
+_KNOB_COLOURS = [(0.9, 0.9, 0.88), (0.08, 0.08, 0.09), (0.74, 0.75, 0.77), (0.93, 0.88, 0.75),
+                 (0.15, 0.15, 0.16), (0.55, 0.56, 0.6)]
+_MARKER_COLOURS = [(0.85, 0.1, 0.1), (0.95, 0.55, 0.05), (0.1, 0.35, 0.85), (0.05, 0.05, 0.05),
+                   (0.95, 0.95, 0.92)]
+
+
+def _contrast(drng, body, palette):
+    """A colour of ``palette`` that differs from ``body`` (a marker the eye can tell)."""
+    ok = [c for c in palette if sum(abs(a - b) for a, b in zip(c, body)) > 0.6] or palette
+    return ok[int(drng.integers(len(ok)))]
+
+
+def _knob_design(ctx: _Ctx, family: str, r: float, depth: float) -> dict:
+    """The shape fields of a ``Knob`` of ``family`` (KNOB_FAMILIES) with outline radius ``r``
+    and front ``depth`` (m): base, grip and marker models in the knob frame at angle 0 (+y:
+    the pointer), base_fixed, symmetry. Colours and proportions come from ``design_rng``."""
+    drng = ctx.design_rng or ctx.rng
+    u = lambda lo, hi: float(drng.uniform(lo, hi))
+    body = _KNOB_COLOURS[int(drng.integers(len(_KNOB_COLOURS)))]
+    mark = _contrast(drng, body, _MARKER_COLOURS)
+    grip_c = body if drng.random() < 0.6 else _contrast(drng, body, _KNOB_COLOURS)
+    if family == "bar":
+        hb = _mm(depth * u(0.3, 0.45))
+        w = r * u(0.28, 0.4)
+        return dict(base=Model([cyl(r, hb, z=hb / 2, color=body, name="disc")]),
+                    grip=Model([box(w, 2 * r * 0.95, depth - hb, z=hb + (depth - hb) / 2,
+                                    color=grip_c, name="bar")]),
+                    symmetry=2)
+    if family == "tip":
+        hb = _mm(depth * u(0.3, 0.45))
+        w, tl = r * u(0.28, 0.4), r * u(0.25, 0.4)
+        bar_l = 2 * r * 0.95 - tl
+        return dict(base=Model([cyl(r, hb, z=hb / 2, color=body, name="disc")]),
+                    grip=Model([box(w, bar_l, depth - hb, y=-tl / 2, z=hb + (depth - hb) / 2,
+                                    color=grip_c, name="bar")]),
+                    marker=Model([box(w, tl, depth - hb, y=0.95 * r - tl / 2,
+                                      z=hb + (depth - hb) / 2, color=mark, name="tip")]))
+    if family == "pointer":
+        hb = _mm(min(0.004, depth * 0.25))
+        rg = r * u(0.55, 0.7)                       # the grip's round end
+        # a teardrop: the round end about the axis (its lower half), the point towards +y
+        poly = [(_mm(rg * math.cos(t)), _mm(rg * math.sin(t)))
+                for t in np.linspace(math.radians(160), math.radians(380), 12)]
+        poly.append((0.0, _mm(0.95 * r)))
+        poly = _ccw(poly)
+        grip = extrude(poly, hb, depth)
+        line = box(r * 0.12, 0.95 * r * 0.7, 0.001, y=0.95 * r * 0.45, z=depth + 0.0005,
+                   color=mark, name="line")
+        return dict(base=Model([cyl(r, hb, z=hb / 2, color=_contrast(drng, body, _KNOB_COLOURS),
+                                    name="bezel")]),
+                    grip=Model([Visual("mesh", file=ctx.meshes.add("knob-pointer", grip),
+                                       color=body, name="pointer")]),
+                    marker=Model([line]), base_fixed=True)
+    if family == "skirt":
+        hs = _mm(depth * u(0.3, 0.5))
+        rc = r * u(0.6, 0.75)
+        dot = rc * u(0.24, 0.3)
+        return dict(base=Model([cyl(r, hs, z=hs / 2, color=body, name="skirt")]),
+                    grip=Model([cyl(rc, depth - hs, z=hs + (depth - hs) / 2, color=grip_c, name="cap")]),
+                    marker=Model([cyl(dot, 0.001, y=rc - 1.25 * dot, z=depth + 0.0005, color=mark,
+                                      name="dot")]))
+    return {}
+
+
+def _ccw(poly):
+    """The polygon's points ordered counter-clockwise about their centroid (a convex one)."""
+    P = np.asarray(poly, dtype=float)
+    c = P.mean(axis=0)
+    order = np.argsort(np.arctan2(P[:, 1] - c[1], P[:, 0] - c[0]))
+    return [tuple(P[i]) for i in order]
 
 
 def _knobs(ctx: _Ctx, oid: str, count: int, place: Callable[[int], Pose],
-           max_radius: float) -> list[Knob]:
+           max_radius: float, pitch: Optional[float] = None) -> list[Knob]:
     """``count`` knobs of one design (radius at most ``max_radius``); ``place(i)`` gives the
-    i-th knob's pose. Each knob has its own states; most are off."""
+    i-th knob's pose, ``pitch`` (m, given for a row along y) the distance between neighbours.
+    The design's family (KNOB_FAMILIES), colours and proportions, and whether a row is
+    packed (closed up to 2-2.2 radii apart, centred) come from ``ctx.design_rng``. Each knob has its own
+    states; most are off."""
     _, body, marker, rr, dr = ctx.pick(KNOB_DESIGNS)
     r, depth = _mm(min(ctx.u(*rr), max_radius)), _mm(ctx.u(*dr))
+    drng = ctx.design_rng
+    family, turn_stop, packed = "plain", False, None
+    if drng is not None:
+        family = KNOB_FAMILIES[int(drng.integers(len(KNOB_FAMILIES)))]
+        turn_stop = bool(drng.random() < 0.5)
+        if pitch is not None and drng.random() < 0.3:
+            packed = r * float(drng.uniform(2.0, 2.2))      # the row closed up, centred
+    design = _knob_design(ctx, family, r, depth)
+
+    def pose(i: int) -> Pose:
+        p = place(i)
+        return p if packed is None else replace(p, y=_mm(((count - 1) / 2 - i) * packed))
+    sym = design.get("symmetry", 1)
     out = []
     for i in range(count):
-        states, off, explicit = _knob_states(ctx)
+        states, off, explicit, direction = _knob_states(ctx, sym)
         on = ctx.chance(ctx.cfg.knob_on_probability)
         choices = [s for s in states if (s.name != off) == on] or states
         st = choices[int(ctx.rng.integers(len(choices)))]
-        out.append(Knob(f"{oid}_knob_{i + 1}", place(i), states, st.name, angle=st.angle,
+        turns = ("clockwise" if direction < 0 else "counterclockwise") if turn_stop else "either"
+        out.append(Knob(f"{oid}_knob_{i + 1}", pose(i), states, st.name, angle=st.angle,
                         radius=r, depth=depth, color=body, marker_color=marker,
-                        off_state=off if explicit else ""))
+                        off_state=off if explicit else "", turns=turns, **design))
     return out
 
 
@@ -935,14 +1042,17 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
     # Knobs in a row, centred: on the front panel, or on the top near the front edge.
     span = W - 0.12
     ky = [_mm(span / 2 - span * (i + 0.5) / n_knobs) for i in range(n_knobs)]
-    max_r = min(span / n_knobs / 2.4, (panel_h / 2 - 0.01) if panel_h else 0.03)
+    pitch = span / n_knobs
+    max_r = min(pitch / 2.4, (panel_h / 2 - 0.01) if panel_h else 0.03)
     if top_knobs:
         kx, kz = _mm(front - ctx.u(0.05, 0.08)), _mm(H + hob_h)
-        knobs = _knobs(ctx, oid, n_knobs, lambda i: Pose(kx, ky[i], kz, 0, 0, math.pi / 2), max_r)
+        knobs = _knobs(ctx, oid, n_knobs, lambda i: Pose(kx, ky[i], kz, 0, 0, math.pi / 2), max_r,
+                       pitch)
         knob_view = View("knobs", (kx, 0.0, kz), (0.0, 0.0, 1.0), max_angle=math.radians(62))
     else:
         kx, kz = _mm(knob_x), _mm(H - panel_h / 2)
-        knobs = _knobs(ctx, oid, n_knobs, lambda i: _rot_pose(_R_FRONT, kx, ky[i], kz), max_r)
+        knobs = _knobs(ctx, oid, n_knobs, lambda i: _rot_pose(_R_FRONT, kx, ky[i], kz), max_r,
+                       pitch)
         knob_view = View("knobs", (kx, 0.0, kz), (1.0, 0.0, 0.0), max_angle=math.radians(55))
     names = {"oven": "oven", "cooker": "cooker", "hob": "hob"}
     obj = LargeArticulatedObject(
@@ -1498,7 +1608,8 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
     rng = np.random.default_rng(int(seed))
     library: dict[str, Model] = {}
     with tempfile.TemporaryDirectory(prefix="hearth-homegen-") as tmp:
-        ctx = _Ctx(rng, config, _Ids(), _Meshes(Path(tmp)), library, knobs_left=config.max_knobs)
+        ctx = _Ctx(rng, config, _Ids(), _Meshes(Path(tmp)), library, knobs_left=config.max_knobs,
+                   design_rng=np.random.default_rng([int(seed), 0x6B6E6F62]))
         scratch = World(Apartment(id="scratch", library=library), base_dir=Path(tmp))
         n_rooms = ctx.i(*config.rooms)
         others = [k for k in ROOM_KINDS if k != "kitchen"]
@@ -1544,9 +1655,10 @@ def _mesh_files(apartment: Apartment) -> set[str]:
     from worldmodel.validate import iter_nodes
     models = list(apartment.library.values())
     for node, _ in iter_nodes(apartment):
-        m = getattr(node, "model", None)
-        if m is not None:
-            models.append(m)
+        for role in ("model", "base", "grip", "marker"):     # knobs: their shape's models
+            m = getattr(node, role, None)
+            if isinstance(m, Model):
+                models.append(m)
     return {v.file for m in models for v in m.visuals if v.shape == "mesh"}
 
 

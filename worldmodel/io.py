@@ -203,12 +203,18 @@ class _Reader:
         angle = el.get("angle")
         if angle is None:
             angle = next((s.angle for s in states if s.name == state), 0.0)
+        shape = {role: (self.model(el.find(role)) if el.find(role) is not None else None)
+                 for role in ("base", "grip", "marker")}
+        base_el = el.find("base")
         return Knob(id=el.get("id"), pose=_pose_of(el), states=states, state=state,
                     angle=float(angle), radius=float(el.get("radius", 0.02)),
                     depth=float(el.get("depth", 0.025)),
                     color=self.rgb(el, "color", (0.85, 0.85, 0.85)),
                     marker_color=self.rgb(el, "markerColor", (0.05, 0.05, 0.05)),
-                    off_state=el.get("off", ""), line=el.sourceline)
+                    off_state=el.get("off", ""), **shape,
+                    base_fixed=base_el is not None and _b(base_el.get("fixed"), False),
+                    symmetry=int(el.get("symmetry", 1)), turns=el.get("turns", "either"),
+                    line=el.sourceline)
 
     def joint(self, el) -> Joint:
         return Joint(type=el.get("type"), origin=_pose_of(el, "origin"),
@@ -451,7 +457,16 @@ def _write_knob(parent, k: Knob) -> None:
                           markerColor=_vec(k.marker_color))
     if k.off_state:
         el.set("off", k.off_state)
+    if k.symmetry != 1:
+        el.set("symmetry", str(k.symmetry))
+    if k.turns != "either":
+        el.set("turns", k.turns)
     _set_pose(el, k.pose)
+    for role in ("base", "grip", "marker"):
+        model = getattr(k, role)
+        if model is not None:
+            extra = {"fixed": "true"} if role == "base" and k.base_fixed else {}
+            _write_model(el, model, role, extra)
     for s in k.states:
         etree.SubElement(el, "state", name=s.name, angle=_num(s.angle))
 

@@ -156,11 +156,33 @@ class KnobState:
     line: Optional[int] = _line()
 
 
+#: Which way a knob turns from off through its settings, seen from the front (looking at its
+#: face, against +z): "either" (no end stop, or not said), "clockwise" (towards negative
+#: angles), "counterclockwise" (towards positive angles).
+KNOB_TURNS = ("either", "clockwise", "counterclockwise")
+
+
 @dataclass
 class Knob:
     """A rotary knob with discrete states. Frame: origin at the centre of its back face on the
-    panel, +z out of the panel (the rotation axis), +y up at angle 0. The marker on its front
-    face points along +y rotated by ``angle`` about +z."""
+    panel, +z out of the panel (the rotation axis), +y up at angle 0; angles are
+    counter-clockwise about +z (seen from the front). The knob's shape turns with it: at angle
+    ``a`` its ``base``, ``grip`` and ``marker`` are its frame's geometry turned by ``a`` about
+    +z (a base with ``base_fixed`` stays put: a bezel on the panel).
+
+    Shape: a knob that gives none of ``base``, ``grip`` and ``marker`` is the plain knob of
+    format 1, a cylinder of ``radius`` and ``depth`` in ``color`` with a marker bar of
+    ``marker_color`` on its face from the centre towards +y (worldmodel.geometry
+    ``knob_visuals``). A knob that gives any of them is exactly what they describe (models:
+    primitives or meshes, in the knob frame at angle 0); ``radius`` and ``depth`` then name
+    its outline's radius and how far its front stands out of the panel, and ``color`` /
+    ``marker_color`` are not used. ``marker`` is the pointer a reader looks for (its colour
+    and material tell it from the grip).
+
+    ``symmetry``: the shape looks the same turned by 360/symmetry degrees (2 for a plain bar
+    grip), so an angle is only seen modulo that; the states must then differ modulo it.
+    ``turns``: which way the knob turns from its off state through its settings
+    (``KNOB_TURNS``); a knob with an end stop never stands outside that travel."""
     id: str
     pose: Pose
     states: list[KnobState]
@@ -171,6 +193,12 @@ class Knob:
     color: RGB = (0.85, 0.85, 0.85)
     marker_color: RGB = (0.05, 0.05, 0.05)
     off_state: str = ""
+    base: Optional[Model] = None
+    grip: Optional[Model] = None
+    marker: Optional[Model] = None
+    base_fixed: bool = False
+    symmetry: int = 1
+    turns: str = "either"
     line: Optional[int] = _line()
 
     kind = "Knob"
@@ -191,6 +219,12 @@ class Knob:
             if s.name == "off":
                 return s.name
         return self.states[0].name
+
+    @property
+    def described(self) -> bool:
+        """Whether the knob describes its own shape (base, grip or marker), or is the plain
+        knob drawn from ``radius``, ``depth`` and its colours."""
+        return any(m is not None for m in (self.base, self.grip, self.marker))
 
 
 @dataclass

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Iterator, Optional
 
 from worldmodel.errors import WorldError
-from worldmodel.nodes import Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
+from worldmodel.nodes import KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
 from worldmodel.pose import Pose
 
 #: Joint values are compared with this slack so that a state written as the limit itself
@@ -33,6 +33,10 @@ MAX_TEXT_CHARS = 4096
 #: Most rooms, and most nodes with an id (rooms, objects, parts, handles, knobs, switches).
 MAX_ROOMS = 1_000
 MAX_NODES = 100_000
+#: Most-fold symmetry a knob's shape may declare (the schema's knobSymmetry).
+MAX_KNOB_SYMMETRY = 12
+#: Two states of a symmetric knob closer than this modulo its symmetry look the same.
+KNOB_STATE_SEPARATION = math.radians(1.0)
 
 # XML 1.0 can hold these characters and no others (control characters, lone surrogates and
 # U+FFFE/U+FFFF cannot be written, so a name holding one can never be saved).
@@ -223,6 +227,21 @@ def _node_value_problems(node) -> Iterator[str]:
         for s in node.states:
             yield from _text("state name", s.name, nid, optional=False)
             yield from _coord(f"state {s.name!r} angle", s.angle, nid)
+        for role in ("base", "grip", "marker"):
+            m = getattr(node, role)
+            if m is not None and not isinstance(m, Model):
+                yield f"{nid}: {role} is not a Model"
+            elif m is not None:
+                yield from _model(m, nid)
+        sym = node.symmetry
+        if isinstance(sym, bool) or not isinstance(sym, int) or not 1 <= sym <= MAX_KNOB_SYMMETRY:
+            yield f"{nid}: symmetry {sym!r} is not a whole number in 1..{MAX_KNOB_SYMMETRY}"
+        if node.turns not in KNOB_TURNS:
+            yield f"{nid}: turns {node.turns!r} is not one of {', '.join(KNOB_TURNS)}"
+        if not isinstance(node.base_fixed, bool):
+            yield f"{nid}: base_fixed {node.base_fixed!r} is not true or false"
+        elif node.base_fixed and node.base is None:
+            yield f"{nid}: a fixed base needs a base"
     elif kind == "SmallObject":
         yield from _text("color", node.color, nid)
         for g in node.grasp_points:
@@ -373,6 +392,21 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
             bad(f"knob {k.id!r}: state {k.state!r} is not one of {names}", k)
         if k.off_state and k.off_state not in names:
             bad(f"knob {k.id!r}: off state {k.off_state!r} is not one of {names}", k)
+        for role in ("base", "grip", "marker"):
+            model = getattr(k, role)
+            if model is not None:
+                check_model(model, k)
+        if k.symmetry > 1:
+            # a symmetric shape shows its angle modulo 360/symmetry degrees only: two states
+            # that far apart could never be told apart
+            period = 2 * math.pi / k.symmetry
+            for i, a in enumerate(k.states):
+                for b in k.states[i + 1:]:
+                    d = abs(math.remainder(a.angle - b.angle, period))
+                    if d < KNOB_STATE_SEPARATION:
+                        bad(f"knob {k.id!r}: states {a.name!r} and {b.name!r} look the same "
+                            f"(symmetry {k.symmetry}: the shape repeats every "
+                            f"{360 / k.symmetry:g} degrees)", k)
 
     for mid, m in apartment.library.items():
         check_visuals(m.visuals, f"library model {mid}")

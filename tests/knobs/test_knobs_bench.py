@@ -17,7 +17,7 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
         assert 0.0 <= out[key] <= 1.0
     assert out["views"] == 40 and out["knobs_present"] + out["knobs_missing"] == 40
     assert out["angle_err_deg_median"] < 30 and out["ms_per_knob"] > 0
-    for m in ("forest", "svr", "fused"):
-        assert out[f"angle_{m}"]["angle_err_deg_median"] is not None
-    assert out["detector_threshold"] == round(reader.detector.threshold_, 4)
+    assert out["on_read_as_off"] == 0
+    assert out["per_design"]["plain"]["views"] == 40
+    assert out["detector_threshold"] == round(reader.detect_gate.threshold_, 4)
     assert out["detector_calibration"]["positives"] > 0

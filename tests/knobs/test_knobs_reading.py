@@ -11,9 +11,7 @@ from sklearn.base import clone
 
 from perception.camera import Intrinsics, look_at
 from perception.knob_data import KnobScenes
-from perception.knobs import (
-    KnobAngleForest, KnobAngleSVR, KnobDetector, KnobPrior, knob_priors, snap_to_state,
-)
+from perception.knobs import CalibratedThreshold, KnobPrior, KnobTemplates, knob_priors, snap_to_state
 from skills.knob_models import TrainingConfig, load_or_train
 from worldmodel import model_store
 
@@ -96,8 +94,8 @@ def test_a_knob_seen_edge_on_is_not_read(world, reader, scenes):
 def test_a_model_trained_with_another_configuration_is_stale(world, reader, model_dir):
     from perception.errors import PerceptionError
     other = TrainingConfig().tiny()
-    other = type(other)(**{**other.__dict__, "forest_trees": 31})
-    with pytest.raises(PerceptionError, match="stale: trained with other training.forest_trees"):
+    other = type(other)(**{**other.__dict__, "validation_views": 81})
+    with pytest.raises(PerceptionError, match="stale: trained with other training.validation_views"):
         load_or_train(world, other, directory=model_dir, retrain=False)
     # the current one loads from disk without retraining
     model_store.forget()
@@ -113,15 +111,15 @@ def test_changing_a_trained_reader_field_makes_the_model_stale_and_a_read_time_o
     with pytest.raises(PerceptionError, match="stale: trained with other reader.px_per_radius"):
         load_or_train(world, TrainingConfig().tiny(), KnobConfig(px_per_radius=14.0),
                       directory=model_dir, retrain=False)
-    r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(threshold=0.5, nms_iou=0.4),
+    r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(threshold=0.5, search_m=0.03),
                             directory=model_dir, retrain=False)
     assert info.source == "disk" and r.config.threshold == 0.5
 
 
 def test_knob_config_fields_are_trained_unless_declared_read_time():
     from perception.knobs import KnobConfig
-    assert set(KnobConfig().trained_fields()) == {"px_per_radius", "search_px", "scales",
-                                                  "view_aligned"}
+    assert set(KnobConfig().trained_fields()) == {"px_per_radius", "window_radii", "alpha_step_deg",
+                                                  "theta_step_deg", "max_theta_deg"}
     from dataclasses import dataclass
     from perception.trained import read_time, trained_fields
 
@@ -133,44 +131,37 @@ def test_knob_config_fields_are_trained_unless_declared_read_time():
     assert trained_fields(Later()) == {"old": 1.0, "added_later": 3}
 
 
-def test_estimators_have_the_scikit_learn_shape():
+def test_estimators_have_the_scikit_learn_shape(world):
     from sklearn.exceptions import NotFittedError
-    rng = np.random.default_rng(0)
-    patches = rng.integers(0, 255, (40, 52, 52)).astype(np.uint8)
-    for est in (KnobDetector(), KnobAngleForest(n_estimators=3), KnobAngleSVR(C_grid=(0.1,))):
-        with pytest.raises(NotFittedError):
-            est.predict(patches)
-    det = KnobDetector(C=0.1)
-    assert clone(det).get_params()["C"] == 0.1
+    from perception.knob_training import shapes_of
+    gate = CalibratedThreshold("fewest_errors")
     with pytest.raises(NotFittedError):
-        det.scan(np.zeros((84, 84), np.uint8))
-    assert det.fit(patches, np.arange(40) % 2) is det and hasattr(det, "coef_")
-    before = det.coef_.copy()
-    det.predict(patches)
-    assert np.array_equal(before, det.coef_)
-    f = KnobAngleForest(n_estimators=3)
-    assert f.fit(patches, np.linspace(-3, 3, 40)) is f
-    assert f.predict_proba(patches).shape == (40, 36)
-    assert f.predict(patches).shape == (40,)
-    # HOG features computed once give what the patches give
-    from perception.knobs import ANGLE_HOG, hog_features
-    assert np.allclose(f.predict_proba(hog_features(patches, ANGLE_HOG)), f.predict_proba(patches))
+        gate.predict(np.zeros((3, 1)))
+    assert clone(CalibratedThreshold(safety=2.0)).get_params()["safety"] == 2.0
+    x = np.array([[0.1], [0.2], [0.7], [0.9]])
+    assert gate.fit(x, [0, 0, 1, 1]) is gate and 0.2 < gate.threshold_ < 0.7
+    assert list(gate.predict(x)) == [0, 0, 1, 1]
+    strict = CalibratedThreshold("no_false_accepts", safety=1.25).fit(x, [0, 1, 0, 1])
+    assert strict.threshold_ == pytest.approx(0.7 * 1.25) and list(strict.predict(x)) == [0, 0, 0, 1]
+    tm = KnobTemplates(alpha_step_deg=30.0, theta_step_deg=35.0, max_theta_deg=70.0)
+    assert clone(tm).get_params()["alpha_step_deg"] == 30.0
+    shapes = shapes_of(world)
+    assert tm.fit(shapes) is tm and set(tm.templates_) == {s.key for s in shapes}
 
 
 def test_detector_predict_uses_the_calibrated_threshold(reader):
-    """``predict`` answers what the reader uses: a window is a knob when it scores over
-    ``threshold_`` (calibrated on validation views), not over the SVM's own 0."""
-    det = reader.detector
+    """``predict`` answers what the reader uses: a region holds the knob when its fit scores
+    over ``threshold_`` (calibrated on validation views)."""
+    det = reader.detect_gate
     rng = np.random.default_rng(1)
-    patches = rng.integers(0, 255, (200, 52, 52)).astype(np.uint8)
-    score = det.decision_function(patches)
-    assert np.array_equal(det.predict(patches), (score > det.threshold_).astype(int))
+    score = rng.uniform(0, 1, (200, 1))
+    assert np.array_equal(det.predict(score), (score[:, 0] > det.threshold_).astype(int))
     import copy
     t = float(np.median(score))
     shifted = copy.deepcopy(det)
     shifted.threshold_ = t
-    assert shifted.predict(patches).sum() == int((score > t).sum()) == 100
-    assert det.threshold_for(reader.config) == det.threshold_
+    assert shifted.predict(score).sum() == int((score[:, 0] > t).sum()) == 100
+    assert reader.detect_threshold == det.threshold_
 
 
 PRIOR = KnobPrior("k", np.eye(4), 0.02, 0.02, tuple(f"s{i}" for i in range(9)),
@@ -239,33 +230,25 @@ def test_a_knob_is_read_from_every_side(world, reader, scenes):
 
 
 def test_the_detector_threshold_is_calibrated_on_validation_views(world, reader, scenes):
-    """The stored model carries the threshold chosen on validation views; reading with it makes
-    exactly the errors the calibration counted, and no more than the SVM's own boundary (0)."""
+    """The stored reader carries the gates chosen on validation views; calibrating again on
+    those readings gives them back, and an explicit threshold overrides the calibrated one."""
     from dataclasses import replace
-    from perception.knob_data import KnobDataConfig, calibrate_threshold, render_views, true_center_m
+    from perception.knob_data import render_views
+    from perception.knob_training import calibrate, validation_readings
     from perception.knobs import KnobReader
-    assert reader.config.threshold is None and hasattr(reader.detector, "threshold_")
-    views = render_views(world, 60, 777, KnobDataConfig(missing_rate=0.3), reader.config, scenes=scenes)
-    cal = calibrate_threshold(views, reader.detector, reader.config)
-    assert cal.positives + cal.empty == 60
-
-    def errors(threshold):
-        r = KnobReader(reader.detector, reader.forest, reader.svr, replace(reader.config, threshold=threshold))
-        n = 0
-        for v in views:
-            x = r.read(v.image, v.K, v.T_world_camera, [v.believed])[0]
-            if not v.present:
-                n += x.found
-                continue
-            cx, cy = true_center_m(v)
-            near = x.found and math.hypot(x.detection.center_m[0] - cx,
-                                          x.detection.center_m[1] - cy) <= 0.5 * v.truth.radius
-            n += (not near) + (x.found and not near)
-        return n
-
-    assert errors(cal.threshold) == cal.errors
-    assert cal.errors <= errors(0.0)
-    # an explicit threshold overrides the calibrated one
-    high = KnobReader(reader.detector, reader.forest, reader.svr, replace(reader.config, threshold=50.0))
+    cfg = TrainingConfig().tiny()
+    assert reader.config.threshold is None and hasattr(reader.detect_gate, "threshold_")
+    views = render_views(world, 60, 777, replace(cfg.data, missing_rate=0.3), reader.config, scenes=scenes)
+    readings = validation_readings(reader, views)
+    assert len(readings) == 60 and sum(not r["present"] for r in readings) > 0
+    again = calibrate(reader, readings, cfg)
+    # the gate separates this set's regions with and without the knob at least as well as 0 does
+    def errors(t):
+        return sum((r["score"] > t) != (r["present"] and r["near"]) for r in readings
+                   if r["found"] or not r["present"])
+    assert errors(again.detect_threshold) <= errors(0.0)
+    assert again.state_gate.validation_["negatives_passed"] == 0
+    high = KnobReader(reader.templates, reader.detect_gate, reader.state_gate,
+                      replace(reader.config, threshold=50.0))
     v = next(v for v in views if v.present)
     assert not high.read(v.image, v.K, v.T_world_camera, [v.believed])[0].found

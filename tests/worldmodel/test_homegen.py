@@ -283,6 +283,34 @@ def test_knobs_come_in_several_designs_states_directions_and_off_names(worlds):
     assert tops, "no knobs on top of a hob"
 
 
+def test_knob_designs_vary_and_describe_their_shape(worlds):
+    """Generated knobs come in the families of KNOB_FAMILIES: plain ones, described ones with a
+    base, grip and marker, a symmetric bar (states distinct modulo 180 degrees), a mesh grip
+    on a fixed bezel; some packed 2-2.2 radii apart; some with a turning direction."""
+    import math
+    from perception.knobs import knob_shape
+    knobs = [(w, k) for w in worlds.values() for k in w.knobs()]
+    assert any(not k.described for _, k in knobs)
+    bars = [k for _, k in knobs if k.symmetry == 2]
+    assert bars and all(k.marker is None for k in bars)
+    for k in bars:
+        a = [st.angle for st in k.states]
+        assert min(abs(math.remainder(x - y, math.pi)) for i, x in enumerate(a) for y in a[i + 1:]) > 0.1
+    assert any(k.base_fixed and k.grip.visuals[0].shape == "mesh" for _, k in knobs)
+    assert any(k.marker is not None and k.marker.visuals[0].color != k.grip.visuals[0].color
+               for _, k in knobs if k.described)
+    assert {k.turns for _, k in knobs} == {"either", "clockwise", "counterclockwise"}
+    packed = 0
+    for w, k in knobs:
+        shape = knob_shape(k, w.apartment.library, w.base_dir)
+        assert shape.radius <= k.radius + 1e-6                  # the outline fits the spacing
+        p = w.T_world(k.id)[:3, 3]
+        d = min((np.linalg.norm(p - w.T_world(o.id)[:3, 3]) for o in w.knobs(w.large_object_of(k.id).id)
+                 if o.id != k.id), default=math.inf)
+        packed += d <= 2.25 * k.radius
+    assert packed >= 4
+
+
 def test_some_furniture_and_doors_are_meshes_that_load(worlds, homes):
     mesh_doors = 0
     for s, w in worlds.items():
