@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -70,6 +70,12 @@ class LocalisationConfig:
     #: Below this many points of the landmarks' fixed bodies, their doors and drawers (in the
     #: map's states) are registered against too.
     min_body_points: int = 300
+    #: The final check: ICP restarted from the polished fix at the finest gate, for up to
+    #: ``settle_iterations``, must converge within ``settle_m`` / ``settle_deg`` of it (the
+    #: point-to-plane fit and the image score agree on the pose).
+    settle_iterations: int = 30
+    settle_m: float = 0.012
+    settle_deg: float = 0.3
 
 
 @dataclass
@@ -200,7 +206,9 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                    ambiguous=alt is not None, within_search=inside,
                    agreement=int(s_fix), agreement_believed=int(s_believed),
                    sharpness=round(sharp, 4),
-                   parts_used=parts_used, doubts=doubts)
+                   parts_used=parts_used, doubts=doubts,
+                   settle_mm=round(1000 * getattr(res, "settle", (math.nan,))[0], 2),
+                   settle_deg=round(getattr(res, "settle", (0, math.nan))[1], 3))
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
                             "registration": 1000 * (t4 - t2)})
@@ -242,6 +250,8 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
     results.sort(key=lambda t: -t[0])
     best_score, res, T0 = results[0]
     res.T, best_score = _polish(res.T, fine, best_score, base)
+    res.converged, *settle = _settles(res.T, src, ref, base, cfg)
+    res.settle = tuple(settle)
     alt = None
     for sc, r, _ in results[1:]:
         if _distinct(r.T, res.T, base, cfg.distinct_m, cfg.distinct_deg) and \
@@ -249,6 +259,22 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
             alt = r
             break
     return res, T0, alt
+
+
+def _settles(T: np.ndarray, src, ref, base: np.ndarray, cfg) -> tuple[bool, float, float]:
+    """Whether ICP restarted from ``T`` at the finest gate converges near ``T`` (the
+    converged flag of the first ICP speaks of the pose before polishing, and with few
+    iterations per stage a good fit often stops just short of the tolerance)."""
+    icp = replace(cfg.icp, gates=(cfg.icp.gates[-1],), iterations=(cfg.settle_iterations,))
+    try:
+        r = register_planar(src, ref.points, ref.normals, T_init=T, cfg=icp)
+    except RegistrationFailed:
+        return False, math.inf, math.inf
+    D = r.T @ np.linalg.inv(T)
+    moved = float(np.hypot(*((D @ np.append(base[:3], 1.0))[:2] - base[:2])))
+    turned = abs(math.degrees(math.atan2(D[1, 0], D[0, 0])))
+    return bool(r.converged) and moved <= cfg.settle_m and turned <= cfg.settle_deg, \
+        moved, turned
 
 
 def _polish(T: np.ndarray, score, best: float, base: np.ndarray, step_m: float = 0.01,
