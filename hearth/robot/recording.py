@@ -42,7 +42,7 @@ from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.frames import (FrameFileError, check_color_png, check_depth_png, decode_color,
                                  decode_depth, inside)
-from hearth.robot.sim import HEAD, Frame, HeadMount, pan_tilt_to
+from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead
 from worldmodel.pose import Pose, wrap_angle
 
 FORMAT = "hearth-recording"
@@ -583,7 +583,7 @@ def _jsonable(d: dict) -> dict:
 
 # -- replay ----------------------------------------------------------------------------------
 
-class ReplayRobot:
+class ReplayRobot(PanTiltHead):
     """An adapter serving recorded frames (docs/recording-format.md).
 
     The base "drives" to wherever it is sent (taking distance over ``speed`` on the clock);
@@ -640,16 +640,6 @@ class ReplayRobot:
         self._actions.append(act)
         self._log("navigate_to", goal=goal.as_dict())
         return act
-
-    def head(self) -> tuple[float, float]:
-        return self._pan, self._tilt
-
-    def set_head(self, pan: float, tilt: float) -> Action:
-        self._pan, self._tilt = self.mount.clip(float(pan), float(tilt))
-        return DoneAction("set_head", result=(self._pan, self._tilt))
-
-    def look_at(self, point_world) -> Action:
-        return self.set_head(*pan_tilt_to(self.base_pose(), point_world, self.mount))
 
     # sensing
     def nearest(self, pose: Pose) -> tuple[Optional[Capture], float, float]:

@@ -85,6 +85,24 @@ def pan_tilt_to(base_pose, point_world, mount: HeadMount = HEAD) -> tuple[float,
     return mount.clip(pan, tilt)
 
 
+class PanTiltHead:
+    """The head of the simulated and the replayed robot: ``head``, ``set_head`` (clipped to
+    ``self.mount``; done at once) and ``look_at`` (aimed from the *believed* base pose, so a
+    localisation error shows in the image). The class using it sets ``mount``, ``_pan`` and
+    ``_tilt`` and has ``base_pose()``."""
+
+    def head(self) -> tuple[float, float]:
+        return self._pan, self._tilt
+
+    def set_head(self, pan: float, tilt: float):
+        from hearth.robot.adapter import DoneAction
+        self._pan, self._tilt = self.mount.clip(float(pan), float(tilt))
+        return DoneAction("set_head", result=(self._pan, self._tilt))
+
+    def look_at(self, point_world):
+        return self.set_head(*pan_tilt_to(self.base_pose(), point_world, self.mount))
+
+
 @dataclass
 class Frame:
     """One RGB-D capture. ``color`` uint8 RGB (H, W, 3); ``depth`` float32 metres (0 = no

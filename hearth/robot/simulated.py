@@ -25,7 +25,7 @@ from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, 
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.noise import KinectNoise
-from hearth.robot.sim import HEAD, Frame, HeadMount, camera_pose, pan_tilt_to, render_view
+from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, camera_pose, render_view
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
 from worldmodel.frames import room_at
 from worldmodel.pose import Pose, wrap_angle
@@ -34,7 +34,7 @@ from worldmodel.pose import Pose, wrap_angle
 T_BASE_CARRY = Pose(0.40, 0.0, 0.85).matrix()
 
 
-class SimulatedRobot:
+class SimulatedRobot(PanTiltHead):
     """A robot adapter (robot/adapter.py) over a simulated home.
 
     ``truth``: the true world (changed by the robot's actions; pass a copy to keep yours).
@@ -126,18 +126,6 @@ class SimulatedRobot:
         act = TimedAction("navigate_to", self.clock, duration, on_done=self._believed,
                           on_progress=at, on_cancel=at)
         return self._start("base", act, goal=goal.as_dict())
-
-    def head(self) -> tuple[float, float]:
-        return self._pan, self._tilt
-
-    def set_head(self, pan: float, tilt: float) -> Action:
-        self._pan, self._tilt = self.mount.clip(float(pan), float(tilt))
-        return DoneAction("set_head", result=(self._pan, self._tilt))
-
-    def look_at(self, point_world) -> Action:
-        # The robot aims with what it believes, so a localisation error shows in the image.
-        pan, tilt = pan_tilt_to(self.base_pose(), point_world, self.mount)
-        return self.set_head(pan, tilt)
 
     # -- sensing ---------------------------------------------------------------------------
     def capture(self) -> Frame:
