@@ -43,6 +43,7 @@ it. Views of surfaces inside closed furniture assume its doors open (``opened``)
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Callable, Optional, Sequence
@@ -114,6 +115,29 @@ def report(records: list[dict], summarise: Callable[[list[dict]], dict],
     gen = [r for r in records if is_generated(r["world"])]
     if gen and len(gen) < len(records):
         out["generated"] = summarise(gen)
+    return out
+
+
+def run_worlds(name: str, specs: Sequence[str], run_one: Callable[[int, str], tuple],
+               summarise: Callable[[list[dict]], dict]) -> dict:
+    """Run a benchmark world by world and pool it: ``run_one(i, spec)`` gives (records, why
+    the world was skipped or None). ``report`` of the worlds that gave records, with
+    ``skipped`` (spec: why) and ``load_average_1min``; NoScenes when no world gave any."""
+    records, skipped = [], {}
+    for i, spec in enumerate(specs):
+        recs, why = run_one(i, spec)
+        records += recs
+        if why or not recs:
+            skipped[spec] = why or "no scene"
+    used = [s for s in specs if s not in skipped]
+    if not used:
+        raise NoScenes(f"{name}: {'; '.join(f'{s}: {w}' for s, w in skipped.items())}")
+    out = report(records, summarise, used)
+    try:
+        load = round(os.getloadavg()[0], 2)
+    except OSError:  # pragma: no cover
+        load = None
+    out.update(skipped=skipped, load_average_1min=load)
     return out
 
 

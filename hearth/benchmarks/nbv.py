@@ -32,7 +32,6 @@ avoided in 85 %, given as ratios (ours / theirs).
 from __future__ import annotations
 
 import math
-import os
 import time
 
 import numpy as np
@@ -281,22 +280,14 @@ def run(args) -> dict:
     rng = np.random.default_rng(args.seed)
     K = Intrinsics.kinect()
     specs = _worlds.world_specs(args, homes=2)
-    records, skipped, tried = [], {}, 0
-    for spec in specs:
+    tried = []
+
+    def one(i, spec):
         recs, t, why = run_world(spec, scenes_for(spec, args), rng, K)
-        records += recs
-        tried += t
-        if why or not recs:
-            skipped[spec] = why or f"no NBV scene in {t} tries"
-    used = [s for s in specs if s not in skipped]
-    if not used:
-        raise _worlds.NoScenes(f"nbv: {'; '.join(f'{s}: {w}' for s, w in skipped.items())}")
-    out = _worlds.report(records, summarise, used)
-    try:
-        load = round(os.getloadavg()[0], 2)
-    except OSError:  # pragma: no cover
-        load = None
-    out.update(scenes_tried=tried, seed=args.seed, load_average_1min=load, skipped=skipped,
+        tried.append(t)
+        return recs, why or (None if recs else f"no NBV scene in {t} tries")
+    out = _worlds.run_worlds("nbv", specs, one, summarise)
+    out.update(scenes_tried=sum(tried), seed=args.seed,
                targets=dict(recognised_within_two_views=0.95, occlusion_avoided=0.95),
                reference=REFERENCE)
     return out

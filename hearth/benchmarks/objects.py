@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import time
 from dataclasses import dataclass
 from typing import Optional
@@ -416,20 +415,9 @@ def run(args) -> dict:
     rng = np.random.default_rng(args.seed)
     K = Intrinsics.kinect()
     specs = _worlds.world_specs(args, homes=2)
-    records, skipped = [], {}
-    for spec in specs:
-        recs, why = run_world(spec, scenes_for(spec, args), rng, K)
-        records += recs
-        if why:
-            skipped[spec] = why
-    used = [s for s in specs if s not in skipped]
-    if not used:
-        raise _worlds.NoScenes(f"objects: {'; '.join(f'{s}: {w}' for s, w in skipped.items())}")
-    out = _worlds.report(records, summarise, used)
-    try:
-        load = round(os.getloadavg()[0], 2)
-    except OSError:  # pragma: no cover
-        load = None
-    out.update(seed=args.seed, load_average_1min=load, skipped=skipped,
+    out = _worlds.run_worlds("objects", specs,
+                             lambda i, spec: run_world(spec, scenes_for(spec, args), rng, K),
+                             summarise)
+    out.update(seed=args.seed,
                targets=dict(detection_f1=0.95, ms_per_view_median=300), reference=REFERENCE)
     return out

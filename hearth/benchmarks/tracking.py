@@ -238,16 +238,10 @@ def run(args) -> dict:
     if args.quick:
         frames = min(frames, 30)
     specs = _worlds.world_specs(args, homes=2)
-    records, skipped = [], {}
-    for i, spec in enumerate(specs):
-        recs, why = run_world(spec, scenarios_for(spec, args), frames, args.seed * 1000 + i)
-        records += recs
-        if why:
-            skipped[spec] = why
-    used = [s for s in specs if s not in skipped]
-    if not used:
-        raise _worlds.NoScenes(f"tracking: {'; '.join(f'{s}: {w}' for s, w in skipped.items())}")
-    out = _worlds.report(records, summarise, used)
-    out.update(seed=args.seed, skipped=skipped,
+    out = _worlds.run_worlds(
+        "tracking", specs,
+        lambda i, spec: run_world(spec, scenarios_for(spec, args), frames, args.seed * 1000 + i),
+        summarise)
+    out.update(seed=args.seed,
                targets=dict(centroid_err_cm_median=2.0, hz=30.0), reference=REFERENCE)
     return out
