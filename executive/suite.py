@@ -375,6 +375,21 @@ def _local_worker(conn, runner, timeout) -> None:   # pragma: no cover - a child
         conn.send(("result", execute(payload["case"], runner, timeout=timeout)))
 
 
+def stop_worker(proc, conn, kill: bool = False) -> None:
+    """End a worker process that serves requests on ``conn`` until it receives None: ask it
+    (unless ``kill``), give it 5 s, then kill it; close the pipe."""
+    if not kill:
+        try:
+            conn.send(None)
+        except OSError:
+            pass
+        proc.join(5)
+    if proc.is_alive():
+        proc.kill()
+    proc.join()
+    conn.close()
+
+
 class _Proc:
     def __init__(self, ctx, runner, timeout):
         self.conn, child = ctx.Pipe()
@@ -386,16 +401,7 @@ class _Proc:
         self.deadline = math.inf
 
     def stop(self, kill: bool = False) -> None:
-        if not kill:
-            try:
-                self.conn.send(None)
-            except OSError:
-                pass
-            self.proc.join(5)
-        if self.proc.is_alive():
-            self.proc.kill()
-        self.proc.join()
-        self.conn.close()
+        stop_worker(self.proc, self.conn, kill)
 
 
 class LocalEngine:

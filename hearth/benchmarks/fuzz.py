@@ -1005,19 +1005,13 @@ class _Worker:
             raise RuntimeError("fuzz worker did not start")
 
     def restart(self) -> None:
-        self.proc.kill()
-        self.proc.join()
-        self.conn.close()
+        from executive.suite import stop_worker
+        stop_worker(self.proc, self.conn, kill=True)
         self.start()
 
     def close(self) -> None:
-        try:
-            self.conn.send(None)
-        except OSError:
-            pass
-        self.proc.join(5)
-        if self.proc.is_alive():
-            self.proc.kill()
+        from executive.suite import stop_worker
+        stop_worker(self.proc, self.conn)
 
 
 def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
