@@ -172,6 +172,11 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                 res2 = None
             if res2 is not None and agree(res2.T[None])[0] > s_res:
                 res, alt, parts_used = res2, alt2, True
+    # Converged, not merely a small residual (a stopped ICP with a small residual sat 4.5 cm
+    # off on a cupboard front in a generated home): ICP restarted from the polished fix
+    # settles next to it. The result's flag says so from here on.
+    res.converged, settle_m, settle_deg = _settles(res.T, src, ref if parts_used else bodies,
+                                                   base, cfg)
     t4 = time.perf_counter()
     C = res.T
     T_new = C @ np.asarray(T_world_base, dtype=float)
@@ -187,8 +192,6 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     s_fix, s_believed = agree(np.stack([C, np.eye(4)]))
     better = float(s_fix) >= cfg.min_improvement * float(s_believed)
     sharp = _sharpness(C, agree, used.points.mean(axis=0), cfg)
-    # Converged, not merely a small residual: a stopped ICP with a small residual sat 4.5 cm
-    # off on a cupboard front in a generated home.
     ok = bool(res.converged) and weakest >= cfg.min_weakest \
         and inside and alt is None and better and sharp >= cfg.min_sharpness
     doubts = [what for bad, what in (
@@ -207,8 +210,8 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                    agreement=int(s_fix), agreement_believed=int(s_believed),
                    sharpness=round(sharp, 4),
                    parts_used=parts_used, doubts=doubts,
-                   settle_mm=round(1000 * getattr(res, "settle", (math.nan,))[0], 2),
-                   settle_deg=round(getattr(res, "settle", (0, math.nan))[1], 3))
+                   settle_mm=round(1000 * settle_m, 2) if math.isfinite(settle_m) else None,
+                   settle_deg=round(settle_deg, 3) if math.isfinite(settle_deg) else None)
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
                             "registration": 1000 * (t4 - t2)})
@@ -250,8 +253,6 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
     results.sort(key=lambda t: -t[0])
     best_score, res, T0 = results[0]
     res.T, best_score = _polish(res.T, fine, best_score, base)
-    res.converged, *settle = _settles(res.T, src, ref, base, cfg)
-    res.settle = tuple(settle)
     alt = None
     for sc, r, _ in results[1:]:
         if _distinct(r.T, res.T, base, cfg.distinct_m, cfg.distinct_deg) and \
