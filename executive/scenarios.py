@@ -52,6 +52,8 @@ from hearth import demo_world_path, missions_dir
 MISSIONS = missions_dir()
 NAMED = ("fetch_object", "turn_off_oven", "refine_localisation")
 FETCH = ("fetch_object", "search_object")
+#: The missions a suite case can be made for.
+SUITE_MISSIONS = FETCH + ("turn_off_oven", "refine_localisation")
 #: Where an object turns up in truth, and how often: another place, the believed one, a third.
 PLACE_WEIGHTS = (0.60, 0.25, 0.15)
 #: A localisation residual above this after "corrected" is a wrong success (centimetres).

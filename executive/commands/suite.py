@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from executive.cliutil import integer_in, seed
+from executive.cliutil import integer_in, seed, suite_missions
 
 
 def register(sub) -> None:
@@ -30,7 +30,8 @@ def register(sub) -> None:
     p.add_argument("--world", action="append", default=None, metavar="WORLD",
                    help="a world file to run on instead of generated homes (repeatable)")
     p.add_argument("--no-demo", action="store_true", help="leave the demo home out")
-    p.add_argument("--missions", default="fetch_object,turn_off_oven,refine_localisation",
+    p.add_argument("--missions", type=suite_missions,
+                   default=("fetch_object", "turn_off_oven", "refine_localisation"),
                    help="comma-separated missions (default: the three named ones)")
     p.add_argument("--scenarios", type=integer_in(1, 100_000, "--scenarios"), default=4,
                    help="scenarios per home and mission (fetch: at least one per kind of "
@@ -63,7 +64,7 @@ def _run(args) -> int:
         return 2
     args.quick = False
     worlds = worlds_of(args)
-    missions = tuple(m.strip() for m in args.missions.split(",") if m.strip())
+    missions = args.missions
     err = sys.stderr
 
     def say(text: str) -> None:

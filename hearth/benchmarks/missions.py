@@ -40,7 +40,9 @@ import time
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--missions", default="fetch_object,turn_off_oven,refine_localisation",
+    from executive.cliutil import suite_missions
+    parser.add_argument("--missions", type=suite_missions,
+                        default=("fetch_object", "turn_off_oven", "refine_localisation"),
                         help="comma-separated missions (default: the three named ones)")
     parser.add_argument("--warmup", type=int, default=20,
                         help="map-level warm-up searches before each fetch case (default 20)")
@@ -67,8 +69,8 @@ def run(args) -> dict:
     from executive.scenarios import suite_cases, summarise
 
     n = args.scenarios or (2 if args.quick else 4)
-    missions = tuple(m.strip() for m in getattr(args, "missions",
-                     "fetch_object,turn_off_oven,refine_localisation").split(",") if m.strip())
+    missions = getattr(args, "missions", None) or ("fetch_object", "turn_off_oven",
+                                                   "refine_localisation")
     worlds = worlds_of(args)
     cases = suite_cases(n, seed=args.seed, missions=missions,
                         warmup=getattr(args, "warmup", 20), worlds=worlds)

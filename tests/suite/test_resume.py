@@ -45,3 +45,17 @@ def test_a_killed_suite_resumes_without_running_again_what_was_done(tmp_path, ca
     assert len(after) == 4 and len({r["key"] for r in after}) == 4
     assert report["resumed"] == len(before) and report["ran"] == 4 - len(before)
     assert report["results"] == 4 and (out / "summary.png").stat().st_size > 0
+
+
+def test_a_mission_the_suite_has_no_scenarios_for_is_one_line_and_exit_2(capsys):
+    import pytest
+    for argv in (["suite", "--missions", "fetch_object,nope", "--homes", "0"],
+                 ["bench", "missions", "--missions", "nope", "--homes", "0"]):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        assert stop.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err[-1].endswith("argument --missions: no scenarios for 'nope'; the suite has "
+                                "scenarios for fetch_object, search_object, turn_off_oven, "
+                                "refine_localisation")
+        assert not any("Traceback" in line for line in err)
