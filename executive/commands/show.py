@@ -3,10 +3,13 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
+    from executive.cliutil import mission_file
+
     p = sub.add_parser("show", help="draw a mission's behaviour tree",
                        description="Load and check a mission, then draw its tree: ASCII "
                                    "(default) or Graphviz dot.")
-    p.add_argument("mission")
+    p.add_argument("mission", type=mission_file,
+                   help="mission file, or the name of a shipped mission (go_to_rest)")
     p.add_argument("--format", choices=("ascii", "dot"), default="ascii")
     p.set_defaults(func=_run)
 

@@ -3,13 +3,16 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
+    from executive.cliutil import mission_file
+
     p = sub.add_parser("test-mission", help="run a mission with scripted skills; report "
                                             "outcome and never-ticked nodes",
                        description="Run MISSION on a simulated clock with skills replaced by "
                                    "the scripted stand-ins of FILE (see docs/missions.md). "
                                    "Exit 0 when the outcome is the expected one (or none is "
                                    "expected), 1 otherwise.")
-    p.add_argument("mission")
+    p.add_argument("mission", type=mission_file,
+                   help="mission file, or the name of a shipped mission (go_to_rest)")
     p.add_argument("--substitute", required=True, metavar="FILE", help="substitution file")
     p.add_argument("--runs-dir", default=None, help="write the execution log here")
     p.set_defaults(func=_run)

@@ -234,3 +234,9 @@ def test_on_a_terminal_one_progress_line_rewrites_itself(tmp_path):
                      r"side_table: \d+%", text)
     shown = [line for line in text.replace("\r\n", "\n").split("\n") if "\r" not in line]
     assert shown[-2].startswith("go_to_rest: succeeded (completed)") and "%" not in shown[-2]
+
+
+def test_show_finds_a_shipped_mission_by_name_from_any_directory(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["show", "go_to_rest"]) == 0
+    assert capsys.readouterr().out.startswith("go_to_rest: ")
