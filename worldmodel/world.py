@@ -22,7 +22,7 @@ from worldmodel.nodes import (
 )
 from worldmodel.frames import joint_T, knob_T, planar_of
 from worldmodel.pose import Pose, transform_points
-from worldmodel.validate import LIMIT_EPS, iter_nodes
+from worldmodel.validate import LIMIT_EPS, coord_problem, iter_nodes
 
 STOPWORDS = frozenset({"the", "a", "an", "my", "me", "of", "please", "some", "your", "our", "this",
                        "that", "is", "where", "find", "bring", "get"})
@@ -36,6 +36,23 @@ def tokens(text: str) -> list[str]:
             t = t[:-1]
         out.append(t)
     return out
+
+
+
+def _check_pose(pose: Pose, node_id: str) -> None:
+    """Refuse a pose a saved map could not hold (NaN, infinite, beyond the map's bounds), at
+    the update that brings it rather than at the next save."""
+    for name, value in pose.as_dict().items():
+        why = coord_problem(float(value))
+        if why is not None:
+            raise WorldError(f"pose {name}: {why}", node=node_id)
+
+
+def _check_number(value: float, what: str, node_id: str) -> float:
+    why = coord_problem(float(value))
+    if why is not None:
+        raise WorldError(f"{what}: {why}", node=node_id)
+    return float(value)
 
 
 @dataclass(frozen=True)
@@ -451,6 +468,7 @@ class World:
             obj = self.get(object_id)
             if not isinstance(obj, SmallObject):
                 raise WorldError("only small objects can be moved", node=object_id)
+            _check_pose(pose, object_id)
             target = self.get(new_parent)
             if not isinstance(target, LargeObject):
                 raise WorldError(f"new parent {new_parent!r} is not a large object", node=object_id)
@@ -477,6 +495,7 @@ class World:
             j = part.joint
             if j.type == "fixed":
                 raise WorldError("a fixed joint has no state", node=part_id)
+            value = _check_number(value, "joint state", part_id)
             if not (j.lower - LIMIT_EPS <= value <= j.upper + LIMIT_EPS):
                 raise WorldError(f"joint state {value} outside limits [{j.lower}, {j.upper}]",
                                  node=part_id)
@@ -492,7 +511,8 @@ class World:
             if not isinstance(knob, Knob):
                 raise WorldError("not a knob", node=knob_id)
             try:
-                a = knob.state_angle(state) if angle is None else float(angle)
+                a = (knob.state_angle(state) if angle is None
+                     else _check_number(angle, "knob angle", knob_id))
             except KeyError:
                 raise WorldError(f"unknown knob state {state!r}; states: "
                                  f"{[s.name for s in knob.states]}", node=knob_id) from None
@@ -510,6 +530,7 @@ class World:
             node = self.get(node_id)
             if not hasattr(node, "pose") or isinstance(node, Part):
                 raise WorldError("node has no pose of its own", node=node_id)
+            _check_pose(pose, node_id)
             ch = self._record(node_id, "pose", node.pose, pose, source)
             node.pose = pose
         self._notify([ch])
@@ -518,6 +539,7 @@ class World:
         with self.lock:
             if obj.id in self._nodes:
                 raise WorldError("id already used", node=obj.id)
+            _check_pose(obj.pose, obj.id)
             parent = self.get(parent_id)
             if not isinstance(parent, LargeObject):
                 raise WorldError(f"parent {parent_id!r} is not a large object", node=obj.id)

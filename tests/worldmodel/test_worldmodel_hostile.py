@@ -171,6 +171,22 @@ def test_save_refuses_a_nan_pose_and_leaves_the_file_as_it_was(demo_world, tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["w.xml"]
 
 
+@pytest.mark.parametrize("update, message", [
+    (lambda w: w.set_pose("kitchen_table", Pose(math.nan, 0, 0)), "pose x: nan is not a finite"),
+    (lambda w: w.set_pose("kitchen_table", Pose(0, 0, 0, 0, 0, math.inf)), "pose yaw: inf is not"),
+    (lambda w: w.set_pose("kitchen_table", Pose(1e308, 0, 0)), "beyond +-10000"),
+    (lambda w: w.move_object("blue_cup", "kitchen_table", Pose(0, math.nan, 0.8)), "pose y: nan"),
+    (lambda w: w.set_knob_state("oven_knob_1", "off", angle=math.nan), "knob angle: nan"),
+])
+def test_an_update_with_a_non_finite_number_is_refused_and_changes_nothing(demo_world, update,
+                                                                             message):
+    before = (demo_world.get("kitchen_table").pose, len(demo_world.apartment.history))
+    with pytest.raises(WorldError, match=re.escape(message)):
+        update(demo_world)
+    assert (demo_world.get("kitchen_table").pose, len(demo_world.apartment.history)) == before
+    assert demo_world.get("oven_knob_1").angle == 0.0
+
+
 @pytest.mark.parametrize("change, message", [
     (lambda w: setattr(w.get("oven_knob_1"), "radius", 0.0), "radius 0.0 is not positive"),
     (lambda w: setattr(w.get("oven_knob_1"), "angle", math.inf), "angle inf is not a finite"),
