@@ -1,10 +1,7 @@
 """`hearth export MISSION.yaml --format btcpp [-o FILE]`: a mission as BehaviorTree.CPP v4 XML."""
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
-from pathlib import Path
 
 
 def register(sub) -> None:
@@ -24,26 +21,12 @@ def register(sub) -> None:
     p.set_defaults(func=_run)
 
 
-def write_atomically(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder, so a failed
-    write never leaves half a file."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent or ".", prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _run(args) -> int:
     from executive.btcpp import export_mission
+    from worldmodel.io import atomic_write
     xml = export_mission(args.mission, palette=args.palette)
     if args.output:
-        write_atomically(args.output, xml)
+        atomic_write(args.output, xml.encode("utf-8"))
         print(f"{args.mission}: written to {args.output}", file=sys.stderr)
     else:
         sys.stdout.write(xml)

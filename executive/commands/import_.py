@@ -21,10 +21,10 @@ def register(sub) -> None:
 
 def _run(args) -> int:
     from executive.btcpp import import_tree
-    from executive.commands.export import write_atomically
+    from worldmodel.io import atomic_write
     text, mission = import_tree(args.tree)
     if args.output:
-        write_atomically(args.output, text)
+        atomic_write(args.output, text.encode("utf-8"))
         nodes = sum(1 for _ in mission.nodes())
         print(f"{args.tree}: mission {mission.name} ({nodes} nodes) written to {args.output}",
               file=sys.stderr)
