@@ -457,11 +457,16 @@ def _write_part(parent, p: Part) -> None:
                           upper=_num(j.upper), state=_num(j.state))
     _set_pose(je, j.origin, "origin")
     _write_model(el, p.model)
-    for h in p.handles:
+    _write_fittings(el, p)
+
+
+def _write_fittings(el, node) -> None:
+    """The handles, knobs and parts of an articulated object or of a part."""
+    for h in node.handles:
         _write_handle(el, h)
-    for k in p.knobs:
+    for k in node.knobs:
         _write_knob(el, k)
-    for c in p.parts:
+    for c in node.parts:
         _write_part(el, c)
 
 
@@ -504,12 +509,7 @@ def _write_large(parent, o) -> None:
                               relation=s.relation)
         _set_pose(se, s.pose)
     if isinstance(o, LargeArticulatedObject):
-        for h in o.handles:
-            _write_handle(el, h)
-        for k in o.knobs:
-            _write_knob(el, k)
-        for p in o.parts:
-            _write_part(el, p)
+        _write_fittings(el, o)
     for c in o.children:
         _write_small(el, c)
 
