@@ -34,12 +34,12 @@ import cv2
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.frames import (FrameFileError, check_color_png, check_depth_png, decode_color,
                                  decode_depth, inside)
-from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead
+from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged
 from worldmodel.io import atomic_write
 from worldmodel.pose import Pose, wrap_angle
 
@@ -568,7 +568,7 @@ def _jsonable(d: dict) -> dict:
 
 # -- replay ----------------------------------------------------------------------------------
 
-class ReplayRobot(PanTiltHead):
+class ReplayRobot(PanTiltHead, SpokenAndLogged):
     """An adapter serving recorded frames (docs/recording-format.md).
 
     The base "drives" to wherever it is sent (taking distance over ``speed`` on the clock);
@@ -715,19 +715,11 @@ class ReplayRobot(PanTiltHead):
     def hand_over(self) -> Action:
         return self._replayed("hand_over")
 
-    def say(self, text: str) -> Action:
-        self.said.append(str(text))
-        self._log("say", text=str(text))
-        return DoneAction("say", result=str(text))
-
     def stop(self) -> None:
         self.stops += 1
         for a in self._actions:
             a.cancel()
         self._log("stop")
-
-    def _log(self, action: str, **info) -> None:
-        self.log.append(dict(time=self.clock.now(), action=action, **info))
 
 
 __all__ = ["Capture", "Recording", "RecordingRobot", "RecordingWriter", "ReplayRobot",
