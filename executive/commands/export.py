@@ -1,16 +1,18 @@
-"""`hearth export MISSION.yaml --format btcpp [-o FILE]`: a mission as BehaviorTree.CPP v4 XML."""
+"""`hearth export MISSION.yaml --format btcpp [-o FILE]`: a mission as BehaviorTree.CPP v4 XML.
+
+Check MISSION and write it as BehaviorTree.CPP v4 XML (Groot2, Nav2): one <BehaviorTree> for
+the mission and one per included subtree, {key} remapping, and a <TreeNodesModel> with the
+skills' ports. See docs/missions.md, 'From and to BehaviorTree.CPP'.
+"""
 from __future__ import annotations
 
 import sys
 
+from executive.cliutil import add_command
+
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="write a mission as BehaviorTree.CPP v4 XML",
-                       description="Check MISSION and write it as BehaviorTree.CPP v4 XML "
-                                   "(Groot2, Nav2): one <BehaviorTree> for the mission and one "
-                                   "per included subtree, {key} remapping, and a "
-                                   "<TreeNodesModel> with the skills' ports. See "
-                                   "docs/missions.md, 'From and to BehaviorTree.CPP'.")
+    p = add_command(sub, "export", __doc__, help="write a mission as BehaviorTree.CPP v4 XML")
     p.add_argument("mission", metavar="MISSION.yaml")
     p.add_argument("--format", default="btcpp", choices=["btcpp"],
                    help="output format (btcpp: BehaviorTree.CPP v4 XML)")
