@@ -11,16 +11,14 @@ import stat
 from hearth.errors import HearthError
 
 
-def read_limited(path, limit: int, error: type[HearthError], too_large: str,
-                 name: str | None = None) -> bytes:
+def read_limited(path, limit: int, error: type[HearthError], too_large: str) -> bytes:
     """The bytes of the regular file ``path``, of at most ``limit`` bytes.
 
     A device, a directory or a FIFO is refused before anything is read (so ``/dev/zero``
-    cannot hang a load). Every problem raises ``error(message, file=name, line=0)``
-    (``name``: how the file is named to the user, ``path`` by default); a file over the
-    limit says ``too_large``.
+    cannot hang a load). Every problem raises ``error(message, file=str(path), line=0)``; a
+    file over the limit says ``too_large``.
     """
-    name = str(path) if name is None else name
+    name = str(path)
     try:
         # O_NONBLOCK: opening a FIFO must not wait for a writer; no effect on regular files.
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
