@@ -32,6 +32,7 @@ from typing import Any, Callable
 from py_trees import common
 
 from executive.tree import SkillFactory, default_factory
+from hearth.subscribers import Subscribers
 
 Status = common.Status
 PENDING, APPROVED, REFUSED, EXPIRED, WITHDRAWN = (
@@ -70,7 +71,7 @@ class Approvals:
         self._ids = itertools.count(1)
         self._requests: dict[str, ApprovalRequest] = {}
         self._done: deque[str] = deque(maxlen=keep)
-        self._subscribers: list[Callable[[str, dict], None]] = []
+        self._subscribers: Subscribers[Callable[[str, dict], None]] = Subscribers()
 
     @property
     def granted(self) -> int:
@@ -82,17 +83,10 @@ class Approvals:
         self._notify("autonomy", {"granted": int(level)})
 
     def subscribe(self, cb: Callable[[str, dict], None]) -> Callable[[], None]:
-        with self._lock:
-            self._subscribers.append(cb)
-
-        def unsubscribe() -> None:
-            with self._lock:
-                if cb in self._subscribers:
-                    self._subscribers.remove(cb)
-        return unsubscribe
+        return self._subscribers.add(cb)
 
     def _notify(self, kind: str, data: dict) -> None:
-        for cb in list(self._subscribers):
+        for cb in self._subscribers:
             try:
                 cb(kind, data)
             except Exception:  # noqa: BLE001 - a broken listener must not stop the robot

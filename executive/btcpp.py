@@ -34,7 +34,7 @@ import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import yaml
 from lxml import etree
@@ -357,11 +357,7 @@ class _Exporter:
         self.written[key] = set()
         body, doc = self.body(key)
         out: set[str] = set()
-
-        def walk(data: Any) -> None:
-            if not isinstance(data, dict):
-                return
-            kind = _kind(data)
+        for data, kind in _nodes(body["tree"]):
             if kind == "skill":
                 for v in (data.get("outputs") or {}).values():
                     m = _PARAM.match(str(v))
@@ -374,9 +370,6 @@ class _Exporter:
                     m = _PARAM.match(str(v)) if isinstance(v, str) else None
                     if m and p in inner:
                         out.add(m.group(1))
-            for child in _children(data, kind):
-                walk(child)
-        walk(body["tree"])
         self.written[key] = out
         return out
 
@@ -405,10 +398,7 @@ class _Exporter:
                 if m:
                     keys.add(m.group(1))
 
-        def walk(data: Any) -> None:
-            if not isinstance(data, dict):
-                return
-            kind = _kind(data)
+        for data, kind in _nodes(tree):
             if kind == "skill":
                 for v in (data.get("inputs") or {}).values():
                     ref(v)
@@ -430,9 +420,6 @@ class _Exporter:
                 for st in data["state_machine"]["states"].values():
                     if "outcome" in st:
                         ref(st["outcome"])
-            for child in _children(data, kind):
-                walk(child)
-        walk(tree)
         out = {}
         taken = keys | set(scope.params)
         for k in sorted(keys & set(scope.params)):
@@ -599,6 +586,16 @@ class _Exporter:
             models.append(el)
         etree.indent(root, space="  ")
         return etree.tostring(root, xml_declaration=True, encoding="UTF-8").decode("utf-8") + "\n"
+
+
+def _nodes(data: Any) -> Iterator[tuple[dict, str]]:
+    """Every node (a dict) of a mission tree with its kind, parents before children."""
+    if not isinstance(data, dict):
+        return
+    kind = _kind(data)
+    yield data, kind
+    for child in _children(data, kind):
+        yield from _nodes(child)
 
 
 def _children(data: dict, kind: str) -> list:

@@ -1,6 +1,8 @@
 """The `hearth` command line.
 
-Subcommands live in ``executive/commands/<name>.py`` (each has ``register(subparsers)``).
+Subcommands live in ``executive/commands/<name>.py`` (each has ``register(subparsers)``;
+``cliutil.add_command`` gives it a parser whose ``--help`` description is the module's
+docstring past its first paragraph, the synopsis).
 Bad input from the user (a world file, a mission file, a recording, a parameter) is turned
 into one line on stderr and exit status 2; no traceback.
 """

@@ -109,6 +109,13 @@ tick_rate = number_in(MIN_TICK_HZ, MAX_TICK_HZ, "the tick rate")
 seed = integer_in(0, MAX_SEED, "a seed")
 
 
+def add_command(sub, name: str, doc: str | None, help: str) -> argparse.ArgumentParser:
+    """The parser of the command ``name``: ``help`` is its line in ``hearth --help``; its own
+    ``--help`` describes it with ``doc``, the docstring of its module, past the first
+    paragraph (that one is the synopsis, for the reader of the code)."""
+    return sub.add_parser(name, help=help, description=(doc or "").partition("\n\n")[2] or None)
+
+
 def output_dir(text: str) -> str:
     """An argparse type: a directory to write into (it may exist, or be made), not a file."""
     if not text:
@@ -140,6 +147,13 @@ def add_run_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
     p.add_argument("--wall-clock", action="store_true",
                    help="run in real time (default: simulated time, as fast as possible)")
     add_map_arguments(p, saves=saves)
+
+
+def add_topics_argument(p: argparse.ArgumentParser) -> None:
+    """``--topics``: how a replayed ROS 2 bag names its topics and frames (run, step)."""
+    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
+                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
+                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
 
 
 def add_map_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:

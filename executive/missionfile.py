@@ -22,7 +22,6 @@ import math
 import os
 import re
 import reprlib
-import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -36,6 +35,7 @@ import yaml.constructor
 import yaml.resolver
 
 from executive.errors import MissionError, MissionValidationError
+from hearth.files import read_limited
 
 FORMAT_VERSION = 1
 
@@ -263,21 +263,8 @@ def load_yaml(path: str | Path) -> Any:
     Only a regular file is read (a device, FIFO or directory is refused before reading), and
     no more of it than MAX_FILE_CHARS allows."""
     path = str(path)
-    limit = 4 * MAX_FILE_CHARS + 4          # UTF-8 takes at most 4 bytes a character
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)   # a FIFO must not block the open
-        with os.fdopen(fd, "rb") as f:
-            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
-                raise MissionError("not a regular file", file=path, line=0)
-            data = f.read(limit + 1)
-    except FileNotFoundError:
-        raise MissionError("no such file", file=path, line=0) from None
-    except IsADirectoryError:
-        raise MissionError("not a regular file (a directory)", file=path, line=0) from None
-    except OSError as err:
-        raise MissionError(f"cannot read: {err.strerror or err}", file=path, line=0) from None
-    if len(data) > limit:
-        raise MissionError(f"file is larger than {MAX_FILE_CHARS} characters", file=path, line=0)
+    data = read_limited(path, 4 * MAX_FILE_CHARS + 4, MissionError,   # UTF-8: <= 4 bytes a char
+                        f"file is larger than {MAX_FILE_CHARS} characters")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

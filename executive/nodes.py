@@ -50,6 +50,20 @@ class DeepestFirst:
         self.status = new_status
 
 
+class FreshStart:
+    """Mixin for composites that tick their children themselves: ticked when not running, a
+    composite starts afresh (what its children kept from its last run is reset, then it
+    initialises)."""
+
+    def _begin(self) -> None:
+        if self.status != Status.RUNNING:
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    treetick.stop(child, Status.INVALID)
+            self.current_child = None
+            self.initialise()
+
+
 class PassThrough(DeepestFirst, py_trees.decorators.PassThrough):
     """An include: the subtree's root under a node named after the include."""
 
@@ -105,7 +119,7 @@ class Timeout(DeepestFirst, py_trees.decorators.Timeout):
         return self.decorated.status
 
 
-class ThresholdParallel(py_trees.composites.Parallel):
+class ThresholdParallel(FreshStart, py_trees.composites.Parallel):
     """Tick all children; success once ``threshold`` have succeeded, failure once that can no
     longer happen. Children that finished are not ticked again until the parallel restarts;
     still-running children are halted when it finishes."""
@@ -128,14 +142,6 @@ class ThresholdParallel(py_trees.composites.Parallel):
             treetick.tick_node(child, seen)
         self._finish()
         seen[self] = self.status
-
-    def _begin(self) -> None:
-        if self.status != Status.RUNNING:
-            for child in self.children:
-                if child.status != Status.INVALID:
-                    treetick.stop(child, Status.INVALID)
-            self.current_child = None
-            self.initialise()
 
     def _pending(self) -> Iterator[Behaviour]:
         """The children to tick, each checked as the previous one has been ticked."""
@@ -436,7 +442,7 @@ class _Model:
     """The ``transitions`` model of one state-machine block (holds ``state``)."""
 
 
-class StateMachine(py_trees.composites.Composite):
+class StateMachine(FreshStart, py_trees.composites.Composite):
     """A SMACH-style state machine as one tree node.
 
     Each state runs one child node to completion. Its outcome (``success``/``failure``, a
@@ -495,13 +501,6 @@ class StateMachine(py_trees.composites.Composite):
                 return
         self.status = Status.RUNNING
         seen[self] = self.status
-
-    def _begin(self) -> None:
-        if self.status != Status.RUNNING:
-            for child in self.children:
-                if child.status != Status.INVALID:
-                    treetick.stop(child, Status.INVALID)
-            self.initialise()
 
     def _enter(self) -> Behaviour:
         """The current state's node, ready to tick."""

@@ -30,6 +30,15 @@ def demo_world():
     return load_world(DEMO_WORLD)
 
 
+@pytest.fixture
+def clean_blackboard():
+    """An empty py_trees blackboard (it is global) before the test and after it."""
+    import py_trees
+    py_trees.blackboard.Blackboard.clear()
+    yield
+    py_trees.blackboard.Blackboard.clear()
+
+
 def pytest_configure(config):
     # Before any fixture, whatever its scope, copies the environment for a subprocess: the
     # suite never keeps a map in the real ~/.local/share/hearth.

@@ -21,6 +21,7 @@ from typing import Optional
 
 from lxml import etree
 
+from hearth.files import read_limited
 from worldmodel.errors import WorldError, WorldValidationError
 from worldmodel.nodes import (
     Apartment, DefaultPosition, GraspPoint, Handle, HistoryEntry, Joint, Knob, KnobState,
@@ -39,6 +40,7 @@ FORMAT_VERSION = "1"
 # levels deep.
 #: Largest world file.
 MAX_FILE_BYTES = 32 * 1024 * 1024
+_TOO_LARGE = f"file is larger than {MAX_FILE_BYTES} bytes"
 #: Most XML elements in a file (history entries included).
 MAX_ELEMENTS = 1_000_000
 #: Deepest element nesting (the apartment is level 1; each nested part adds one).
@@ -306,7 +308,7 @@ def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = N
     from worldmodel.world import World
 
     if len(data) > MAX_FILE_BYTES:
-        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
+        raise WorldError(_TOO_LARGE, file=name, line=0)
     tree = _parse_tree(data, name)
     root = tree.getroot()
     schema = _schema()
@@ -345,36 +347,11 @@ def _clean_schema_message(msg: str) -> str:
     return msg.replace("{http://www.w3.org/2001/XMLSchema}", "xs:")
 
 
-def read_limited(path: Path, name: str) -> bytes:
-    """The bytes of a regular file of at most MAX_FILE_BYTES (a device, a directory or a FIFO
-    is refused before anything is read, so ``/dev/zero`` cannot hang a load)."""
-    try:
-        # O_NONBLOCK: opening a FIFO must not wait for a writer; no effect on regular files.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-        with os.fdopen(fd, "rb") as f:
-            st = os.fstat(f.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise WorldError("not a regular file", file=name, line=0)
-            if st.st_size > MAX_FILE_BYTES:
-                raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
-            data = f.read(MAX_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise WorldError("no such file", file=name, line=0) from None
-    except IsADirectoryError:
-        raise WorldError("not a regular file (a directory)", file=name, line=0) from None
-    except OSError as err:
-        raise WorldError(f"cannot read: {err.strerror or err}", file=name, line=0) from None
-    if len(data) > MAX_FILE_BYTES:
-        raise WorldError(f"file is larger than {MAX_FILE_BYTES} bytes", file=name, line=0)
-    return data
-
-
 def load_world(path, clock=None):
     """Load a world file. Raises ``WorldError`` (with file and line) on any problem."""
     path = Path(path)
-    name = str(path)
-    data = read_limited(path, name)
-    world = parse_world(data, name, base_dir=path.parent.resolve(), clock=clock)
+    data = read_limited(path, MAX_FILE_BYTES, WorldError, _TOO_LARGE)
+    world = parse_world(data, str(path), base_dir=path.parent.resolve(), clock=clock)
     world.path = path
     return world
 
@@ -480,11 +457,16 @@ def _write_part(parent, p: Part) -> None:
                           upper=_num(j.upper), state=_num(j.state))
     _set_pose(je, j.origin, "origin")
     _write_model(el, p.model)
-    for h in p.handles:
+    _write_fittings(el, p)
+
+
+def _write_fittings(el, node) -> None:
+    """The handles, knobs and parts of an articulated object or of a part."""
+    for h in node.handles:
         _write_handle(el, h)
-    for k in p.knobs:
+    for k in node.knobs:
         _write_knob(el, k)
-    for c in p.parts:
+    for c in node.parts:
         _write_part(el, c)
 
 
@@ -527,12 +509,7 @@ def _write_large(parent, o) -> None:
                               relation=s.relation)
         _set_pose(se, s.pose)
     if isinstance(o, LargeArticulatedObject):
-        for h in o.handles:
-            _write_handle(el, h)
-        for k in o.knobs:
-            _write_knob(el, k)
-        for p in o.parts:
-            _write_part(el, p)
+        _write_fittings(el, o)
     for c in o.children:
         _write_small(el, c)
 

@@ -52,24 +52,17 @@ def iter_nodes(apartment: Apartment) -> Iterator[tuple[object, Optional[object]]
         for o in room.objects:
             yield o, room
             if isinstance(o, LargeArticulatedObject):
-                for h in o.handles:
-                    yield h, o
-                for k in o.knobs:
-                    yield k, o
-                for p in o.parts:
-                    yield from _iter_part(p, o)
+                yield from _iter_fittings(o)
             for c in o.children:
                 yield c, o
 
 
-def _iter_part(part: Part, parent) -> Iterator[tuple[object, object]]:
-    yield part, parent
-    for h in part.handles:
-        yield h, part
-    for k in part.knobs:
-        yield k, part
-    for c in part.parts:
-        yield from _iter_part(c, part)
+def _iter_fittings(node) -> Iterator[tuple[object, object]]:
+    """The handles, knobs and parts (depth first) of an articulated object or of a part."""
+    for child in (*node.handles, *node.knobs, *node.parts):
+        yield child, node
+        if isinstance(child, Part):
+            yield from _iter_fittings(child)
 
 
 # -- numbers and text ------------------------------------------------------------------------

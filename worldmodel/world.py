@@ -15,6 +15,7 @@ from typing import Any, Callable, Iterable, Optional
 
 import numpy as np
 
+from hearth.subscribers import Subscribers
 from worldmodel.errors import UnknownNode, WorldError
 from worldmodel.nodes import (
     Apartment, HistoryEntry, Knob, LargeObject, ParkingPosition,
@@ -96,7 +97,7 @@ class World:
         self.base_dir = base_dir
         self.clock = clock
         self.lock = threading.RLock()
-        self._subscribers: list[Callable[[MapChange], None]] = []
+        self._subscribers: Subscribers[Callable[[MapChange], None]] = Subscribers()
         self._reindex()
 
     # -- indexes ------------------------------------------------------------------------
@@ -439,14 +440,7 @@ class World:
     # -- updates ------------------------------------------------------------------------
     def subscribe(self, callback: Callable[[MapChange], None]) -> Callable[[], None]:
         """Call ``callback(MapChange)`` after every update; returns an unsubscribe function."""
-        with self.lock:
-            self._subscribers.append(callback)
-
-        def unsubscribe() -> None:
-            with self.lock:
-                if callback in self._subscribers:
-                    self._subscribers.remove(callback)
-        return unsubscribe
+        return self._subscribers.add(callback)
 
     def _record(self, node_id: str, field: str, old: Any, new: Any, source: str) -> MapChange:
         t = self.now()
@@ -455,7 +449,7 @@ class World:
 
     def _notify(self, changes: list[MapChange]) -> None:
         for ch in changes:
-            for cb in list(self._subscribers):
+            for cb in self._subscribers:
                 cb(ch)
 
     def move_object(self, object_id: str, new_parent: str, pose: Pose, relation: str = "on",

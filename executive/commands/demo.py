@@ -1,10 +1,8 @@
 """`hearth demo`: the three named missions on the simulated demo home (what `make demo` runs).
 
-The truth is perturbed against the map: the blue cup stands on the side table (the map says
-the kitchen table), oven knob 2 is on, and the robot's localisation is about 10 cm off. The
-demo runs refine_localisation, turn_off_oven and fetch_object ("blue cup") one after the
-other on one simulated robot and one belief map, prints progress as it goes and a final
-report, writes the execution logs and a top-down picture into the output directory.
+Run refine_localisation, turn_off_oven and fetch_object on the simulated demo home with a
+perturbed truth (the blue cup moved to the side table, an oven knob on, localisation about
+10 cm off); print progress and a report; write the execution logs and a top-down PNG.
 """
 from __future__ import annotations
 
@@ -12,7 +10,7 @@ import math
 import time
 from pathlib import Path
 
-from executive.cliutil import output_dir, seed
+from executive.cliutil import add_command, output_dir, seed
 from hearth import demo_world_path, missions_dir
 
 DEMO_WORLD = demo_world_path()
@@ -28,12 +26,8 @@ DEMO_MISSIONS = (
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="run the three named missions on the simulated demo home",
-                       description="Run refine_localisation, turn_off_oven and fetch_object on "
-                                   "the simulated demo home with a perturbed truth (the blue "
-                                   "cup moved to the side table, an oven knob on, localisation "
-                                   "about 10 cm off); print progress and a report; write the "
-                                   "execution logs and a top-down PNG.")
+    p = add_command(sub, "demo", __doc__,
+                    help="run the three named missions on the simulated demo home")
     p.add_argument("--world", default=str(DEMO_WORLD), help="world file (default: the demo home)")
     p.add_argument("--out", type=output_dir, default="out/demo",
                    help="output directory (default out/demo)")

@@ -1,19 +1,18 @@
-"""`hearth export MISSION.yaml --format btcpp [-o FILE]`: a mission as BehaviorTree.CPP v4 XML."""
+"""`hearth export MISSION.yaml --format btcpp [-o FILE]`: a mission as BehaviorTree.CPP v4 XML.
+
+Check MISSION and write it as BehaviorTree.CPP v4 XML (Groot2, Nav2): one <BehaviorTree> for
+the mission and one per included subtree, {key} remapping, and a <TreeNodesModel> with the
+skills' ports. See docs/missions.md, 'From and to BehaviorTree.CPP'.
+"""
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
-from pathlib import Path
+
+from executive.cliutil import add_command
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="write a mission as BehaviorTree.CPP v4 XML",
-                       description="Check MISSION and write it as BehaviorTree.CPP v4 XML "
-                                   "(Groot2, Nav2): one <BehaviorTree> for the mission and one "
-                                   "per included subtree, {key} remapping, and a "
-                                   "<TreeNodesModel> with the skills' ports. See "
-                                   "docs/missions.md, 'From and to BehaviorTree.CPP'.")
+    p = add_command(sub, "export", __doc__, help="write a mission as BehaviorTree.CPP v4 XML")
     p.add_argument("mission", metavar="MISSION.yaml")
     p.add_argument("--format", default="btcpp", choices=["btcpp"],
                    help="output format (btcpp: BehaviorTree.CPP v4 XML)")
@@ -24,26 +23,12 @@ def register(sub) -> None:
     p.set_defaults(func=_run)
 
 
-def write_atomically(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder, so a failed
-    write never leaves half a file."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent or ".", prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _run(args) -> int:
     from executive.btcpp import export_mission
+    from worldmodel.io import atomic_write
     xml = export_mission(args.mission, palette=args.palette)
     if args.output:
-        write_atomically(args.output, xml)
+        atomic_write(args.output, xml.encode("utf-8"))
         print(f"{args.mission}: written to {args.output}", file=sys.stderr)
     else:
         sys.stdout.write(xml)

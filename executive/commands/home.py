@@ -1,17 +1,20 @@
-"""`hearth home make|describe`: generated homes (worldmodel/homegen.py) and what is in a home."""
+"""`hearth home make|describe`: generated homes (worldmodel/homegen.py) and what is in a home.
+
+Generate valid homes that differ the way real homes do (turned rooms, furniture and knob
+designs, off states with other names, objects on low shelves and in closed cupboards); see
+docs/world-format.md, 'Generated homes'.
+"""
 from __future__ import annotations
 
 import math
 import sys
 from pathlib import Path
 
+from executive.cliutil import add_command
+
 
 def register(sub) -> None:
-    p = sub.add_parser("home", help="generate homes, or describe what a home holds",
-                       description="Generate valid homes that differ the way real homes do "
-                                   "(turned rooms, furniture and knob designs, off states with "
-                                   "other names, objects on low shelves and in closed "
-                                   "cupboards); see docs/world-format.md, 'Generated homes'.")
+    p = add_command(sub, "home", __doc__, help="generate homes, or describe what a home holds")
     hs = p.add_subparsers(dest="home_command", metavar="ACTION", required=True)
     m = hs.add_parser("make", help="write generated homes",
                       description="Write the home of each seed: DIR/world.xml (and "

@@ -1,11 +1,14 @@
-"""`hearth log show RUN.jsonl`: print a run's timeline; `hearth log replay RUN.jsonl`."""
+"""`hearth log show RUN.jsonl`: print a run's timeline; `hearth log replay RUN.jsonl`.
+
+Execution logs: show a run's timeline, or replay it offline against the logged skill results.
+"""
 from __future__ import annotations
+
+from executive.cliutil import add_command
 
 
 def register(sub) -> None:
-    p = sub.add_parser("log", help="read execution logs (runs/*.jsonl)",
-                       description="Execution logs: show a run's timeline, or replay it "
-                                   "offline against the logged skill results.")
+    p = add_command(sub, "log", __doc__, help="read execution logs (runs/*.jsonl)")
     lsub = p.add_subparsers(dest="log_command", metavar="ACTION", required=True)
     s = lsub.add_parser("show", help="print a run's timeline",
                         description="Print a run's events, in the order they happened within "

@@ -1,28 +1,28 @@
 """`hearth record MISSION --scenario S --out PATH [--format hearth|mcap]`: run a mission on the
 simulated robot and record every capture for replay with `hearth run --recording PATH`:
 a Hearth recording directory (docs/recording-format.md) or a ROS 2 bag in MCAP storage
-(docs/ros2-foxglove.md)."""
+(docs/ros2-foxglove.md).
+
+Run a mission on the simulated robot (a scenario, or the world itself as truth) with every
+RGB-D capture and robot action written to a recording: a Hearth recording directory, or with
+--format mcap a ROS 2 bag (rosbag2 directory, MCAP storage) that also carries the mission's
+events. With --scenario and no --world, the scenario's belief.xml is the map. The map is left
+as it was (a replay starts from it), unless --map-out names where to keep what the mission
+learned. Exit 0 when the mission succeeds, 1 when it fails.
+"""
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-from executive.cliutil import (DEFAULT_WORLD, add_run_arguments, belief_file, close_map,
-                               keep_map, make_clock, output_dir, parse_params, run_to_end, seed)
+from executive.cliutil import (DEFAULT_WORLD, add_command, add_run_arguments, belief_file,
+                               close_map, keep_map, make_clock, output_dir, parse_params,
+                               run_to_end, seed)
 
 
 def register(sub) -> None:
-    p = sub.add_parser("record", help="run a mission in simulation and record its captures",
-                       description="Run a mission on the simulated robot (a scenario, or the "
-                                   "world itself as truth) with every RGB-D capture and robot "
-                                   "action written to a recording: a Hearth recording "
-                                   "directory, or with --format mcap a ROS 2 bag (rosbag2 "
-                                   "directory, MCAP storage) that also carries the mission's "
-                                   "events. With --scenario and no --world, the scenario's "
-                                   "belief.xml is the map. The map is left as it was (a "
-                                   "replay starts from it), unless --map-out names where to "
-                                   "keep what the mission learned. Exit 0 when the mission "
-                                   "succeeds, 1 when it fails.")
+    p = add_command(sub, "record", __doc__,
+                    help="run a mission in simulation and record its captures")
     add_run_arguments(p, saves=False)
     p.add_argument("--out", type=output_dir, required=True, metavar="PATH",
                    help="recording directory (or bag directory) to write")

@@ -1,26 +1,23 @@
-"""`hearth run MISSION [--param k=v]`: run a mission against a simulated or replayed robot."""
+"""`hearth run MISSION [--param k=v]`: run a mission against a simulated or replayed robot.
+
+Run a mission on the robot adapter made by robot.create_adapter (simulated home, scenario or
+recording), printing the mission's progress. The belief map is kept on disk: what the mission
+learns is saved after every change (--map-out, --no-save). Exit 0 when it succeeds, 1 when it
+fails or is cancelled, 2 for bad input (a parameter the map refutes included).
+"""
 from __future__ import annotations
 
 import sys
 import time
 
-from executive.cliutil import (add_run_arguments, close_map, make_executive, outcome_line,
-                               run_to_end)
+from executive.cliutil import (add_command, add_run_arguments, add_topics_argument, close_map,
+                               make_executive, outcome_line, run_to_end)
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="run a mission",
-                       description="Run a mission on the robot adapter made by "
-                                   "robot.create_adapter (simulated home, scenario or "
-                                   "recording), printing the mission's progress. The belief "
-                                   "map is kept on disk: what the mission learns is saved after "
-                                   "every change (--map-out, --no-save). Exit 0 when it "
-                                   "succeeds, 1 when it fails or is cancelled, 2 for bad input "
-                                   "(a parameter the map refutes included).")
+    p = add_command(sub, "run", __doc__, help="run a mission")
     add_run_arguments(p)
-    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
-                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
-                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
+    add_topics_argument(p)
     out = p.add_mutually_exclusive_group()
     out.add_argument("--quiet", action="store_true",
                      help="print only the outcome line (on stdout)")

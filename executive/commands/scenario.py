@@ -1,18 +1,20 @@
-"""`hearth scenario make --world W --seed N --out DIR`: a simulation scenario (robot/scenario.py)."""
+"""`hearth scenario make --world W --seed N --out DIR`: a simulation scenario (robot/scenario.py).
+
+Perturb a world's truth from a seed (moved objects, ajar doors, knobs on, clutter, occluders,
+localisation error) and write belief.xml, truth.xml and scenario.json, with copies of the
+meshes the world refers to.
+"""
 from __future__ import annotations
 
 import math
 import sys
 
-from executive.cliutil import DEFAULT_WORLD, output_dir, seed
+from executive.cliutil import DEFAULT_WORLD, add_command, output_dir, seed
 
 
 def register(sub) -> None:
-    p = sub.add_parser("scenario", help="make a simulation scenario (belief, truth, start pose)",
-                       description="Perturb a world's truth from a seed (moved objects, ajar "
-                                   "doors, knobs on, clutter, occluders, localisation error) "
-                                   "and write belief.xml, truth.xml and scenario.json, with "
-                                   "copies of the meshes the world refers to.")
+    p = add_command(sub, "scenario", __doc__,
+                    help="make a simulation scenario (belief, truth, start pose)")
     s = p.add_subparsers(dest="scenario_command", required=True)
     m = s.add_parser("make", help="write a scenario directory")
     m.add_argument("--world", default=str(DEFAULT_WORLD), help="world file")

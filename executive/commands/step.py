@@ -13,7 +13,8 @@ from __future__ import annotations
 import sys
 from typing import TYPE_CHECKING
 
-from executive.cliutil import add_run_arguments, integer_in, make_executive
+from executive.cliutil import (add_command, add_run_arguments, add_topics_argument, integer_in,
+                               make_executive)
 
 if TYPE_CHECKING:
     from executive.executive import Executive
@@ -24,12 +25,9 @@ HELP = ("t [N]: tick N times | u NAME: tick until NAME runs | s NAME=VALUE: set 
 
 
 def register(sub) -> None:
-    p = sub.add_parser("step", help="step a mission tick by tick",
-                       description=__doc__.split("\n\n", 1)[1])
+    p = add_command(sub, "step", __doc__, help="step a mission tick by tick")
     add_run_arguments(p)
-    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
-                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
-                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
+    add_topics_argument(p)
     p.add_argument("--ticks", type=integer_in(0, 10**9, "--ticks"), default=None,
                    help="tick N times without asking, then print tree and blackboard")
     p.set_defaults(func=_run)

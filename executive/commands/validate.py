@@ -1,20 +1,19 @@
 """`hearth validate FILE...`: check world files (.xml) and mission files (.yaml/.yml).
 
-Nothing is printed on success (exit 0); otherwise one ``path:line: message`` line per
-problem and exit status 2.
+Check world files (XML, schema and semantics) and mission files (YAML). Prints nothing and
+exits 0 when all are valid; otherwise one 'path:line: message' line per problem and exit
+status 2.
 """
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
+from executive.cliutil import add_command
+
 
 def register(sub) -> None:
-    p = sub.add_parser("validate", help="check world (.xml) and mission (.yaml) files",
-                       description="Check world files (XML, schema and semantics) and mission "
-                                   "files (YAML). Prints nothing and exits 0 when all are "
-                                   "valid; otherwise one 'path:line: message' line per problem "
-                                   "and exit status 2.")
+    p = add_command(sub, "validate", __doc__, help="check world (.xml) and mission (.yaml) files")
     p.add_argument("files", nargs="+", metavar="FILE")
     p.set_defaults(func=_run)
 

@@ -44,6 +44,7 @@ import statistics
 import time
 import zlib
 from dataclasses import dataclass, field
+from itertools import cycle, islice
 
 import numpy as np
 
@@ -340,8 +341,8 @@ def bench_localisation(world, n: int, rng, layout: Layout, t: Tally) -> None:
         return
     K = Intrinsics.kinect()
     scene = Scene(scene_meshes(world))
-    for i in range(n):
-        T_true = base_in_front(world, objects[i % len(objects)], rng, layout)
+    for oid in islice(cycle(objects), n):
+        T_true = base_in_front(world, oid, rng, layout)
         if T_true is None:
             t.count("viewpoints_unavailable")
             continue
@@ -368,6 +369,17 @@ def bench_localisation(world, n: int, rng, layout: Layout, t: Tally) -> None:
             t.count("loc_bad")
 
 
+def _front_view(world, truth, oid: str, K, rng, layout: Layout, t: Tally, scenes: str):
+    """``(T_world_camera, depth)``: ``truth`` seen by a camera in front of ``oid`` (a scene
+    counted in ``scenes``), or ``(None, None)`` when no viewpoint is free (counted too)."""
+    Tc = camera_in_front(world, oid, rng, layout)
+    if Tc is None:
+        t.count("viewpoints_unavailable")
+        return None, None
+    t.count(scenes)
+    return Tc, simulate_depth(truth, K, Tc, rng)
+
+
 def bench_large_object(world, n: int, rng, layout: Layout, t: Tally) -> None:
     """The object stands up to 5 cm / 4 deg from where the map has it (as in the issue's trial)."""
     from perception.articulated import register_base
@@ -376,8 +388,7 @@ def bench_large_object(world, n: int, rng, layout: Layout, t: Tally) -> None:
     if not objects:
         return
     K = Intrinsics.kinect()
-    for i in range(n):
-        oid = objects[i % len(objects)]
+    for oid in islice(cycle(objects), n):
         truth = world.copy()
         Tm = world.T_world(oid)
         r, th = rng.uniform(0, 0.05), rng.uniform(0, 2 * math.pi)
@@ -387,12 +398,9 @@ def bench_large_object(world, n: int, rng, layout: Layout, t: Tally) -> None:
         T_true = D @ Tm
         T_parent = truth.T_world(truth.parent(oid).id)
         truth.set_pose(oid, Pose.from_matrix(np.linalg.inv(T_parent) @ T_true))
-        Tc = camera_in_front(world, oid, rng, layout)
+        Tc, depth = _front_view(world, truth, oid, K, rng, layout, t, "large_object_scenes")
         if Tc is None:
-            t.count("viewpoints_unavailable")
             continue
-        t.count("large_object_scenes")
-        depth = simulate_depth(truth, K, Tc, rng)
         t0, c0 = time.perf_counter(), time.process_time()
         try:
             reg = register_base(world, oid, depth, K, Tc, include_parts=True)
@@ -424,19 +432,15 @@ def bench_parts(world, n: int, rng, layout: Layout, t: Tally, kind: str) -> None
     if not objects:
         return
     K = Intrinsics.kinect()
-    for i in range(n):
-        oid = objects[i % len(objects)]
+    for oid in islice(cycle(objects), n):
         obj = world.get(oid)
         parts = [p for p in _all_parts(obj) if p.joint.type == jt]
         states = _open_states(obj, rng)
         truth = _articulated_scene(world, oid, rng, states)
-        Tc = camera_in_front(world, oid, rng, layout)
+        Tc, depth = _front_view(world, truth, oid, K, rng, layout, t, f"{kind}_scenes")
         if Tc is None:
-            t.count("viewpoints_unavailable")
             continue
-        t.count(f"{kind}_scenes")
         t.count(f"{kind}_parts", len(parts))
-        depth = simulate_depth(truth, K, Tc, rng)
         try:
             reg = register_articulated(world, oid, depth, K, Tc)
         except Exception:  # noqa: BLE001
@@ -491,19 +495,15 @@ def bench_handles(world, n: int, rng, layout: Layout, t: Tally) -> None:
     if not objects:
         return
     K = Intrinsics.kinect()
-    for i in range(n):
-        oid = objects[i % len(objects)]
+    for oid in islice(cycle(objects), n):
         obj = world.get(oid)
         handled = [p for p in _all_parts(obj) if p.handles]
         two_doors = sum(p.joint.type == "revolute" for p in handled) == 2 and len(handled) == 2
         states = _open_states(obj, rng)
         truth = _articulated_scene(world, oid, rng, states)
-        Tc = camera_in_front(world, oid, rng, layout)
+        Tc, depth = _front_view(world, truth, oid, K, rng, layout, t, "handle_scenes")
         if Tc is None:
-            t.count("viewpoints_unavailable")
             continue
-        t.count("handle_scenes")
-        depth = simulate_depth(truth, K, Tc, rng)
         t0, c0 = time.perf_counter(), time.process_time()
         try:
             reg = register_articulated(world, oid, depth, K, Tc)

@@ -23,11 +23,8 @@
 """
 from __future__ import annotations
 
-import glob
 import json
 import math
-import os
-import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -37,12 +34,13 @@ import cv2
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.frames import (FrameFileError, check_color_png, check_depth_png, decode_color,
                                  decode_depth, inside)
-from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead
+from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged
+from worldmodel.io import atomic_write
 from worldmodel.pose import Pose, wrap_angle
 
 FORMAT = "hearth-recording"
@@ -67,18 +65,6 @@ def _pose_dict(p) -> Optional[dict]:
 
 def _matrix(T) -> Optional[list]:
     return None if T is None else np.asarray(T, dtype=float).round(9).tolist()
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def frame_entry(frame, goal=None) -> dict:
@@ -111,8 +97,6 @@ class RecordingWriter:
     def __init__(self, directory, intrinsics: Optional[Intrinsics] = None, info: Optional[dict] = None):
         self.dir = Path(directory)
         (self.dir / "frames").mkdir(parents=True, exist_ok=True)
-        for stale in glob.glob(glob.escape(str(self.dir / MANIFEST)) + "*.tmp"):
-            os.unlink(stale)                   # left by a writer killed mid-rename
         self.header: dict[str, Any] = dict(format=FORMAT, version=VERSION,
                                            depth_scale=DEPTH_SCALE, info=dict(info or {}),
                                            intrinsics=intrinsics.as_dict() if intrinsics else None,
@@ -127,7 +111,8 @@ class RecordingWriter:
         return self._n
 
     def _write_header(self) -> None:
-        _atomic_write_text(self.dir / MANIFEST, json.dumps(self.header, indent=1) + "\n")
+        # atomically, and a temporary file a writer killed mid-rename left is removed
+        atomic_write(self.dir / MANIFEST, (json.dumps(self.header, indent=1) + "\n").encode())
 
     def set_start_pose(self, pose) -> None:
         self.header["start_pose"] = _pose_dict(pose)
@@ -583,7 +568,7 @@ def _jsonable(d: dict) -> dict:
 
 # -- replay ----------------------------------------------------------------------------------
 
-class ReplayRobot(PanTiltHead):
+class ReplayRobot(PanTiltHead, SpokenAndLogged):
     """An adapter serving recorded frames (docs/recording-format.md).
 
     The base "drives" to wherever it is sent (taking distance over ``speed`` on the clock);
@@ -730,19 +715,11 @@ class ReplayRobot(PanTiltHead):
     def hand_over(self) -> Action:
         return self._replayed("hand_over")
 
-    def say(self, text: str) -> Action:
-        self.said.append(str(text))
-        self._log("say", text=str(text))
-        return DoneAction("say", result=str(text))
-
     def stop(self) -> None:
         self.stops += 1
         for a in self._actions:
             a.cancel()
         self._log("stop")
-
-    def _log(self, action: str, **info) -> None:
-        self.log.append(dict(time=self.clock.now(), action=action, **info))
 
 
 __all__ = ["Capture", "Recording", "RecordingRobot", "RecordingWriter", "ReplayRobot",

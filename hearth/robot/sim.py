@@ -103,6 +103,22 @@ class PanTiltHead:
         return self.set_head(*pan_tilt_to(self.base_pose(), point_world, self.mount))
 
 
+class SpokenAndLogged:
+    """Speech and the action log of the simulated and the replayed robot: ``say`` is done at
+    once and kept in ``said``; ``_log`` appends one dict per action to ``log`` (``time`` on
+    ``self.clock``, ``action`` and its details). The class using it sets ``said``, ``log``
+    and ``clock``."""
+
+    def say(self, text: str):
+        from hearth.robot.adapter import DoneAction
+        self.said.append(str(text))
+        self._log("say", text=str(text))
+        return DoneAction("say", result=str(text))
+
+    def _log(self, action: str, **info) -> None:
+        self.log.append(dict(time=self.clock.now(), action=action, **info))
+
+
 @dataclass
 class Frame:
     """One RGB-D capture. ``color`` uint8 RGB (H, W, 3); ``depth`` float32 metres (0 = no

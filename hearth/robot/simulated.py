@@ -21,11 +21,12 @@ from typing import Iterable, Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.noise import KinectNoise
-from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, camera_pose, render_view
+from hearth.robot.sim import (HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged, camera_pose,
+                              render_view)
 from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
 from worldmodel.frames import room_at
 from worldmodel.pose import Pose, wrap_angle
@@ -34,7 +35,7 @@ from worldmodel.pose import Pose, wrap_angle
 T_BASE_CARRY = Pose(0.40, 0.0, 0.85).matrix()
 
 
-class SimulatedRobot(PanTiltHead):
+class SimulatedRobot(PanTiltHead, SpokenAndLogged):
     """A robot adapter (robot/adapter.py) over a simulated home.
 
     ``truth``: the true world (changed by the robot's actions; pass a copy to keep yours).
@@ -320,11 +321,6 @@ class SimulatedRobot(PanTiltHead):
         return self._start("arm", act, object=obj.id)
 
     # -- speech and safety -------------------------------------------------------------------
-    def say(self, text: str) -> Action:
-        self.said.append(str(text))
-        self._log("say", text=str(text))
-        return DoneAction("say", result=str(text))
-
     def stop(self) -> None:
         self.stops += 1
         for _, act in list(self._actions):
@@ -357,9 +353,6 @@ class SimulatedRobot(PanTiltHead):
     def _timed_failure(self, name: str, reason: str, **info) -> Action:
         act = TimedAction(name, self.clock, self.approach_time * 2, fail=reason)
         return self._start("arm", act, **info)
-
-    def _log(self, action: str, **info) -> None:
-        self.log.append(dict(time=self.clock.now(), action=action, **info))
 
     def _node(self, node_id: str):
         return self.truth.get(node_id) if node_id in self.truth else None

@@ -229,6 +229,19 @@ def _oven_skills():
     return skills
 
 
+def _turn_off_oven(world, robot):
+    return run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot, skills=_oven_skills())
+
+
+def _assert_turned_off(result, world, robot, knob_id, off_state):
+    """The mission succeeded: ``knob_id`` is at ``off_state`` in the map and at angle 0 in
+    truth, and the robot said it turned one knob off."""
+    assert result.outcome == "succeeded", result.reason
+    assert world.get(knob_id).state == off_state
+    assert robot.truth_knobs[knob_id] == pytest.approx(0.0)
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
 def _knob_angle(world, knob_id, state):
     k = world.get(knob_id)
     assert isinstance(k, Knob)
@@ -240,18 +253,13 @@ def test_turn_off_oven_turns_off_the_knob_that_is_on(world):
     robot = FakeRobot(knobs={"oven_knob_2": _knob_angle(world, "oven_knob_2", on_state)})
     if "TurnKnob" not in {k for k, v in mission_skills().items() if v.__module__ == "skills.knobs"}:
         pytest.skip("TurnKnob not landed")
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
-    assert result.outcome == "succeeded", result.reason
-    assert world.get("oven_knob_2").state == "off"
-    assert robot.truth_knobs["oven_knob_2"] == pytest.approx(0.0)
-    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+    result, _ = _turn_off_oven(world, robot)
+    _assert_turned_off(result, world, robot, "oven_knob_2", "off")
 
 
 def test_turn_off_oven_with_every_knob_off_says_so(world):
     robot = FakeRobot()
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
+    result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
     assert robot.said[-1] == "Every knob of the oven was already off."
 
@@ -260,8 +268,7 @@ def test_a_stuck_knob_ends_with_cannot(world):
     on_state = [s.name for s in world.get("oven_knob_3").states if s.name != "off"][0]
     robot = FakeRobot(knobs={"oven_knob_3": _knob_angle(world, "oven_knob_3", on_state)},
                       stuck={"oven_knob_3"})
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
+    result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
     assert "I cannot turn off oven knob 3 of the oven: it did not move" in result.reason
 
@@ -279,8 +286,7 @@ def test_a_knob_unread_from_the_first_place_is_read_from_another_and_turned_off(
     # the map says off (stale); the knob is on and the first view cannot read it
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}])
-    result, sub = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                      skills=_oven_skills())
+    result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
     assert _made(sub, "drive_aside").seen_inputs[-1]["parking"] == "another"
     assert robot.reads[:2] == [None, ["oven_knob_4"]]   # all, then the unread one again
@@ -291,8 +297,7 @@ def test_a_knob_unread_from_the_first_place_is_read_from_another_and_turned_off(
 def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
     every = {k.id for k in world.knobs("oven")}
     robot = FakeRobot(knobs={"oven_knob_1": _on(world, "oven_knob_1")}, unreadable=[every])
-    result, sub = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                      skills=_oven_skills())
+    result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
     assert _made(sub, "drive_aside_for_all").seen_inputs[-1]["parking"] == "another"
     assert robot.reads[:2] == [None, None]
@@ -302,8 +307,7 @@ def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
 def test_a_knob_unread_from_both_places_is_never_taken_for_off(world):
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}, {"oven_knob_4"}])
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
+    result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
     assert robot.said[-1] == ("I could not read the oven knob 4 of the oven, so I cannot tell "
                               "whether it is off; please check it")
@@ -315,8 +319,7 @@ def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
     # read fine first; after each turn the reading cannot see it
     robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
                       unreadable=[set(), {"oven_knob_2"}, {"oven_knob_2"}])
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
+    result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
     assert "I turned oven knob 2 of the oven but could not read it back; please check it" in result.reason
     assert not any("it is off now" in x for x in robot.said)
@@ -358,12 +361,8 @@ def test_a_knob_whose_off_state_is_not_called_off_is_turned_to_its_own_off(world
     k.states = [KnobState("0", 0.0), KnobState("1", 0.8), KnobState("2", 1.6), KnobState("3", 2.4)]
     k.off_state, k.state, k.angle = "0", "0", 0.0
     robot = FakeRobot(knobs={"oven_knob_1": 1.6})
-    result, _ = run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot,
-                    skills=_oven_skills())
-    assert result.outcome == "succeeded", result.reason
-    assert world.get("oven_knob_1").state == "0"
-    assert robot.truth_knobs["oven_knob_1"] == pytest.approx(0.0)
-    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+    result, _ = _turn_off_oven(world, robot)
+    _assert_turned_off(result, world, robot, "oven_knob_1", "0")
 
 
 def test_turn_off_oven_falls_back_to_other_landmarks_when_the_fix_on_the_oven_is_not_trusted(world):

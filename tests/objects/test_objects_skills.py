@@ -13,11 +13,8 @@ from skills.objects import DetectObject, PlanNextBestView, VerifyObject
 from worldmodel.pose import Pose
 
 
-@pytest.fixture(autouse=True)
-def clean_blackboard():
-    py_trees.blackboard.Blackboard.clear()
-    yield
-    py_trees.blackboard.Blackboard.clear()
+# py_trees' blackboard is global: each test here starts and ends with an empty one.
+pytestmark = pytest.mark.usefixtures("clean_blackboard")
 
 
 def make(cls, world, robot, inputs=None, outputs=None):

@@ -32,13 +32,19 @@ def _front_camera(world, oid, lateral=0.1, distance=1.5):
     return look_at(eye, target)
 
 
+def _registered(world, oid, states, seed, lateral=0.1):
+    """``world``'s object ``oid`` registered in a depth image of it with its parts at
+    ``states``, seen from the front: ``(truth, T_world_camera, registration)``."""
+    truth = _truth(world, states)
+    Tc = _front_camera(world, oid, lateral)
+    depth = simulate_depth(truth, K, Tc, np.random.default_rng(seed))
+    return truth, Tc, register_articulated(world, oid, depth, K, Tc)
+
+
 @pytest.mark.parametrize("left,right", [(0, 35), (35, 90), (90, 0)])
 def test_cupboard_doors_read_at_0_35_and_90_degrees(demo_world, left, right):
     states = {"cupboard_door_left": math.radians(left), "cupboard_door_right": math.radians(right)}
-    truth = _truth(demo_world, states)
-    Tc = _front_camera(demo_world, "cupboard")
-    depth = simulate_depth(truth, K, Tc, np.random.default_rng(left + right))
-    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    truth, _, reg = _registered(demo_world, "cupboard", states, left + right)
     for pid, want in (("cupboard_door_left", left), ("cupboard_door_right", right)):
         st = reg.parts[pid]
         assert st.known, st.reason
@@ -71,20 +77,14 @@ def test_a_door_seen_edge_on_is_unknown_not_a_wrong_angle(demo_world):
 
 def test_a_drawer_hidden_below_an_open_one_is_unknown(demo_world):
     states = {"drawer_0": 0.0, "drawer_1": 0.22, "drawer_2": 0.1}
-    truth = _truth(demo_world, states)
-    Tc = _front_camera(demo_world, "drawer_unit")
-    depth = simulate_depth(truth, K, Tc, np.random.default_rng(5))
-    reg = register_articulated(demo_world, "drawer_unit", depth, K, Tc)
+    _, _, reg = _registered(demo_world, "drawer_unit", states, 5)
     assert not reg.parts["drawer_0"].known and "hidden" in reg.parts["drawer_0"].reason
     assert abs(reg.parts["drawer_1"].state - 0.22) < 0.005
 
 
 def test_drawers_read_to_the_millimetre(demo_world):
     states = {"drawer_0": 0.3, "drawer_1": 0.15, "drawer_2": 0.0}
-    truth = _truth(demo_world, states)
-    Tc = _front_camera(demo_world, "drawer_unit")
-    depth = simulate_depth(truth, K, Tc, np.random.default_rng(5))
-    reg = register_articulated(demo_world, "drawer_unit", depth, K, Tc)
+    _, _, reg = _registered(demo_world, "drawer_unit", states, 5)
     for pid, want in states.items():
         assert reg.parts[pid].unit == "m"
         assert abs(reg.parts[pid].state - want) < 0.005
@@ -92,10 +92,7 @@ def test_drawers_read_to_the_millimetre(demo_world):
 
 def test_handles_found_within_5_mm_and_1_degree(demo_world):
     states = {"cupboard_door_left": math.radians(20), "cupboard_door_right": math.radians(50)}
-    truth = _truth(demo_world, states)
-    Tc = _front_camera(demo_world, "cupboard", lateral=-0.2)
-    depth = simulate_depth(truth, K, Tc, np.random.default_rng(7))
-    reg = register_articulated(demo_world, "cupboard", depth, K, Tc)
+    truth, Tc, reg = _registered(demo_world, "cupboard", states, 7, lateral=-0.2)
     hs = register_handles(demo_world, reg, Tc)
     for hid in ("cupboard_handle_left", "cupboard_handle_right"):
         est = hs[hid]

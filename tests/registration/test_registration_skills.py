@@ -46,11 +46,8 @@ class FramedRobot:
         self.T_bel = pose.matrix()
 
 
-@pytest.fixture(autouse=True)
-def clean_blackboard():
-    py_trees.blackboard.Blackboard.clear()
-    yield
-    py_trees.blackboard.Blackboard.clear()
+# py_trees' blackboard is global: each test here starts and ends with an empty one.
+pytestmark = pytest.mark.usefixtures("clean_blackboard")
 
 
 def make(cls, world, robot, inputs=None, outputs=None):

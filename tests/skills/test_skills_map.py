@@ -49,11 +49,8 @@ class FakeRobot:
         return self.next
 
 
-@pytest.fixture(autouse=True)
-def clean_blackboard():
-    py_trees.blackboard.Blackboard.clear()
-    yield
-    py_trees.blackboard.Blackboard.clear()
+# py_trees' blackboard is global: each test here starts and ends with an empty one.
+pytestmark = pytest.mark.usefixtures("clean_blackboard")
 
 
 def make(cls, world, robot=None, inputs=None, outputs=None):

@@ -3,12 +3,12 @@ the safety distance, room and occupancy filters, and the ProposeSearchPositions 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import py_trees
 from hypothesis import given, settings, strategies as st
 
+from hearth.robot.sim import Frame
 from perception.camera import Intrinsics
 from perception.search_positions import (
     OccupancyGrid, SearchConfig, propose_search_positions, table_tops,
@@ -90,14 +90,6 @@ def test_occupancy_footprint_of_a_rotated_table_keeps_its_corners_free():
 
 # -- the skill ----------------------------------------------------------------------------------
 
-@dataclass
-class Frame:
-    depth: np.ndarray
-    color: np.ndarray
-    intrinsics: Intrinsics
-    T_world_camera: np.ndarray
-
-
 class LookingRobot:
     def __init__(self, world, eye, target):
         from perception.camera import look_at
@@ -111,7 +103,8 @@ class LookingRobot:
         self.pose = Pose(eye[0], eye[1], 0, 0, 0, math.atan2(target[1] - eye[1], target[0] - eye[0]))
 
     def capture(self):
-        return Frame(self.r.depth, self.r.color, self.K, self.T_wc)
+        return Frame(color=self.r.color, depth=self.r.depth, intrinsics=self.K,
+                     T_world_camera=self.T_wc)
 
     def base_pose(self):
         return self.pose
