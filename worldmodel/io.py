@@ -11,6 +11,7 @@ bound the work a file can ask for. Problems are reported as ``WorldError`` with 
 from __future__ import annotations
 
 import fcntl
+import itertools
 import os
 import re
 import secrets
@@ -29,7 +30,7 @@ from worldmodel.nodes import (
     SmallObject, Surface, Switch, Visual,
 )
 from worldmodel.pose import Pose
-from worldmodel.validate import MAX_TEXT_CHARS, semantic_problems
+from worldmodel.validate import MAX_ROOMS, MAX_TEXT_CHARS, semantic_problems
 
 SCHEMA_PATH = Path(__file__).with_name("schema") / "world.xsd"
 FORMAT_VERSION = "1"
@@ -311,6 +312,11 @@ def parse_world(data: bytes, name: str = "<world>", base_dir: Optional[Path] = N
         raise WorldError(_TOO_LARGE, file=name, line=0)
     tree = _parse_tree(data, name)
     root = tree.getroot()
+    # The room limit is checked on the bare tree too, before the schema and the nodes are built:
+    # a 30 MB file of 1,200 rooms is refused in a second instead of after every node is read.
+    extra = next(itertools.islice(root.iter("room"), MAX_ROOMS, None), None)
+    if extra is not None:
+        raise WorldError(f"more than {MAX_ROOMS} rooms", file=name, line=extra.sourceline or 0)
     schema = _schema()
     if not schema.validate(tree):
         problems = [WorldError(_clean_schema_message(e.message), file=name, line=e.line)
