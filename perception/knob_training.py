@@ -10,9 +10,14 @@ other than the benchmark's):
 - ``detect_gate``: the fit (R^2) a knob's region needs to count as holding the knob, the
   middle of the lowest-error range between regions with the knob found where it is and
   regions without it (or with it found elsewhere);
-- ``state_gate``: the margin over the best other state a reading needs, just above the
-  largest margin of any validation reading whose state was wrong (times ``margin_safety``,
-  at least ``margin_floor``), so that no wrong reading of the validation views would pass.
+- ``state_gate`` (and ``state_gate_hard``, ``state_gate_very_hard`` for harder views,
+  ``view_level``): the margin over the best other state a reading needs, just above the
+  largest margin of any validation reading of its level whose state was wrong (times
+  ``margin_safety``, at least ``margin_floor``), so that no wrong reading of the validation
+  views would pass.
+
+The gates are fitted on readings with the views' depth images, and again on readings of
+colour alone (``KnobReader.colour_gates``, for a caller without depth).
 
 ``world_signature(world)`` is what of the home the result depends on, and
 ``configuration(cfg, knob)`` everything else: together they key the stored model

@@ -31,6 +31,15 @@ window, in RGB (so a red tip on a black grip, equal in grey, still tells the ang
 blind to gain, offset and the actual colours, so it holds under other lighting, cameras and
 renderers, and needs no rendering of colour at all; the colours of the map are not trusted.
 
+**Depth.** Given the registered depth image, the reader also compares the knob's height
+above its face plane, as the templates (``ShapeTemplates.heights``) and the exact renderings
+give it, with the measured depth (``canvas_heights``; squared correlation, so blind to the
+believed plane's height and the depth scale), and adds that fit to the colour's: the knob's
+body stands out of its panel whatever its colours, so depth says where a knob without colour
+contrast is (its marker alone fits as well flipped by half a turn a radius away), and which
+way a protruding grip lies. The centre is then taken from the depth, each candidate angle at
+the centre the depth gives the shape at that angle.
+
 **Reading a knob** (``KnobReader.read``): (1) the canvas at the coarse scale; (2) where the
 knob is: the labels averaged over every angle (what the knob looks like whatever its angle)
 are fitted at every offset within ``search_m`` of where the map puts it (a soft-label
@@ -41,8 +50,10 @@ real camera centre, perspective, fixed parts in place) at three angles each, at 
 scale, scored over small offsets; a parabola through the three gives the angle; (5) the
 state: the nearest state to the angle (modulo the symmetry), given only when the fit is
 good enough (``detect_gate``: a knob is there), the margin over the best other state is
-wide enough (``state_gate``, calibrated on rendered validation views so that no wrong
-reading passed it; an "off" reading needs more), and the angle lies well inside the state's
+wide enough (``state_gate`` / ``state_gate_hard`` / ``state_gate_very_hard`` by
+``view_level``, calibrated on rendered validation views so that no wrong reading passed
+it; an "off" reading needs more; a reading without depth has gates of its own,
+``colour_gates``), and the angle lies well inside the state's
 half step. Otherwise "unknown", with the reason.
 
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
