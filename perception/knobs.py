@@ -996,10 +996,20 @@ class KnobReader:
                 flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
                 if flip not in picks and allowed[flip]:
                     picks = picks + [flip]
-            fine = []
+            # candidates whose centres agree (a knob whose body looks the same at every
+            # angle) share one window
+            groups: list = []
             for c in picks:
                 c_at = _depth_center(hc, hv, tpl.heights[ti][c], (ci, cj), inside, off, rho) or center
-                fine += self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, [tpl.alphas[c]],
+                for g in groups:
+                    if math.hypot(g[0][0] - c_at[0], g[0][1] - c_at[1]) <= 0.05 * prior.radius:
+                        g[1].append(tpl.alphas[c])
+                        break
+                else:
+                    groups.append((c_at, [tpl.alphas[c]]))
+            fine = []
+            for c_at, alphas in groups:
+                fine += self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, alphas,
                                      psi, r_px, depth, theta)
         else:
             fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
