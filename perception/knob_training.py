@@ -3,7 +3,7 @@ describes them.
 
 ``train(world, cfg, knob)`` makes the reader of ``world``'s knobs in seconds: the label-map
 templates of every knob shape of the home (``KnobTemplates.fit``: renderings, nothing
-learned), then the two gates calibrated on validation views rendered from the map
+learned), then the gates calibrated on validation views rendered from the map
 (perception/knob_data.py: the home's own panels, neighbours, lighting and sensor noise, seeds
 other than the benchmark's):
 
