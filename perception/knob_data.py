@@ -56,7 +56,8 @@ class KnobView:
     """One rendered view around one knob: ``image`` (H, W, 3) uint8 of the cropped camera
     ``K``; ``believed``: the map's (perturbed) prior used to search; ``truth``: the true
     prior; ``angle``: the true angle (rad); ``present``: False when the knob was removed; ``state``: the true state
-    when views are drawn at states."""
+    when views are drawn at states; ``depth``: the registered depth image (m, 0: no reading,
+    with the sensor noise when ``noise`` is given)."""
     image: np.ndarray
     K: Intrinsics
     T_world_camera: np.ndarray
@@ -67,6 +68,7 @@ class KnobView:
     distance: float
     off_axis_deg: float
     state: str = ""
+    depth: Optional[np.ndarray] = None
 
 
 class KnobScenes:
@@ -330,7 +332,8 @@ def render_views(world, n: int, seed: int, data: KnobDataConfig = KnobDataConfig
             # the views (poses, angles, lighting) of a seed unchanged
             r = noise(r, np.random.default_rng([seed, len(out)])) or r
         out.append(KnobView(photometric(r.color, rng, data), K, T_wc, believed, truth,
-                            angles[kid], bool(present), dist, off, states.get(kid, "")))
+                            angles[kid], bool(present), dist, off, states.get(kid, ""),
+                            np.asarray(r.depth, dtype=np.float32)))
         if progress and len(out) % 50 == 0:
             progress(len(out), n)
     return out

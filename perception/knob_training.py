@@ -3,16 +3,21 @@ describes them.
 
 ``train(world, cfg, knob)`` makes the reader of ``world``'s knobs in seconds: the label-map
 templates of every knob shape of the home (``KnobTemplates.fit``: renderings, nothing
-learned), then the two gates calibrated on validation views rendered from the map
+learned), then the gates calibrated on validation views rendered from the map
 (perception/knob_data.py: the home's own panels, neighbours, lighting and sensor noise, seeds
 other than the benchmark's):
 
 - ``detect_gate``: the fit (R^2) a knob's region needs to count as holding the knob, the
   middle of the lowest-error range between regions with the knob found where it is and
   regions without it (or with it found elsewhere);
-- ``state_gate``: the margin over the best other state a reading needs, just above the
-  largest margin of any validation reading whose state was wrong (times ``margin_safety``,
-  at least ``margin_floor``), so that no wrong reading of the validation views would pass.
+- ``state_gate`` (and ``state_gate_hard``, ``state_gate_very_hard`` for harder views,
+  ``view_level``): the margin over the best other state a reading needs, just above the
+  largest margin of any validation reading of its level whose state was wrong (times
+  ``margin_safety``, at least ``margin_floor``), so that no wrong reading of the validation
+  views would pass.
+
+The gates are fitted on readings with the views' depth images, and again on readings of
+colour alone (``KnobReader.colour_gates``, for a caller without depth).
 
 ``world_signature(world)`` is what of the home the result depends on, and
 ``configuration(cfg, knob)`` everything else: together they key the stored model
@@ -33,12 +38,12 @@ import numpy as np
 
 from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
 from perception.knobs import (
-    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape,
+    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape, view_level,
     off_axis_deg, snap_to_state, to_rgb,
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 9
+CODE_VERSION = 13
 
 _canon = canon   # the name earlier code imported
 
@@ -140,13 +145,14 @@ def shapes_of(world) -> list:
     return list(out.values())
 
 
-def validation_readings(reader: KnobReader, views) -> list[dict]:
+def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> list[dict]:
     """The reader's evidence on rendered views (no gates): per view whether the knob was
     there, found where it is (within half a radius of its true centre), the fit, the margin
     and whether the state its angle snaps to is the true one."""
     out = []
     for v in views:
-        r = reader.evidence(to_rgb(v.image), v.K, v.T_world_camera, v.believed)
+        r = reader.evidence(to_rgb(v.image), v.K, v.T_world_camera, v.believed,
+                            v.depth if use_depth else None)
         near = False
         if r.found and v.present:
             cx, cy = true_center_m(v)
@@ -157,8 +163,12 @@ def validation_readings(reader: KnobReader, views) -> list[dict]:
                         margin=float(r.evidence.get("margin", 0.0)),
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         shape=v.believed.shape,
+                        radius_px=float(r.evidence.get("radius_px", 0.0)),
+                        off_axis=off_axis_deg(v.T_world_camera, v.believed),
                         hard=hard_view(float(r.evidence.get("radius_px", 0.0)),
-                                       off_axis_deg(v.T_world_camera, v.believed))))
+                                       off_axis_deg(v.T_world_camera, v.believed)),
+                        level=view_level(float(r.evidence.get("radius_px", 0.0)),
+                                         off_axis_deg(v.T_world_camera, v.believed))))
     return out
 
 
@@ -176,16 +186,22 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
     # never below the first, so that a few confident wrong readings far away do not make
     # every near knob unknown, and a hard view needs what the hard views of validation needed
-    state = gate(passed)
-    easy = [r for r in passed if not r.get("hard")]
-    hard = gate([r for r in passed if r.get("hard")])
-    if len(easy) >= cfg.min_easy_readings:
-        state = gate(easy)
-        if hard.threshold_ < state.threshold_:
-            hard = state
-    else:
-        hard = state
-    return KnobReader(reader.templates, det, state, reader.config, state_gate_hard=hard)
+    # and the hard views split again: the very hard ones (view_level 2: under 8 px, more than
+    # 55 degrees off) get their own, so that one confident wrong reading at 59 degrees does
+    # not make every view at 46 unknown. A level with too few readings takes the gate of
+    # itself and every harder level together; no level's gate is below an easier one's.
+    gates = []
+    for level in range(3):
+        rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) == level]
+        if len(rs) < cfg.min_easy_readings:
+            rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) >= max(level - 1, 0)]
+        g = gate(rs)
+        if gates and g.threshold_ < gates[-1].threshold_:
+            g = gates[-1]
+        gates.append(g)
+    out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
+    out.state_gate_very_hard = gates[2]
+    return out
 
 
 def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = KnobConfig(),
@@ -212,8 +228,11 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
                          replace(cfg.data, missing_rate=cfg.validation_missing), knob, noise=noise,
                          scenes=scenes, progress=lambda d, n: say("rendering validation views", d, n))
     say("reading validation views", 0, len(views))
-    readings = validation_readings(reader, views)
-    reader = calibrate(reader, readings, cfg)
+    # the gates of readings with the depth image, and those of readings on colour alone
+    # (a caller without depth)
+    colour = calibrate(reader, validation_readings(reader, views, use_depth=False), cfg)
+    reader = calibrate(reader, validation_readings(reader, views), cfg)
+    reader.colour_gates = colour
     d, s = reader.detect_gate, reader.state_gate
     say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"
         f"{d.validation_['positives']} knobs, {d.validation_['negatives_passed']}/"

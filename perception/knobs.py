@@ -31,6 +31,15 @@ window, in RGB (so a red tip on a black grip, equal in grey, still tells the ang
 blind to gain, offset and the actual colours, so it holds under other lighting, cameras and
 renderers, and needs no rendering of colour at all; the colours of the map are not trusted.
 
+**Depth.** Given the registered depth image, the reader also compares the knob's height
+above its face plane, as the templates (``ShapeTemplates.heights``) and the exact renderings
+give it, with the measured depth (``canvas_heights``; squared correlation, so blind to the
+believed plane's height and the depth scale), and adds that fit to the colour's: the knob's
+body stands out of its panel whatever its colours, so depth says where a knob without colour
+contrast is (its marker alone fits as well flipped by half a turn a radius away), and which
+way a protruding grip lies. The centre is then taken from the depth, each candidate angle at
+the centre the depth gives the shape at that angle.
+
 **Reading a knob** (``KnobReader.read``): (1) the canvas at the coarse scale; (2) where the
 knob is: the labels averaged over every angle (what the knob looks like whatever its angle)
 are fitted at every offset within ``search_m`` of where the map puts it (a soft-label
@@ -41,8 +50,10 @@ real camera centre, perspective, fixed parts in place) at three angles each, at 
 scale, scored over small offsets; a parabola through the three gives the angle; (5) the
 state: the nearest state to the angle (modulo the symmetry), given only when the fit is
 good enough (``detect_gate``: a knob is there), the margin over the best other state is
-wide enough (``state_gate``, calibrated on rendered validation views so that no wrong
-reading passed it; an "off" reading needs more), and the angle lies well inside the state's
+wide enough (``state_gate`` / ``state_gate_hard`` / ``state_gate_very_hard`` by
+``view_level``, calibrated on rendered validation views so that no wrong reading passed
+it; an "off" reading needs more; a reading without depth has gates of its own,
+``colour_gates``), and the angle lies well inside the state's
 half step. Otherwise "unknown", with the reason.
 
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
@@ -116,6 +127,10 @@ class KnobConfig:
     max_snap: float = read_time(0.7)
     off_margin_factor: float = read_time(1.5)
     min_confidence: float = read_time(0.0)
+    angle_span_steps: int = read_time(2)
+    fine_ridge_px: float = read_time(0.0)
+    depth_weight: float = read_time(1.0)
+    depth_settle_radii: float = read_time(0.03)
     threshold: Optional[float] = read_time(None)
     margin_threshold: Optional[float] = read_time(None)
 
@@ -212,14 +227,15 @@ class _Caster:
             self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
 
     def labels(self, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray, fixed_turn: float,
-               fine: bool = False) -> np.ndarray:
+               fine: bool = False, with_t: bool = False):
         """Labels (uint16, 0 = nothing) of rays given in the canvas frame with the knob's
         origin at the canvas origin, for each of ``turns`` (B,): the turning visuals turned
         by it (rad, counter-clockwise about +z), the fixed ones by ``fixed_turn``.
         ``origins`` (3,) or (B, N, 3), ``dirs`` (N, 3) or (B, N, 3). The label is
         1 + visual * classes + face class, the face class from the normal turned into the
         canvas: front (along the axis), else which way it faces (4 sides, or with ``fine``
-        ``FINE_AZIMUTHS`` directions in two bands of steepness)."""
+        ``FINE_AZIMUTHS`` directions in two bands of steepness). With ``with_t``: also the
+        ray parameter of each hit (B, N) (inf where nothing is hit)."""
         turns = np.atleast_1d(np.asarray(turns, dtype=float))
         B = len(turns)
         dirs = np.broadcast_to(dirs, (B,) + np.shape(dirs)[-2:])
@@ -260,7 +276,7 @@ class _Caster:
             lab = np.take_along_axis(table, tri, axis=1)
             label = np.where(hit, lab, label)
             best_t = np.where(hit, t, best_t)
-        return label
+        return (label, best_t) if with_t else label
 
 
 def _canvas_points(n: int, px_per_m: float, center=(0.0, 0.0)) -> np.ndarray:
@@ -287,6 +303,9 @@ class ShapeTemplates:
     alphas: np.ndarray
     thetas: np.ndarray
     n_labels: int
+    #: (T, A, n, n) float32: the height (m) of what each canvas pixel shows above the face
+    #: plane (<= 0: the knob's front at 0, the panel at -face), what a depth image shows
+    heights: Optional[np.ndarray] = None
 
 
 class KnobTemplates(BaseEstimator):
@@ -327,14 +346,18 @@ class KnobTemplates(BaseEstimator):
         thetas = np.radians(np.arange(0.0, self.max_theta_deg + 1e-9, self.theta_step_deg))
         L = 1 + len(shape.roles) * N_FACE
         labels = np.zeros((len(thetas), n_alpha, n, n), np.uint8)
+        heights = np.zeros((len(thetas), n_alpha, n, n), np.float32)
         for ti, th in enumerate(thetas):
             v = np.array([0.0, math.sin(th), math.cos(th)])     # towards the camera
             origins = np.empty((len(q), 3))
             origins[:, :2] = q + _FAR * v[:2]
             origins[:, 2] = shape.face + _FAR * v[2]            # knob origin at z = -face
             dirs = np.broadcast_to(-v, origins.shape)
-            lab = caster.labels(origins, dirs, alphas, 0.0)
+            lab, t = caster.labels(origins, dirs, alphas, 0.0, with_t=True)
             labels[ti] = lab.reshape(n_alpha, n, n)
+            # the hit's height above the face plane; no hit: the panel (z = 0 of the knob)
+            z = origins[None, :, 2] - t * v[2]
+            heights[ti] = np.where(np.isfinite(t), z - shape.face, -shape.face).reshape(n_alpha, n, n)
         counts = np.stack([np.stack([np.bincount(labels[t, a].ravel(), minlength=L)
                                      for a in range(n_alpha)]) for t in range(len(thetas))])
         onehot = (labels[..., None] == np.arange(L)).mean(1)          # (T, n, n, L)
@@ -342,7 +365,7 @@ class KnobTemplates(BaseEstimator):
         flat = soft.reshape(len(thetas), L, -1).astype(np.float64)
         gram_inv = np.stack([np.linalg.pinv(f @ f.T, rcond=1e-6, hermitian=True) for f in flat])
         return ShapeTemplates(labels, counts.astype(np.float32), soft, gram_inv.astype(np.float32),
-                              alphas, thetas, L)
+                              alphas, thetas, L, heights)
 
     def bin_of(self, theta: float) -> int:
         check_is_fitted(self)
@@ -528,6 +551,24 @@ def rectify(image: np.ndarray, H_img_canvas: np.ndarray, size: int) -> np.ndarra
                                borderMode=cv2.BORDER_REPLICATE)
 
 
+def canvas_heights(depth: np.ndarray, H_img_canvas: np.ndarray, size: int, camera_height: float,
+                   face: float, slack: float = 0.03) -> tuple[np.ndarray, np.ndarray]:
+    """The depth image seen through a canvas (``rectify``'s ``H_img_canvas``) as heights (m)
+    above the canvas plane (the knob's face), and where they are valid: a measured depth,
+    between ``slack`` behind the panel (``face`` below the plane) and ``slack`` in front of
+    the plane. A canvas pixel is a point q of the plane at camera depth z_q (the homography's
+    third row); the surface seen through it lies on the same ray at the measured depth Z,
+    at height ``camera_height`` * (1 - Z / z_q)."""
+    Z = cv2.warpPerspective(np.asarray(depth, np.float32), H_img_canvas, (size, size),
+                            flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    jj, ii = np.meshgrid(np.arange(size, dtype=np.float64), np.arange(size, dtype=np.float64))
+    zq = H_img_canvas[2, 0] * jj + H_img_canvas[2, 1] * ii + H_img_canvas[2, 2]
+    h = camera_height * (1.0 - Z / np.where(zq > 1e-6, zq, 1e-6))
+    valid = (Z > 0) & (zq > 1e-6) & (h > -face - slack) & (h < slack)
+    return np.where(valid, h, 0.0), valid
+
+
 def to_gray(image: np.ndarray) -> np.ndarray:
     if image.ndim == 2:
         return image if image.dtype == np.uint8 else np.clip(image, 0, 255).astype(np.uint8)
@@ -580,6 +621,55 @@ def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) ->
     return np.where(tv > 1e-6 * N, (explained - mean_part) / np.maximum(tv, 1e-9), 0.0)
 
 
+def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndarray,
+                        min_valid: float = 0.5) -> np.ndarray:
+    """Squared correlation (with a positive slope; 0 otherwise) between a measured height map
+    (H, W) (m above the face plane, only where ``valid``) and a template height map (n, n) at
+    every valid window position: (H - n + 1, W - n + 1). Correlation, so that an error of the
+    believed plane's height (registration) or of the depth scale does not matter; windows with
+    fewer than ``min_valid`` of their pixels measured score 0. OpenCV's matchTemplate does the
+    sums (masked correlation is not one of its modes: the masked sums are written out)."""
+    n = template.shape[0]
+    N = n * n
+    w = valid.astype(np.float32)
+    ref = float(np.median(height[valid])) if valid.any() else 0.0
+    hw = np.where(valid, (height - ref) * 1000.0, 0.0).astype(np.float32)      # mm
+    t = ((template - template.mean()) * 1000.0).astype(np.float32)
+    Sw = _box_sum(w, n)
+    Sh = _box_sum(hw, n)
+    Shh = _box_sum(hw * hw, n)
+    St = cv2.matchTemplate(w, t, cv2.TM_CCORR).astype(np.float64)
+    Stt = cv2.matchTemplate(w, t * t, cv2.TM_CCORR).astype(np.float64)
+    Sht = cv2.matchTemplate(hw, t, cv2.TM_CCORR).astype(np.float64)
+    Swc = np.maximum(Sw, 1.0)
+    cov = Sht - Sh * St / Swc
+    vh = Shh - Sh * Sh / Swc
+    vt = Stt - St * St / Swc
+    ok = (Sw >= min_valid * N) & (cov > 0) & (vh > 1e-9) & (vt > 1e-9)
+    return np.where(ok, cov * cov / np.maximum(vh * vt, 1e-12), 0.0)
+
+
+def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
+                 min_valid: float = 0.5) -> np.ndarray:
+    """Squared correlation (positive slope, else 0) of measured heights ``heights`` (P, N)
+    (valid where ``valid``) with template heights ``templates`` (A, N): (P, A)."""
+    W = valid.astype(np.float64)
+    m = np.where(valid, heights, 0.0).astype(np.float64) * 1000.0
+    T = templates.astype(np.float64) * 1000.0
+    T = T - T.mean(1, keepdims=True)
+    Sw = np.maximum(W.sum(1), 1.0)[:, None]
+    Sm = (W * m).sum(1)[:, None]
+    Smm = (W * m * m).sum(1)[:, None]
+    St = W @ T.T
+    Stt = W @ (T * T).T
+    Smt = (W * m) @ T.T
+    cov = Smt - Sm * St / Sw
+    vm = Smm - Sm * Sm / Sw
+    vt = Stt - St * St / Sw
+    ok = (W.sum(1)[:, None] >= min_valid * heights.shape[1]) & (cov > 0) & (vm > 1e-9) & (vt > 1e-9)
+    return np.where(ok, cov * cov / np.maximum(vm * vt, 1e-12), 0.0)
+
+
 def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_labels: int) -> np.ndarray:
     """R^2 of piecewise-constant fits: ``patches`` (P, N, 3) pixel colours, ``labels`` (A, N)
     label maps, ``counts`` (A, L) pixels per label. Returns (P, A)."""
@@ -598,6 +688,33 @@ def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_
     tv = (patches.astype(np.float64) ** 2).sum((1, 2)) - mean_part
     bcv -= mean_part[:, None]
     return np.where(tv[:, None] > 1e-6 * N, bcv / np.maximum(tv, 1e-9)[:, None], 0.0)
+
+
+def _depth_center(hc, hv, template, cell, inside, off, rho, reach: int = 2, min_fit: float = 0.3):
+    """The canvas offset (m, canvas frame) where ``template`` (heights, n x n) fits the
+    measured heights best, within ``reach`` canvas pixels of ``cell`` (row, column of the
+    offset grid ``off``) and inside the search region, refined by a parabola through its
+    neighbours in each direction; None when the best fit is under ``min_fit``."""
+    d = depth_offset_scores(hc, hv, template)
+    d = np.where(inside, d, -np.inf)
+    ci, cj = cell
+    i0, i1 = max(ci - reach, 0), min(ci + reach + 1, d.shape[0])
+    j0, j1 = max(cj - reach, 0), min(cj + reach + 1, d.shape[1])
+    sub = d[i0:i1, j0:j1]
+    k = int(np.argmax(sub))
+    i, j = i0 + k // sub.shape[1], j0 + k % sub.shape[1]
+    if not np.isfinite(d[i, j]) or d[i, j] < min_fit:
+        return None
+
+    def vertex(a, b, c):
+        den = a - 2 * b + c
+        if not (np.isfinite(a) and np.isfinite(c)) or den >= 0:
+            return 0.0
+        return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+
+    di = vertex(d[i - 1, j], d[i, j], d[i + 1, j]) if 0 < i < d.shape[0] - 1 else 0.0
+    dj = vertex(d[i, j - 1], d[i, j], d[i, j + 1]) if 0 < j < d.shape[1] - 1 else 0.0
+    return (float(off[j] + dj / rho), float(-(off[i] + di / rho)))
 
 
 def _candidates(curve: np.ndarray, allowed: np.ndarray, state_of: np.ndarray, k: int) -> list[int]:
@@ -686,9 +803,21 @@ HARD_RADIUS_PX = 12.0
 HARD_OFF_AXIS_DEG = 45.0
 
 
+#: ... and *very hard* under VERY_HARD_RADIUS_PX or more than VERY_HARD_OFF_AXIS_DEG off.
+VERY_HARD_RADIUS_PX = 8.0
+VERY_HARD_OFF_AXIS_DEG = 55.0
+
+
 def hard_view(radius_px: float, off_axis: float) -> bool:
     """Whether a view of a knob (its radius in pixels, degrees off its axis) is a hard one."""
     return radius_px < HARD_RADIUS_PX or off_axis > HARD_OFF_AXIS_DEG
+
+
+def view_level(radius_px: float, off_axis: float) -> int:
+    """How hard a view is for the state gate: 0, 1 (``hard_view``) or 2 (very hard)."""
+    if radius_px < VERY_HARD_RADIUS_PX or off_axis > VERY_HARD_OFF_AXIS_DEG:
+        return 2
+    return int(hard_view(radius_px, off_axis))
 
 
 class KnobReader:
@@ -700,10 +829,16 @@ class KnobReader:
 
     def __init__(self, templates: KnobTemplates, detect_gate: CalibratedThreshold,
                  state_gate: CalibratedThreshold, config: KnobConfig = KnobConfig(),
-                 state_gate_hard: Optional[CalibratedThreshold] = None):
+                 state_gate_hard: Optional[CalibratedThreshold] = None,
+                 colour_gates: Optional["KnobReader"] = None):
         self.templates, self.detect_gate, self.state_gate, self.config = (
             templates, detect_gate, state_gate, config)
         self.state_gate_hard = state_gate_hard
+        #: the gate of very hard views (``view_level`` 2; None: ``state_gate_hard``)
+        self.state_gate_very_hard: Optional[CalibratedThreshold] = None
+        #: the gates of readings made without a depth image (the fit and margins of colour
+        #: alone are on another scale), as a reader whose gates they are; None: these gates
+        self.colour_gates = colour_gates
         self._casters: dict = {}
 
     def __getstate__(self):
@@ -726,24 +861,45 @@ class KnobReader:
         cfg = self.config
         return cfg.margin_threshold if cfg.margin_threshold is not None else self.state_gate.threshold_
 
-    def margin_threshold_for(self, hard: bool) -> float:
-        """The state gate of a view (``hard_view``): the hard views' own when it has one."""
+    def gates_for(self, depth: bool) -> "KnobReader":
+        """The reader whose gates apply to a reading with (or without) depth."""
+        g = getattr(self, "colour_gates", None)
+        return g if (not depth and g is not None) else self
+
+    def margin_threshold_for(self, hard) -> float:
+        """The state gate of a view (``view_level``: 0, 1 or 2; or ``hard_view``): the hard
+        or very hard views' own when it has one."""
         cfg = self.config
         if cfg.margin_threshold is not None:
             return cfg.margin_threshold
-        g = self.state_gate_hard if hard and getattr(self, "state_gate_hard", None) is not None else self.state_gate
+        level = int(hard)
+        g = self.state_gate
+        if level >= 1 and getattr(self, "state_gate_hard", None) is not None:
+            g = self.state_gate_hard
+        if level >= 2 and getattr(self, "state_gate_very_hard", None) is not None:
+            g = self.state_gate_very_hard
         return g.threshold_
 
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
-             priors: Sequence[KnobPrior]) -> list[KnobReading]:
+             priors: Sequence[KnobPrior], depth: Optional[np.ndarray] = None) -> list[KnobReading]:
+        """One reading per prior. ``depth``: the depth image registered to ``image`` (m along
+        the optical axis, 0 where there is no reading); read on colour alone without it."""
         rgb = to_rgb(np.asarray(image))
         T_wc = np.asarray(T_world_camera, dtype=float)
-        return [self.read_one(rgb, K, T_wc, p) for p in priors]
+        if depth is not None:
+            depth = np.asarray(depth, dtype=np.float32)
+            if depth.shape[:2] != rgb.shape[:2]:
+                raise ValueError(f"the depth image is {depth.shape[1]}x{depth.shape[0]}, the colour "
+                                 f"image {rgb.shape[1]}x{rgb.shape[0]}: they must be registered")
+        return [self.read_one(rgb, K, T_wc, p, depth) for p in priors]
 
     # one knob ------------------------------------------------------------------------------
-    def evidence(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior):
+    def evidence(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior,
+                 depth: Optional[np.ndarray] = None):
         """The knob's fit: a KnobReading with ``found`` and ``angle`` (no gates applied, no
-        state) and, when it could be looked at, ``evidence`` (score, margin, runner_up)."""
+        state) and, when it could be looked at, ``evidence`` (score, margin, runner_up).
+        ``depth``: the registered depth image (m along the optical axis, 0: no reading; the
+        image's size), fused with the colour fit when given (``depth_weight``)."""
         cfg = self.config
         tm = self.templates
         if prior.shape not in tm.templates_:
@@ -779,6 +935,13 @@ class KnobReader:
         canvas = rectify(rgb, H, size).astype(np.float32)
         ti = tm.bin_of(theta)
         r2 = offset_scores(canvas, tpl.soft[ti], tpl.gram_inv[ti])
+        use_depth = depth is not None and tpl.heights is not None and cfg.depth_weight > 0
+        if use_depth:
+            # the depth image as heights above the believed face plane, the same canvas
+            hc, hv = canvas_heights(depth, H, size, float(C[2]), shape.face)
+            use_depth = bool(hv.mean() >= 0.3)
+        if use_depth:
+            r2 = r2 + cfg.depth_weight * depth_offset_scores(hc, hv, tpl.heights[ti].mean(0))
         off = (np.arange(2 * S + 1) - S) / rho
         prior_pen = (off[None, :] ** 2 + off[:, None] ** 2) / (2 * cfg.offset_sigma_m ** 2)
         inside = (off[None, :] ** 2 + off[:, None] ** 2) <= search_m ** 2
@@ -791,6 +954,11 @@ class KnobReader:
         patches = np.stack([canvas[i:i + n, j:j + n].reshape(-1, 3) for i, j in cells])
         flat = tpl.labels[ti].reshape(len(tpl.alphas), -1)
         coarse = label_scores(patches, flat, tpl.counts[ti], tpl.n_labels)          # (P, A)
+        if use_depth:
+            hp = np.stack([hc[i:i + n, j:j + n].ravel() for i, j in cells])
+            vp = np.stack([hv[i:i + n, j:j + n].ravel() for i, j in cells])
+            coarse = coarse + cfg.depth_weight * depth_scores(
+                hp, vp, tpl.heights[ti].reshape(len(tpl.alphas), -1))
         best_cell = int(np.argmax(coarse.max(1)))
         ci, cj = cells[best_cell]
         curve = coarse[best_cell]
@@ -801,10 +969,51 @@ class KnobReader:
             allowed[:] = True
         state_of = _states_of(prior, knob_angles)
         picks = _candidates(curve, allowed, state_of, cfg.candidates)
+        if use_depth:
+            # the centre from the depth alone, with the shape at the best coarse angle (the
+            # knob's body stands out of the panel whatever its colours), to a fraction of a
+            # canvas pixel: colour alone can trade the centre against the angle. Then the
+            # coarse angles again, in a canvas centred there.
+            c_depth = _depth_center(hc, hv, tpl.heights[ti][picks[0]], (ci, cj), inside, off, rho)
+            if c_depth is not None:
+                center = c_depth
+                Hd = plane_homography(K, T_wc, T_c, rho, n, center)
+                patch = rectify(rgb, Hd, n).astype(np.float32).reshape(1, -1, 3)
+                hd, vd = canvas_heights(depth, Hd, n, float(C[2]), shape.face)
+                curve = (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels)[0]
+                         + cfg.depth_weight * depth_scores(
+                             hd.reshape(1, -1), vd.reshape(1, -1),
+                             tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
+                picks = _candidates(curve, allowed, state_of, cfg.candidates)
 
-        # (4) the exact check of the candidates at the fine scale
-        fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
-                            [tpl.alphas[c] for c in picks], psi, r_px)
+        # (4) the exact check of the candidates at the fine scale; with depth, each candidate
+        # at the centre the depth gives the shape at its own angle (a pointer flipped by 180
+        # degrees stands elsewhere: the best candidate is the best centre and angle together)
+        if use_depth:
+            if shape.symmetry == 1:
+                # and the best coarse angle turned by half a turn, whatever the coarse curve
+                # says of it: a marker flipped a radius away is the mistake colour makes
+                flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
+                if flip not in picks and allowed[flip]:
+                    picks = picks + [flip]
+            # candidates whose centres agree (a knob whose body looks the same at every
+            # angle) share one window
+            groups: list = []
+            for c in picks:
+                c_at = _depth_center(hc, hv, tpl.heights[ti][c], (ci, cj), inside, off, rho) or center
+                for g in groups:
+                    if math.hypot(g[0][0] - c_at[0], g[0][1] - c_at[1]) <= 0.05 * prior.radius:
+                        g[1].append(tpl.alphas[c])
+                        break
+                else:
+                    groups.append((c_at, [tpl.alphas[c]]))
+            fine = []
+            for c_at, alphas in groups:
+                fine += self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, alphas,
+                                     psi, r_px, depth, theta)
+        else:
+            fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
+                                [tpl.alphas[c] for c in picks], psi, r_px, None, theta)
         fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
         fine.sort(key=lambda f: -f[0])
         best = fine[0]
@@ -831,23 +1040,26 @@ class KnobReader:
                             (float(pixel[0]), float(pixel[1])), float(psi))
         ev = dict(score=round(float(score_best), 4), margin=round(float(margin), 4),
                   runner_up=(snap_to_state(fine[1][1], prior)[0] if len(fine) > 1 else None),
-                  coarse_score=round(float(curve[c_best]), 4), radius_px=round(r_px, 2))
+                  coarse_score=round(float(curve[c_best]), 4), radius_px=round(r_px, 2),
+                  depth=bool(use_depth))
         return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
                            angles={"fused": float(angle)}, evidence=ev)
 
-    def read_one(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior) -> KnobReading:
-        r = self.evidence(rgb, K, T_wc, prior)
+    def read_one(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior,
+                 depth: Optional[np.ndarray] = None) -> KnobReading:
+        r = self.evidence(rgb, K, T_wc, prior, depth)
         if not r.found:
             return r
         cfg = self.config
         ev = r.evidence
-        if ev["score"] <= self.detect_threshold:
+        gates = self.gates_for(bool(ev.get("depth")))
+        if ev["score"] <= gates.detect_threshold:
             return KnobReading(prior.knob_id, False, evidence=ev,
                                reason=f"no knob found in its region (fit {ev['score']:.2f})")
         state, c_snap = snap_to_state(r.angle, prior)
         ev["snap"] = round(1.0 - c_snap, 3)
-        hard = hard_view(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
-        need = self.margin_threshold_for(hard) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
+        hard = view_level(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
+        need = gates.margin_threshold_for(hard) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
         if ev["margin"] <= need:
@@ -864,7 +1076,8 @@ class KnobReader:
     def _allowed(self, prior: KnobPrior, angles: np.ndarray) -> np.ndarray:
         return np.array([allowed_angle(prior, a) for a in angles])
 
-    def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px):
+    def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px,
+                depth=None, theta=0.0):
         """The exact check (module docstring, step 4): the knob rendered as the camera sees
         it, a ray through every image pixel around it from the real camera centre, at
         relative angles around each of ``alphas0`` (rad; the best coarse angle first), with
@@ -876,29 +1089,55 @@ class KnobReader:
         offset: Gauss-Newton on a rendering (``_Window.settle``). The angle: renderings half a
         template step either side, a parabola through the best three (walking while an end
         is the best); for the first candidate the offset again, then the same at a sixth of
-        a step. Returns [(R^2, knob angle, centre in the canvas frame)] per candidate."""
+        a step. With ``depth``: each rendering's depth (the knob, else the panel plane) is
+        correlated with the measured depth of the same image pixels, and the fit is the
+        colour R^2 plus ``depth_weight`` times that squared correlation; the offset then stays
+        within ``depth_settle_radii`` of where the depth put the knob (the colour alone of a
+        knob without contrast can fit a marker flipped by 180 degrees a radius away).
+        Returns [(fit, knob angle, centre in the canvas frame)] per candidate."""
         cfg, tm = self.config, self.templates
         if r_px > cfg.decimate_above_px:
             rgb = rgb[::2, ::2]
+            depth = None if depth is None else depth[::2, ::2]
             K = Intrinsics(K.fx / 2, K.fy / 2, K.cx / 2, K.cy / 2, rgb.shape[1], rgb.shape[0])
         rho = cfg.fine_px_per_radius / prior.radius
         n = 2 * int(math.ceil(tm.window_radii * cfg.fine_px_per_radius)) + 1
         caster = self.caster(prior.shape)
         R_canvas_cam = np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]
         max_shift = cfg.search_m * rho
+        if depth is not None:
+            max_shift = min(max_shift, cfg.depth_settle_radii * cfg.fine_px_per_radius)
+        slack = shape.face / max(math.cos(theta), 0.3) + 0.03
+        w_depth = cfg.depth_weight
 
         def look(c) -> Optional[_Window]:
-            win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, c), n)
+            win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, c), n,
+                          ridge=cfg.fine_ridge_px)
             if win.box is None:
                 return None
             o = np.array([c[0], c[1], -shape.face])
             dirs = win.rays_camera() @ R_canvas_cam.T
-            win.render = lambda alphas: caster.labels(C - o, dirs, alphas, -psi, fine=True)
+            O = C - o
+            win.render = lambda alphas: caster.labels(O, dirs, alphas, -psi, fine=True, with_t=True)
             win.c = c
+            win.depth_fit = None
+            if depth is not None:
+                u0, v0, u1, v1 = win.box
+                m = depth[v0:v1, u0:u1].ravel().astype(np.float64)
+                dz = np.where(np.abs(dirs[:, 2]) > 1e-6, dirs[:, 2], 1e-6)
+                panel = -O[2] / dz                     # the panel plane (z = 0 of the knob)
+                valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
+                if valid.mean() >= 0.3:
+                    win.depth_fit = lambda t: float(depth_scores(
+                        m[None], valid[None], np.where(np.isfinite(t), t, panel)[None])[0, 0])
             return win
 
+        def score(win, lab, t) -> float:
+            f = win.fit(lab)
+            return f + w_depth * win.depth_fit(t) if win.depth_fit is not None else f
+
         def settle(win: _Window, alpha: float) -> Optional[_Window]:
-            t = win.settle(win.render([alpha])[0], cfg.align_iterations, max_shift)
+            t = win.settle(win.render([alpha])[0][0], cfg.align_iterations, max_shift)
             if np.hypot(*t) <= 0.05:
                 return win
             return look((win.c[0] + t[0] / rho, win.c[1] + t[1] / rho))
@@ -909,29 +1148,33 @@ class KnobReader:
             return [(0.0, float(_wrap(a + psi)), center) for a in alphas0]
         step = math.radians(tm.alpha_step_deg) / 2
 
-        def search(win, starts, st, known=None):
-            """Parabolic search of each start angle (one rendering for all of them)."""
-            xs = [-st, 0.0, st]
-            fits = iter(win.fit(lab) for lab in win.render([a + x for a in starts for x in xs]))
+        def search(win, starts, st, span=1):
+            """Parabolic search of each start angle (one rendering for all of them), from
+            ``span`` steps either side of it (the coarse angle of a small marker can be a
+            few steps off)."""
+            ks = list(range(-span, span + 1))
+            labs, ts = win.render([a + k * st for a in starts for k in ks])
+            fits = iter(score(win, lab, t) for lab, t in zip(labs, ts))
             out = []
             for a in starts:
-                found = {x: next(fits) for x in xs}
+                found = {k: next(fits) for k in ks}        # by whole steps
                 for _ in range(2):         # walk while an end is the best
                     top = max(found, key=found.get)
                     if top not in (min(found), max(found)):
                         break
-                    x = top + (st if top == max(found) else -st)
-                    found[x] = win.fit(win.render([a + x])[0])
+                    k = top + (1 if top == max(found) else -1)
+                    labs, ts = win.render([a + k * st])
+                    found[k] = score(win, labs[0], ts[0])
                 top = max(found, key=found.get)
-                y1, ym, yp = found[top], found.get(top - st), found.get(top + st)
+                y1, ym, yp = found[top], found.get(top - 1), found.get(top + 1)
                 if ym is not None and yp is not None and ym - 2 * y1 + yp < 0:
                     x = float(np.clip(0.5 * (ym - yp) / (ym - 2 * y1 + yp), -0.5, 0.5))
-                    out.append((float(y1 - 0.25 * (ym - yp) * x), a + top + x * st))
+                    out.append((float(y1 - 0.25 * (ym - yp) * x), a + (top + x) * st))
                 else:
-                    out.append((float(y1), a + top))
+                    out.append((float(y1), a + top * st))
             return out
 
-        found = search(win, [float(a) for a in alphas0], step)
+        found = search(win, [float(a) for a in alphas0], step, cfg.angle_span_steps)
         out = [(sc, float(_wrap(a + psi)), win.c) for sc, a in found]
         if cfg.angle_stages > 1:
             top = int(np.argmax([f[0] for f in found]))
@@ -950,11 +1193,14 @@ class _Window:
     labels exactly as the image mixes colours. Shifting the maps by ``t`` (window px,
     canvas x right, y up) samples the rendered labels elsewhere (no new rendering)."""
 
-    def __init__(self, image: np.ndarray, K: Intrinsics, H: np.ndarray, n: int, pad: int = 3):
-        self.n, self.H, self.K = n, H, K
+    def __init__(self, image: np.ndarray, K: Intrinsics, H: np.ndarray, n: int, pad: int = 3,
+                 ridge: float = 0.0):
+        self.n, self.H, self.K, self.ridge = n, H, K, ridge
         self.window = rectify(image, H, n).astype(np.float32)
         X = self.window.reshape(-1, 3).astype(np.float64)
         self.X = X
+        # centred: the ridge (``_solve``) pulls a label's colour towards the window's mean
+        self.Xc = X - X.mean(0)
         total = X.sum(0)
         self.sum_sq = float((X * X).sum())
         self.mean_part = float((total * total).sum()) / len(X)
@@ -1016,9 +1262,12 @@ class _Window:
         return np.bincount(rows.ravel(), wts.ravel(), minlength=len(present) * N).reshape(len(present), N)
 
     def _solve(self, W: np.ndarray):
+        """Each label's colour (least squares, centred on the window's mean): a ridge of
+        ``ridge`` pixels, so that a label only a pixel or two wide (a side face seen edge-on)
+        cannot explain the noise or the blurred edge of a marker it happens to fall on."""
         G = W @ W.T
-        b = W @ self.X
-        G.flat[::len(G) + 1] += 1e-6
+        b = W @ self.Xc
+        G.flat[::len(G) + 1] += 1e-6 + self.ridge
         try:
             mu = np.linalg.solve(G, b)
         except np.linalg.LinAlgError:
@@ -1031,7 +1280,7 @@ class _Window:
         if self.tv <= 1e-6 * len(self.X):
             return 0.0
         mu, b = self._solve(self.maps(labels, t))
-        return (float(np.vdot(b, mu)) - self.mean_part) / self.tv
+        return float(np.vdot(b, mu)) / self.tv
 
     def settle(self, labels: np.ndarray, iterations: int, max_shift: float) -> np.ndarray:
         """The shift t (px, canvas x right, y up) of the rendered knob that fits the window
@@ -1045,7 +1294,7 @@ class _Window:
             gy, gx = np.gradient(model, axis=(0, 1))
             # the knob moved by t: model(q - t); d/dt = -grad (canvas y up: rows down)
             J = np.stack([-gx.ravel(), gy.ravel()], 1)
-            r = (self.X.reshape(n, n, 3) - model).ravel()
+            r = (self.Xc.reshape(n, n, 3) - model).ravel()
             A = J.T @ J
             if np.linalg.cond(A) > 1e10:
                 break

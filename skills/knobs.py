@@ -67,8 +67,10 @@ class ReadKnobs(Skill):
                 raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
             frame = self.robot.capture()
             K = getattr(frame, "intrinsics", None) or getattr(frame, "K")
+            depth = getattr(frame, "depth", None)
             readings = self._reader().read(np.asarray(frame.color), K,
-                                           np.asarray(frame.T_world_camera, dtype=float), priors)
+                                           np.asarray(frame.T_world_camera, dtype=float), priors,
+                                           depth=None if depth is None else np.asarray(depth))
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE

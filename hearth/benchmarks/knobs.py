@@ -90,7 +90,7 @@ def _measure(world, reader, n: int, seed: int, noise, label: str) -> list[dict]:
     out = []
     for v in views:
         t, c = time.perf_counter(), time.process_time()
-        r = reader.read(v.image, v.K, v.T_world_camera, [v.believed])[0]
+        r = reader.read(v.image, v.K, v.T_world_camera, [v.believed], depth=v.depth)[0]
         ms, cpu = (time.perf_counter() - t) * 1000, (time.process_time() - c) * 1000
         hit = False
         if r.found:
@@ -194,9 +194,9 @@ def run(args) -> dict:
         eye = mid + normal * rng.uniform(0.7, 1.1) + np.array([0, 0, rng.uniform(0.3, 0.6)])
         T_wc = look_at(eye, mid + rng.normal(0, 0.05, 3))
         angles = {p.knob_id: float(rng.choice(p.state_angles)) for p in priors}
-        img = scenes.scene("oven", angles).render(K, T_wc).color
+        frame = scenes.scene("oven", angles).render(K, T_wc)
         t = time.perf_counter()
-        reader.read(img, K, T_wc, priors)
+        reader.read(frame.color, K, T_wc, priors, depth=frame.depth)
         frame_ms.append((time.perf_counter() - t) * 1000)
 
     out = _figures(recs)

@@ -71,12 +71,17 @@ def _view(world, kid, distance, off_axis_deg=15.0, up_deg=10.0):
     return look_at(T[:3, 3] + distance * (T[:3, :3] @ d), T[:3, 3]), pr
 
 
-def _read(world, reader, scenes, kid, angle, distance=0.8, **kw):
+def _read(world, reader, scenes, kid, angle, distance=0.8, depth=False, **kw):
+    """The reading of one knob at ``angle`` in a rendered frame (with its depth image when
+    ``depth``, with the simulated Kinect's noise on it)."""
     T_wc, pr = _view(world, kid, distance, **kw)
     angles = {p.knob_id: p.state_angles[0] for p in knob_priors(world, "oven")}
     angles[kid] = angle
-    img = scenes.scene("oven", angles).render(K, T_wc).color
-    return reader.read(img, K, T_wc, [pr])[0], pr
+    frame = scenes.scene("oven", angles).render(K, T_wc)
+    if depth:
+        from hearth.robot.noise import add_kinect_noise
+        frame = add_kinect_noise(frame, np.random.default_rng(3))
+    return reader.read(frame.color, K, T_wc, [pr], depth=frame.depth if depth else None)[0], pr
 
 
 def test_the_map_describes_the_knobs_shape_and_it_survives_the_file(designed):
@@ -86,37 +91,50 @@ def test_the_map_describes_the_knobs_shape_and_it_survives_the_file(designed):
     assert k2.symmetry == 2 and not world.get("oven_knob_4").described
 
 
+@pytest.mark.parametrize("depth", [False, True], ids=["colour", "colour+depth"])
 @pytest.mark.parametrize("state", ["1", "3"])
-def test_a_mesh_described_knob_is_read_within_tolerance(designed, state):
+def test_a_mesh_described_knob_is_read_within_tolerance(designed, state, depth):
     world, reader, scenes = designed
     k = world.get("oven_knob_1")
     a = k.state_angle(state)
-    r, _ = _read(world, reader, scenes, "oven_knob_1", a, 0.8, off_axis_deg=20.0)
+    r, _ = _read(world, reader, scenes, "oven_knob_1", a, 0.8, depth=depth, off_axis_deg=20.0)
     assert r.found and r.state == state, r.reason
+    assert r.evidence["depth"] is depth
     assert abs(math.degrees(math.remainder(r.angle - a, 2 * math.pi))) < 8
 
 
+@pytest.mark.parametrize("depth", [False, True], ids=["colour", "colour+depth"])
 @pytest.mark.parametrize("state", ["1", "2", "4"])
-def test_a_symmetric_knob_at_180_degrees_reads_the_same_state(designed, state):
+def test_a_symmetric_knob_at_180_degrees_reads_the_same_state(designed, state, depth):
     world, reader, scenes = designed
     a = world.get("oven_knob_2").state_angle(state)
-    first, _ = _read(world, reader, scenes, "oven_knob_2", a)
-    turned, _ = _read(world, reader, scenes, "oven_knob_2", a + math.pi)
+    first, _ = _read(world, reader, scenes, "oven_knob_2", a, depth=depth)
+    turned, _ = _read(world, reader, scenes, "oven_knob_2", a + math.pi, depth=depth)
     assert first.state == turned.state == state, (first.reason, turned.reason)
 
 
-def test_a_knob_too_small_in_the_image_is_unknown(designed):
+@pytest.mark.parametrize("depth", [False, True], ids=["colour", "colour+depth"])
+def test_a_knob_too_small_in_the_image_is_unknown(designed, depth):
     world, reader, scenes = designed
     k = world.get("oven_knob_3")
-    r, _ = _read(world, reader, scenes, "oven_knob_3", k.state_angle(k.states[-1].name), 0.9)
+    r, _ = _read(world, reader, scenes, "oven_knob_3", k.state_angle(k.states[-1].name), 0.9, depth=depth)
     assert r.state == "unknown" and "too small" in r.reason
 
 
-def test_a_knob_too_far_away_is_unknown(designed):
+@pytest.mark.parametrize("depth", [False, True], ids=["colour", "colour+depth"])
+def test_a_knob_too_far_away_is_unknown(designed, depth):
     world, reader, scenes = designed
     k = world.get("oven_knob_4")
     on = k.states[-1].name
-    near, _ = _read(world, reader, scenes, "oven_knob_4", k.state_angle(on), 0.8)
+    near, _ = _read(world, reader, scenes, "oven_knob_4", k.state_angle(on), 0.8, depth=depth)
     assert near.state == on
-    far, _ = _read(world, reader, scenes, "oven_knob_4", k.state_angle(on), 7.0)
+    far, _ = _read(world, reader, scenes, "oven_knob_4", k.state_angle(on), 7.0, depth=depth)
     assert far.state == "unknown" and far.reason
+
+
+def test_a_depth_image_of_another_size_than_the_colour_image_is_refused(designed):
+    world, reader, scenes = designed
+    T_wc, pr = _view(world, "oven_knob_1", 0.8)
+    frame = scenes.scene("oven", {}).render(K, T_wc)
+    with pytest.raises(ValueError, match="registered"):
+        reader.read(frame.color, K, T_wc, [pr], depth=frame.depth[::2, ::2])

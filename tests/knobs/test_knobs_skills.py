@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import py_trees
@@ -22,6 +23,7 @@ class Frame:
     color: np.ndarray
     intrinsics: Intrinsics
     T_world_camera: np.ndarray
+    depth: Optional[np.ndarray] = None
 
 
 class Action:
@@ -41,8 +43,8 @@ class Action:
 class OvenRobot:
     """Renders the oven with the true knob angles from a camera in front of it."""
 
-    def __init__(self, world, truth_angles, ticks=2):
-        self.world, self.truth, self.ticks = world, dict(truth_angles), ticks
+    def __init__(self, world, truth_angles, ticks=2, depth=False):
+        self.world, self.truth, self.ticks, self.depth = world, dict(truth_angles), ticks, depth
         self.scenes = KnobScenes(world)
         priors = knob_priors(world, "oven")
         mid = np.mean([p.T_world_face()[:3, 3] for p in priors], axis=0)
@@ -50,7 +52,8 @@ class OvenRobot:
         self.turned = []
 
     def capture(self):
-        return Frame(self.scenes.scene("oven", self.truth).render(K, self.T_wc).color, K, self.T_wc)
+        r = self.scenes.scene("oven", self.truth).render(K, self.T_wc)
+        return Frame(r.color, K, self.T_wc, r.depth if self.depth else None)
 
     def turn_knob(self, knob_id, angle):
         self.turned.append((knob_id, angle))
@@ -70,9 +73,10 @@ def make(cls, world, robot, reader, inputs=None, outputs=None):
     return skill
 
 
-def test_read_knobs_writes_each_state_to_the_map(demo_world, reader):
+@pytest.mark.parametrize("depth", [False, True], ids=["colour", "colour+depth"])
+def test_read_knobs_writes_each_state_to_the_map(demo_world, reader, depth):
     k3 = demo_world.get("oven_knob_3")
-    robot = OvenRobot(demo_world, {"oven_knob_3": k3.state_angle("4")})
+    robot = OvenRobot(demo_world, {"oven_knob_3": k3.state_angle("4")}, depth=depth)
     s = make(ReadKnobs, demo_world, robot, reader, {"object": "oven"},
              {"states": "/states", "on": "/on"})
     s.tick_once()
