@@ -110,8 +110,8 @@ class EventHub:
                 return [], False
             if run is not None:
                 per = self._by_run.get(run, ())
-                mine = [e for e in per if e[0] > seq]
-                other = [e for e in self._global if e[0] > seq]
+                mine = _after(per, seq)
+                other = _after(self._global, seq)
                 items = sorted(mine + other)[:limit] if other else mine[:limit]
                 gap = bool(per) and per[0][0] > seq + 1 and len(per) == per.maxlen
                 return items, gap
@@ -121,6 +121,19 @@ class EventHub:
             n = len(self._buf)
             items = [self._buf[i] for i in range(start, min(n, start + limit))]
         return items, gap
+
+
+def _after(items: deque, seq: int) -> list:
+    """The items of ``items`` (in ``seq`` order) numbered after ``seq``, read from the newest
+    back: a stream woken for one new event reads that one, not the whole buffer (every
+    stream wakes on every event, and a run's buffer holds up to 10,000)."""
+    out = []
+    for item in reversed(items):
+        if item[0] <= seq:
+            break
+        out.append(item)
+    out.reverse()
+    return out
 
 
 @dataclass
