@@ -636,7 +636,7 @@ async def _stream(service: CommandService, cursor: int, run: str | None, close_o
     hub = service.hub
     yield f": hearth events after {cursor}\n\n"
     while True:
-        waiter = hub.waiter()
+        waiter = hub.waiter(run)
         items, gap = hub.since(cursor, run=run)
         if gap:
             yield f"event: gap\ndata: {{\"e\": \"gap\", \"after\": {cursor}}}\n\n"

@@ -14,6 +14,7 @@ import json
 import threading
 import time
 from collections import OrderedDict, deque
+from itertools import repeat
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,11 +56,17 @@ class EventHub:
         self.last_seq = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._event: asyncio.Event | None = None
+        # Streams following one run wait on that run's event, set only when the run (or
+        # nobody: a run-less event) has news: 50 clients each following their own run are
+        # not all woken by every event (event loop only; an event here is never set).
+        self._run_events: dict[str, asyncio.Event] = {}
+        self._news: set[str | None] = set()     # runs with events since the last wake
         self._wake_pending = False
 
     def attach_loop(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = loop
         self._event = asyncio.Event()
+        self._run_events = {}
 
     def publish(self, kind: str, data: dict[str, Any], run: str | None = None,
                 ends_run: bool = False) -> int:
@@ -69,6 +76,7 @@ class EventHub:
             seq = self.last_seq
             item = (seq, kind, run, text, ends_run)
             self._buf.append(item)
+            self._news.add(run)
             if run is None:
                 self._global.append(item)
             else:
@@ -91,15 +99,30 @@ class EventHub:
     def _wake(self) -> None:
         with self._lock:
             self._wake_pending = False
+            news, self._news = self._news, set()
         old, self._event = self._event, asyncio.Event()
         old.set()
+        if None in news or len(self._run_events) > 1000:
+            # Run-less news concerns every stream (and the bound drops the events of runs
+            # whose streams left before any news: a spurious wake is harmless).
+            woken, self._run_events = list(self._run_events.values()), {}
+        else:
+            woken = [e for e in map(self._run_events.pop, news, repeat(None)) if e is not None]
+        for event in woken:
+            event.set()
 
-    def waiter(self) -> asyncio.Event:
-        """The event to await for news (take it before reading with ``since``); call from
-        the event loop (attaches it if the app's lifespan did not)."""
+    def waiter(self, run: str | None = None) -> asyncio.Event:
+        """The event to await for news (take it before reading with ``since``): any news,
+        or with ``run`` news of that run or of no run; call from the event loop (attaches it
+        if the app's lifespan did not)."""
         if self._event is None:
             self.attach_loop(asyncio.get_running_loop())
-        return self._event
+        if run is None:
+            return self._event
+        event = self._run_events.get(run)
+        if event is None:
+            event = self._run_events[run] = asyncio.Event()
+        return event
 
     def since(self, seq: int, limit: int = 1000, run: str | None = None
               ) -> tuple[list[tuple[int, str, str | None, str, bool]], bool]:

@@ -455,12 +455,11 @@ def _fuzz(n: int, seed: int) -> dict:
 
 
 def _uvicorn_impl() -> dict:
-    """What uvicorn's "auto" settings pick here: httptools and uvloop when installed (the
-    project's dependencies), else h11 and asyncio's own loop."""
+    """uvicorn's HTTP protocol (always h11, see executive.command.server.make_server) and
+    event loop: uvloop where installed, else asyncio's own."""
     import importlib.util
-    have = {m: importlib.util.find_spec(m) is not None for m in ("httptools", "uvloop")}
-    return {"http": "httptools" if have["httptools"] else "h11",
-            "loop": "uvloop" if have["uvloop"] else "asyncio"}
+    return {"http": "h11",
+            "loop": "uvloop" if importlib.util.find_spec("uvloop") is not None else "asyncio"}
 
 
 def run(args) -> dict:

@@ -301,3 +301,35 @@ def test_monitor_page_and_openapi_are_served(server):
     schema = server.client.get("/openapi.json").json()
     assert {"/api/runs", "/api/commands", "/api/events", "/api/vocabulary", "/api/map",
             "/api/approvals/{request_id}", "/api/parameters/{name}"} <= set(schema["paths"])
+
+
+def test_a_stream_following_one_run_is_woken_by_its_run_and_by_run_less_events_only():
+    # Fifty clients each following their own run must not all be woken by every event:
+    # a run's waiter is set by that run's events and by run-less ones (map, vocabulary),
+    # the all-events waiter by any.
+    import asyncio
+
+    from executive.command.service import EventHub
+
+    async def main():
+        hub = EventHub()
+        hub.attach_loop(asyncio.get_running_loop())
+
+        async def settle():
+            for _ in range(3):
+                await asyncio.sleep(0)
+
+        r1, r2, anything = hub.waiter("r1"), hub.waiter("r2"), hub.waiter()
+        assert hub.waiter("r1") is r1
+        hub.publish("status", {"status": "RUNNING"}, run="r1")
+        await settle()
+        assert r1.is_set() and anything.is_set() and not r2.is_set()
+        assert [e[0] for e in hub.since(0, run="r2")[0]] == []
+        fresh = hub.waiter("r1")
+        assert fresh is not r1 and not fresh.is_set()
+        hub.publish("map", {"node": "cup"})
+        await settle()
+        assert r2.is_set() and fresh.is_set()
+        assert [e[1] for e in hub.since(0, run="r2")[0]] == ["map"]
+
+    asyncio.run(main())
