@@ -30,6 +30,7 @@ from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
+from starlette.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field, field_validator
 
 from executive.command.service import CommandService, Conflict, NotFound
@@ -466,10 +467,18 @@ def create_app(service: CommandService, token: str | None = None, *,
               responses={404: {"description": "unknown mission"},
                          409: {"description": "idempotency key reused for another request"},
                          422: {"description": "bad parameters"}})
-    def submit(body: SubmitRequest,
-               idempotency_key: str | None = Header(default=None, max_length=200)):
-        rec, created = service.submit(body.mission, body.params, body.priority,
-                                      body.idempotency_key or idempotency_key)
+    async def submit(body: SubmitRequest,
+                     idempotency_key: str | None = Header(default=None, max_length=200)):
+        args = (body.mission, body.params, body.priority,
+                body.idempotency_key or idempotency_key)
+        # On the event loop when no lock it needs is held (nearly always: a submit is
+        # ~0.05 ms of work), else from a worker thread: the loop never waits on a tick. A
+        # trip to the thread pool costs two thread wake-ups, which on a busy machine were
+        # most of a submit's time in the server (p99 30-90 ms against 9-19 ms on the loop,
+        # 50 clients, load 8).
+        got = service.try_submit(*args)
+        rec, created = got if got is not None else await run_in_threadpool(service.submit,
+                                                                           *args)
         # A Response is sent as it is: FastAPI would otherwise validate the reply against
         # SubmitReply in a second trip to its thread pool (the model still documents it).
         return JSONResponse(status_code=201 if created else 200,

@@ -273,18 +273,43 @@ class CommandService:
         return self._runs.get(seen[1])
 
     def submit(self, mission: str, params: dict[str, Any] | None = None, priority: int = 0,
-               idempotency_key: str | None = None, source: str = "api") -> tuple[RunRecord, bool]:
+               idempotency_key: str | None = None, source: str = "api"
+               ) -> tuple[RunRecord, bool]:
         """Queue ``mission`` (a catalogue name). Returns (record, created); created is False
         when the idempotency key had already made this run. MissionError: bad parameters."""
+        got = self._submit(mission, params, priority, idempotency_key, source, blocking=True)
+        assert got is not None
+        return got
+
+    def try_submit(self, mission: str, params: dict[str, Any] | None = None, priority: int = 0,
+                   idempotency_key: str | None = None, source: str = "api"
+                   ) -> tuple[RunRecord, bool] | None:
+        """:meth:`submit`, or None without having done anything when a lock it needs (this
+        service's, the executive's, the map's) is held by another thread: the HTTP API
+        submits on its event loop when nothing is in the way, and from a worker thread
+        otherwise, so the loop never waits on a tick."""
+        return self._submit(mission, params, priority, idempotency_key, source,
+                            blocking=False)
+
+    def _submit(self, mission: str, params: dict[str, Any] | None, priority: int,
+                idempotency_key: str | None, source: str, blocking: bool
+                ) -> tuple[RunRecord, bool] | None:
         params = dict(params or {})
         entry = self._entry(mission)
         fp = hashlib.sha256(json.dumps([mission, params, priority], sort_keys=True,
                                        default=repr).encode()).hexdigest()
-        with self._lock:
+        if not self._lock.acquire(blocking=blocking):
+            return None
+        try:
             old = self._claim(idempotency_key, fp)
             if old is not None:
                 return old, False
-            handle = self.executive.submit(entry.mission, priority=priority, **params)
+            if blocking:
+                handle = self.executive.submit(entry.mission, priority=priority, **params)
+            else:
+                handle = self.executive.try_submit(entry.mission, priority, params)
+                if handle is None:
+                    return None
             rec = RunRecord(handle=handle, mission=mission, priority=priority,
                             params=dict(handle.params), submitted=time.time(), source=source,
                             idempotency_key=idempotency_key)
@@ -299,6 +324,8 @@ class CommandService:
                 self._idem[idempotency_key] = (fp, handle.id)
                 while len(self._idem) > 10 * self._keep_runs:
                     self._idem.popitem(last=False)
+        finally:
+            self._lock.release()
         self.hub.publish("submitted", {"e": "submitted", "run": handle.id, "mission": mission,
                                        "priority": priority, "params": plain(rec.params),
                                        "source": source}, run=handle.id)
