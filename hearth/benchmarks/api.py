@@ -42,6 +42,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import json
+import math
 import multiprocessing
 import os
 import queue as queue_module
@@ -478,6 +479,15 @@ def run(args) -> dict:
         raise SystemExit(2) from None
     clients = getattr(args, "clients", 50)
     samples = getattr(args, "samples", None) or (100 if args.quick else 300)
+    for name, value in (("--clients", clients), ("--samples", samples),
+                        ("--rate", getattr(args, "rate", 20.0)),
+                        ("--procs", getattr(args, "procs", 2)),
+                        ("--tick-hz", getattr(args, "tick_hz", 10.0))):
+        if not (math.isfinite(value) and value > 0):
+            import sys
+            print(f"hearth bench api: {name} must be a positive number (got {value})",
+                  file=sys.stderr)
+            raise SystemExit(2)
     rounds = getattr(args, "missions", None) or (2 if args.quick else 4)
     fuzz_n = getattr(args, "fuzz", None) or (100 if args.quick else 500)
     limit = getattr(args, "time_limit", 120.0)
