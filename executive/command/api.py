@@ -474,8 +474,8 @@ def create_app(service: CommandService, token: str | None = None, *,
         # On the event loop when no lock it needs is held (nearly always: a submit is
         # ~0.05 ms of work), else from a worker thread: the loop never waits on a tick. A
         # trip to the thread pool costs two thread wake-ups, which on a busy machine were
-        # most of a submit's time in the server (p99 30-90 ms against 9-19 ms on the loop,
-        # 50 clients, load 8).
+        # most of a submit's time in the server (its p99 in the app 18-89 ms against 9-19
+        # ms on the loop: hearth bench api, 50 clients, load 8).
         got = service.try_submit(*args)
         rec, created = got if got is not None else await run_in_threadpool(service.submit,
                                                                            *args)

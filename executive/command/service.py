@@ -148,8 +148,8 @@ class EventHub:
 
 def _after(items: deque, seq: int) -> list:
     """The items of ``items`` (in ``seq`` order) numbered after ``seq``, read from the newest
-    back: a stream woken for one new event reads that one, not the whole buffer (every
-    stream wakes on every event, and a run's buffer holds up to 10,000)."""
+    back: a stream woken for one new event reads that one, not the whole buffer (a run's
+    holds up to 10,000, the run-less one 2,000)."""
     out = []
     for item in reversed(items):
         if item[0] <= seq:
