@@ -23,8 +23,8 @@ inside the server's app (what the server itself takes; the rest is the network s
 uvicorn's parsing, the client's event loop and waiting for a CPU);
 ``server_cpu_ms_per_submit``: the CPU time of the server's process (API, executive, event
 streams) over the section, per submit; ``client_late_p99_ms``: how late the clients' submits
-started against their drawn moments (their processes waiting for a CPU or their own event
-loop busy). Target: ``submit_p99_ms`` <= 20 at 50 clients.
+started against their drawn moments (their processes waiting for a CPU, their own event loop
+busy, or a client's previous submit still running). Target: ``submit_p99_ms`` <= 20 at 50 clients.
 
 **Stress, in one process** (``stress_in_process``; the keys of the earlier figure): the
 clients (asyncio, httpx) in this process with the server and the GIL, the executive on a
