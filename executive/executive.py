@@ -34,6 +34,7 @@ thread sleeps to keep the rate.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
 import math
@@ -145,24 +146,48 @@ class Executive:
         parameter (a parameter declaring ``kinds`` is checked against the map). A higher
         ``priority`` preempts the running mission; equal priorities queue (or preempt, see
         ``equal_priority``)."""
+        handle = self._submit(mission, priority, params, blocking=True)
+        assert handle is not None
+        return handle
+
+    def try_submit(self, mission: str | os.PathLike | Mission, priority: int = 0,
+                   params: dict[str, Any] | None = None) -> MissionHandle | None:
+        """:meth:`submit`, or None without having done anything when the map's or the
+        executive's lock is held by another thread (a tick, a skill moving things): for a
+        caller that must never wait on them, such as the HTTP API's event loop, which then
+        submits from a worker thread. Errors are raised as by :meth:`submit`."""
+        return self._submit(mission, priority, dict(params or {}), blocking=False)
+
+    def _submit(self, mission: str | os.PathLike | Mission, priority: int,
+                params: dict[str, Any], blocking: bool) -> MissionHandle | None:
         mission = self.load(mission)
         self._check_autonomy(mission)
-        params = mission.resolve_in_map(params, self.world)   # node kinds, words; reads the map
-        with self._lock:
-            if self._closed:
-                raise MissionError("the executive has been shut down")
-            values = mission.resolve_parameters(params, self._params)
-            run_id = self._new_run_id(mission.name, self._scheduler.next_seq())
-            sub = Submission(id=run_id, mission=mission, priority=priority, params=values,
-                             given=frozenset(params), seq=self._scheduler.next_seq())
-            handle = MissionHandle(self, sub)
-            self._live[sub.id] = sub
-            self._scheduler.push(sub)
-            current = self._current.sub if self._current is not None else self._starting
-            if self._scheduler.preempts(sub, current):
-                self._request_cancel(current, RunState.PREEMPTED,
-                                     f"preempted by {mission.name} ({sub.id})")
-            self._wake.notify_all()
+        with contextlib.ExitStack() as held:
+            if not blocking:
+                # Both re-entrant; taken without waiting, so the order cannot deadlock.
+                for lock in (getattr(self.world, "lock", None), self._lock):
+                    if lock is None:
+                        continue
+                    if not lock.acquire(blocking=False):
+                        return None
+                    held.callback(lock.release)
+            # node kinds, words; reads the map
+            params = mission.resolve_in_map(params, self.world)
+            with self._lock:
+                if self._closed:
+                    raise MissionError("the executive has been shut down")
+                values = mission.resolve_parameters(params, self._params)
+                run_id = self._new_run_id(mission.name, self._scheduler.next_seq())
+                sub = Submission(id=run_id, mission=mission, priority=priority, params=values,
+                                 given=frozenset(params), seq=self._scheduler.next_seq())
+                handle = MissionHandle(self, sub)
+                self._live[sub.id] = sub
+                self._scheduler.push(sub)
+                current = self._current.sub if self._current is not None else self._starting
+                if self._scheduler.preempts(sub, current):
+                    self._request_cancel(current, RunState.PREEMPTED,
+                                         f"preempted by {mission.name} ({sub.id})")
+                self._wake.notify_all()
         return handle
 
     def cancel(self, handle: MissionHandle, reason: str = "cancelled",

@@ -14,6 +14,7 @@ import json
 import threading
 import time
 from collections import OrderedDict, deque
+from itertools import repeat
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,11 +56,17 @@ class EventHub:
         self.last_seq = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._event: asyncio.Event | None = None
+        # Streams following one run wait on that run's event, set only when the run (or
+        # nobody: a run-less event) has news: 50 clients each following their own run are
+        # not all woken by every event (event loop only; an event here is never set).
+        self._run_events: dict[str, asyncio.Event] = {}
+        self._news: set[str | None] = set()     # runs with events since the last wake
         self._wake_pending = False
 
     def attach_loop(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = loop
         self._event = asyncio.Event()
+        self._run_events = {}
 
     def publish(self, kind: str, data: dict[str, Any], run: str | None = None,
                 ends_run: bool = False) -> int:
@@ -69,6 +76,7 @@ class EventHub:
             seq = self.last_seq
             item = (seq, kind, run, text, ends_run)
             self._buf.append(item)
+            self._news.add(run)
             if run is None:
                 self._global.append(item)
             else:
@@ -91,15 +99,30 @@ class EventHub:
     def _wake(self) -> None:
         with self._lock:
             self._wake_pending = False
+            news, self._news = self._news, set()
         old, self._event = self._event, asyncio.Event()
         old.set()
+        if None in news or len(self._run_events) > 1000:
+            # Run-less news concerns every stream (and the bound drops the events of runs
+            # whose streams left before any news: a spurious wake is harmless).
+            woken, self._run_events = list(self._run_events.values()), {}
+        else:
+            woken = [e for e in map(self._run_events.pop, news, repeat(None)) if e is not None]
+        for event in woken:
+            event.set()
 
-    def waiter(self) -> asyncio.Event:
-        """The event to await for news (take it before reading with ``since``); call from
-        the event loop (attaches it if the app's lifespan did not)."""
+    def waiter(self, run: str | None = None) -> asyncio.Event:
+        """The event to await for news (take it before reading with ``since``): any news,
+        or with ``run`` news of that run or of no run; call from the event loop (attaches it
+        if the app's lifespan did not)."""
         if self._event is None:
             self.attach_loop(asyncio.get_running_loop())
-        return self._event
+        if run is None:
+            return self._event
+        event = self._run_events.get(run)
+        if event is None:
+            event = self._run_events[run] = asyncio.Event()
+        return event
 
     def since(self, seq: int, limit: int = 1000, run: str | None = None
               ) -> tuple[list[tuple[int, str, str | None, str, bool]], bool]:
@@ -110,8 +133,8 @@ class EventHub:
                 return [], False
             if run is not None:
                 per = self._by_run.get(run, ())
-                mine = [e for e in per if e[0] > seq]
-                other = [e for e in self._global if e[0] > seq]
+                mine = _after(per, seq)
+                other = _after(self._global, seq)
                 items = sorted(mine + other)[:limit] if other else mine[:limit]
                 gap = bool(per) and per[0][0] > seq + 1 and len(per) == per.maxlen
                 return items, gap
@@ -121,6 +144,19 @@ class EventHub:
             n = len(self._buf)
             items = [self._buf[i] for i in range(start, min(n, start + limit))]
         return items, gap
+
+
+def _after(items: deque, seq: int) -> list:
+    """The items of ``items`` (in ``seq`` order) numbered after ``seq``, read from the newest
+    back: a stream woken for one new event reads that one, not the whole buffer (a run's
+    holds up to 10,000, the run-less one 2,000)."""
+    out = []
+    for item in reversed(items):
+        if item[0] <= seq:
+            break
+        out.append(item)
+    out.reverse()
+    return out
 
 
 @dataclass
@@ -237,18 +273,43 @@ class CommandService:
         return self._runs.get(seen[1])
 
     def submit(self, mission: str, params: dict[str, Any] | None = None, priority: int = 0,
-               idempotency_key: str | None = None, source: str = "api") -> tuple[RunRecord, bool]:
+               idempotency_key: str | None = None, source: str = "api"
+               ) -> tuple[RunRecord, bool]:
         """Queue ``mission`` (a catalogue name). Returns (record, created); created is False
         when the idempotency key had already made this run. MissionError: bad parameters."""
+        got = self._submit(mission, params, priority, idempotency_key, source, blocking=True)
+        assert got is not None
+        return got
+
+    def try_submit(self, mission: str, params: dict[str, Any] | None = None, priority: int = 0,
+                   idempotency_key: str | None = None, source: str = "api"
+                   ) -> tuple[RunRecord, bool] | None:
+        """:meth:`submit`, or None without having done anything when a lock it needs (this
+        service's, the executive's, the map's) is held by another thread: the HTTP API
+        submits on its event loop when nothing is in the way, and from a worker thread
+        otherwise, so the loop never waits on a tick."""
+        return self._submit(mission, params, priority, idempotency_key, source,
+                            blocking=False)
+
+    def _submit(self, mission: str, params: dict[str, Any] | None, priority: int,
+                idempotency_key: str | None, source: str, blocking: bool
+                ) -> tuple[RunRecord, bool] | None:
         params = dict(params or {})
         entry = self._entry(mission)
         fp = hashlib.sha256(json.dumps([mission, params, priority], sort_keys=True,
                                        default=repr).encode()).hexdigest()
-        with self._lock:
+        if not self._lock.acquire(blocking=blocking):
+            return None
+        try:
             old = self._claim(idempotency_key, fp)
             if old is not None:
                 return old, False
-            handle = self.executive.submit(entry.mission, priority=priority, **params)
+            if blocking:
+                handle = self.executive.submit(entry.mission, priority=priority, **params)
+            else:
+                handle = self.executive.try_submit(entry.mission, priority, params)
+                if handle is None:
+                    return None
             rec = RunRecord(handle=handle, mission=mission, priority=priority,
                             params=dict(handle.params), submitted=time.time(), source=source,
                             idempotency_key=idempotency_key)
@@ -263,6 +324,8 @@ class CommandService:
                 self._idem[idempotency_key] = (fp, handle.id)
                 while len(self._idem) > 10 * self._keep_runs:
                     self._idem.popitem(last=False)
+        finally:
+            self._lock.release()
         self.hub.publish("submitted", {"e": "submitted", "run": handle.id, "mission": mission,
                                        "priority": priority, "params": plain(rec.params),
                                        "source": source}, run=handle.id)

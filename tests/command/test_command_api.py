@@ -301,3 +301,69 @@ def test_monitor_page_and_openapi_are_served(server):
     schema = server.client.get("/openapi.json").json()
     assert {"/api/runs", "/api/commands", "/api/events", "/api/vocabulary", "/api/map",
             "/api/approvals/{request_id}", "/api/parameters/{name}"} <= set(schema["paths"])
+
+
+def test_a_stream_following_one_run_is_woken_by_its_run_and_by_run_less_events_only():
+    # Fifty clients each following their own run must not all be woken by every event:
+    # a run's waiter is set by that run's events and by run-less ones (map, vocabulary),
+    # the all-events waiter by any.
+    import asyncio
+
+    from executive.command.service import EventHub
+
+    async def main():
+        hub = EventHub()
+        hub.attach_loop(asyncio.get_running_loop())
+
+        async def settle():
+            for _ in range(3):
+                await asyncio.sleep(0)
+
+        r1, r2, anything = hub.waiter("r1"), hub.waiter("r2"), hub.waiter()
+        assert hub.waiter("r1") is r1
+        hub.publish("status", {"status": "RUNNING"}, run="r1")
+        await settle()
+        assert r1.is_set() and anything.is_set() and not r2.is_set()
+        assert [e[0] for e in hub.since(0, run="r2")[0]] == []
+        fresh = hub.waiter("r1")
+        assert fresh is not r1 and not fresh.is_set()
+        hub.publish("map", {"node": "cup"})
+        await settle()
+        assert r2.is_set() and fresh.is_set()
+        assert [e[1] for e in hub.since(0, run="r2")[0]] == ["map"]
+
+    asyncio.run(main())
+
+
+def test_a_submit_while_a_tick_holds_the_executive_is_answered_once_the_tick_is_done(server):
+    # The API submits on its event loop only when nothing it needs is held; while another
+    # thread holds the executive (a tick) or the map (a skill moving things), try_submit
+    # does nothing and the request is served from a worker thread once the lock is free,
+    # while the loop goes on answering others.
+    import httpx
+
+    ex, world = server.service.executive, server.world
+    for lock in (ex._lock, world.lock):
+        held, release = threading.Event(), threading.Event()
+
+        def hold():
+            with lock:
+                held.set()
+                release.wait(30)
+        t = threading.Thread(target=hold)
+        t.start()
+        held.wait(10)
+        before = len(server.service.runs())
+        assert server.service.try_submit("fetch_test", {"object": "bowl"}) is None
+        assert len(server.service.runs()) == before
+        with ThreadPoolExecutor(1) as pool:
+            pending = pool.submit(server.client.post, "/api/runs",
+                                  json={"mission": "fetch_test", "params": {"object": "bowl"}})
+            with httpx.Client(base_url=server.url, timeout=30) as other:
+                assert other.get("/openapi.json").status_code == 200   # the loop is free
+            assert not pending.done()
+            release.set()
+            r = pending.result(timeout=30)
+        t.join(10)
+        assert r.status_code == 201
+        assert len(server.service.runs()) == before + 1

@@ -862,3 +862,34 @@ def test_a_failing_log_write_ends_the_run_instead_of_leaving_it_stuck(make_execu
     assert h.done and h.status == "failed" and ex.idle()
     assert h.result.reason.startswith("internal error: OSError: [Errno 28] No space left")
     assert robot.stops == 1
+
+
+def test_lifecycles_share_one_machine_and_refuse_transitions_it_lacks():
+    # Every run's lifecycle is a model of one transitions machine: each keeps its own state,
+    # a trigger from a state the table does not list raises, and the machine keeps no
+    # reference to the runs (none is kept alive by it).
+    from transitions import MachineError
+    from executive.scheduler import MACHINE, Lifecycle
+
+    a, b = Lifecycle(), Lifecycle()
+    assert (a.state, b.state) == ("queued", "queued")
+    a.start()
+    a.halt()
+    b.cancel_queued()
+    assert (a.state, b.state) == ("halting", "cancelled")
+    a.end_preempt()
+    assert a.state == "preempted"
+    for life, trigger in [(b, "start"), (a, "end_cancel"), (Lifecycle(), "succeed"),
+                          (Lifecycle(), "halt")]:
+        state = life.state
+        try:
+            getattr(life, trigger)()
+        except MachineError:
+            pass
+        else:
+            raise AssertionError(f"{trigger} from {state} was accepted")
+        assert life.state == state
+    c = Lifecycle()
+    c.fail()
+    assert c.state == "failed"
+    assert MACHINE.models == []
