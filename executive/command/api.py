@@ -119,6 +119,9 @@ class Result(BaseModel):
     outputs: dict[str, Any]
     ticks: int
     duration: float
+    robot_stopped: bool = Field(
+        default=True, description="false only when a cancelled or preempted run's robot "
+        "actions were not confirmed stopped within the halt timeout")
 
 
 class Run(BaseModel):

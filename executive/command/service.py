@@ -182,7 +182,8 @@ class RunRecord:
                 "submitted": self.submitted, "source": self.source,
                 "result": None if r is None else {"outcome": r.outcome, "reason": r.reason,
                                                   "outputs": plain(r.outputs), "ticks": r.ticks,
-                                                  "duration": r.duration}}
+                                                  "duration": r.duration,
+                                                  "robot_stopped": r.robot_stopped}}
 
 
 class CommandService:

@@ -82,7 +82,8 @@ def test_cancel_mid_mission_ends_it_cancelled(server):
     assert states == ["running", "halting", "cancelled"]
     assert seen[-1][1]["result"] == {"outcome": "cancelled", "reason": "user said stop",
                                      "outputs": {}, "ticks": seen[-1][1]["result"]["ticks"],
-                                     "duration": seen[-1][1]["result"]["duration"]}
+                                     "duration": seen[-1][1]["result"]["duration"],
+                                     "robot_stopped": True}
     assert ("/wait_test/done", "RUNNING") not in [(d.get("path"), d.get("status")) for _, d in seen]
     again = server.client.post(f"/api/runs/{run['id']}/cancel")
     assert again.status_code == 409
