@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Sequence
 
 BANDS = 2
 _POOL: ThreadPoolExecutor | None = None
@@ -24,3 +25,16 @@ def pool() -> ThreadPoolExecutor:
 def row_bands(height: int) -> list[slice]:
     """``BANDS`` slices covering rows 0..height."""
     return [slice(i * height // BANDS, (i + 1) * height // BANDS) for i in range(BANDS)]
+
+
+def in_bands(parts: Sequence, fn: Callable) -> None:
+    """``fn(part)`` for every part: all but the last on the pool, the last on the calling
+    thread (which would otherwise only wait; and so that one band still runs while another
+    task, such as the sensor noise's random draws, holds a pool thread)."""
+    futures = [pool().submit(fn, p) for p in parts[:-1]]
+    try:
+        if parts:
+            fn(parts[-1])
+    finally:
+        for f in futures:
+            f.result()
