@@ -243,7 +243,7 @@ def _absdiff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _noisy_color(color: np.ndarray, gauss, m: KinectNoise) -> np.ndarray:
     """Grey-level Gaussian noise of ``color_std`` (rounded to integer levels) on every channel.
     OpenCV adds with saturation in one pass (4x numpy's widen, add, clip, narrow)."""
-    if gauss is None or m.color_std <= 0:
+    if gauss is None or m.color_std <= 0 or color.size == 0:   # (OpenCV refuses no pixels)
         return color.copy()
     n = np.rint(gauss * np.float32(m.color_std)).astype(np.int16)
     return cv2.add(color, cv2.merge([n, n, n]), dtype=cv2.CV_8U)
