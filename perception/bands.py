@@ -9,7 +9,16 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Sequence
 
-BANDS = 2
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))     # the cores this process may run on
+    except AttributeError:                      # not on every platform
+        return os.cpu_count() or 2
+
+
+#: Bands an image is cut into: one per core, at least 2 and at most 8 (beyond that the
+#: bands are too thin for the thread hand-offs to pay).
+BANDS = max(2, min(8, _cores()))
 _POOL: ThreadPoolExecutor | None = None
 _POOL_PID: int | None = None
 

@@ -141,8 +141,16 @@ def finish_kinect_noise(rendering, started: NoiseDraws):
     m = started.model
     z = started.lateral.result()
     # While the draws are made: per pixel, the Gaussian part's standard deviation and the
-    # dropout probability.
-    std, p_drop = _spread(rendering, z, m)
+    # dropout probability (in row bands, on the pool threads the draws leave free).
+    std, p_drop = np.empty_like(z), np.empty_like(z)
+    codes = np.array([MATERIAL_CODES.get(x, 0) for x in rendering.materials] + [0], np.int8)
+
+    def spread(rows: slice) -> None:
+        _spread(rendering.incidence[rows], rendering.labels[rows], codes, z[rows], m,
+                std=std[rows], p=p_drop[rows])
+
+    bands = row_bands(z.shape[0])
+    in_bands(bands, spread)
     gauss, uniform, cnoise = started.draws.result()
     depth = np.empty_like(z)
     color = np.empty_like(rendering.color)
@@ -154,16 +162,18 @@ def finish_kinect_noise(rendering, started: NoiseDraws):
                                    None if cnoise is None else cnoise[rows], m)
 
     # Row bands in threads: numpy and OpenCV release the GIL on these array operations.
-    in_bands(row_bands(z.shape[0]), band)
+    in_bands(bands, band)
     return dataclasses.replace(rendering, depth=depth, color=color)
 
 
-def _spread(rendering, z: np.ndarray, m: KinectNoise) -> tuple[np.ndarray, np.ndarray]:
-    """Per pixel of the (laterally jittered) depth ``z``: the standard deviation of the
-    Gaussian part of the axial noise, and the dropout probability (inf where nothing was
-    seen: always dropped). float32 throughout: this runs on every simulated frame."""
+def _spread(incidence: np.ndarray, labels: np.ndarray, codes: np.ndarray, z: np.ndarray,
+            m: KinectNoise, std: np.ndarray, p: np.ndarray) -> None:
+    """Per pixel of the (laterally jittered) depth ``z``, into ``std`` and ``p``: the standard
+    deviation of the Gaussian part of the axial noise, and the dropout probability (inf
+    where nothing was seen: always dropped); ``codes``: per label, and a trailing one for
+    label -1, the material's code. float32 throughout: this runs on every simulated frame."""
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
-    cos = np.clip(np.asarray(rendering.incidence, dtype=np.float32), 1e-3, 1.0)
+    cos = np.clip(np.asarray(incidence, dtype=np.float32), 1e-3, 1.0)
     theta = np.minimum(np.arccos(cos), np.float32(math.radians(89.0)))
     zc = np.maximum(z, np.float32(1e-3))
     ang = theta / (np.float32(math.pi / 2) - theta)
@@ -172,21 +182,19 @@ def _spread(rendering, z: np.ndarray, m: KinectNoise) -> tuple[np.ndarray, np.nd
     if m.quantise:
         q2 = (zc * zc * np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))) ** 2
         var = np.maximum(var - q2 / np.float32(12.0), np.float32(0.25) * var)
-    std = np.sqrt(var, out=var)
+    np.sqrt(var, out=std)
     # Dropouts: grazing incidence, materials (per label, and a trailing "matte" for label -1).
     g0, g1 = math.cos(math.radians(m.grazing_start_deg)), math.cos(math.radians(m.grazing_full_deg))
-    p = np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0)
-    codes = np.array([MATERIAL_CODES.get(x, 0) for x in rendering.materials] + [0], np.int8)
+    np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0, out=p)
     if codes.any():
         p_code = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], np.float32)
-        pm = np.take(p_code[codes], rendering.labels)  # label -1 picks the trailing "matte"
+        pm = np.take(p_code[codes], labels)            # label -1 picks the trailing "matte"
         # Shiny surfaces reflect the pattern away except when seen nearly head-on.
-        shiny = np.take(codes == 2, rendering.labels)
+        shiny = np.take(codes == 2, labels)
         if shiny.any():
             pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
         np.maximum(p, pm, out=p)
     p[~(z > 0)] = np.inf
-    return std, p
 
 
 def _noisy_depth(z: np.ndarray, std: np.ndarray, p_drop: np.ndarray, gauss: np.ndarray,
