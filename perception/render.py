@@ -2,7 +2,9 @@
 
 open3d's ``RaycastingScene`` (Embree) does the ray casting; this module adds what it has no
 notion of: per-mesh colours and node labels, and simple Lambertian shading. Pure: meshes in,
-arrays out. The simulated robot adds sensor noise on top (robot/noise.py).
+arrays out (the one side effect: building the first scene tunes glibc's malloc for
+frame-sized arrays, see ``_keep_freed_memory``). The simulated robot adds sensor noise on
+top (hearth/robot/noise.py), drawing it while ``Scene.shade`` runs (``Scene.cast`` first).
 """
 from __future__ import annotations
 
@@ -171,6 +173,8 @@ class Scene:
             t = np.take(self._first, gid[rows], mode="clip", out=tri[rows])
             t += prim[rows]                             # a miss wraps around: reset next
             np.copyto(t, self._no_hit, where=m)
+            # As numpy's index type once: np.take converts any other on every call.
+            t = t.astype(np.intp)
             np.take(self._tri_labels, t, out=labels[rows])
             inc = np.take(abs_dist, t, out=incidence[rows])
             inv_t = np.divide(inv_length[rows], d, where=~m, out=np.zeros(len(d), np.float32))
