@@ -2,10 +2,15 @@
 
 open3d's ``RaycastingScene`` (Embree) does the ray casting; this module adds what it has no
 notion of: per-mesh colours and node labels, and simple Lambertian shading. Pure: meshes in,
-arrays out. The simulated robot adds sensor noise on top (robot/noise.py).
+arrays out (the one side effect: building the first scene tunes glibc's malloc for
+frame-sized arrays, see ``_keep_freed_memory``). The simulated robot adds sensor noise on
+top (hearth/robot/noise.py), drawing it while ``Scene.shade`` runs (``Scene.cast`` first).
 """
 from __future__ import annotations
 
+import ctypes
+import os
+import sys
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Sequence
@@ -14,7 +19,7 @@ import cv2
 import numpy as np
 import open3d as o3d
 
-from perception.bands import pool, row_bands
+from perception.bands import in_bands, row_bands
 from perception.camera import Intrinsics
 
 #: Light direction in the world frame (from above, slightly from the side), for shading.
@@ -67,6 +72,7 @@ class Scene:
     triangle, so a view computes them once per triangle and gathers them per pixel."""
 
     def __init__(self, meshes):
+        _keep_freed_memory()
         self._scene = o3d.t.geometry.RaycastingScene()
         self.nodes: list[str] = []
         self.owners: list[str] = []
@@ -110,13 +116,21 @@ class Scene:
 
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         """Render the view of camera ``K`` at ``T_world_camera``."""
+        return self.shade(self.cast(K, T_world_camera, max_range))
+
+    def cast(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Hits:
+        """The ray cast of a view (depth final: 0 where nothing was hit within ``max_range``),
+        before shading: ``shade`` makes it a ``Rendering``. Split so that work that needs only
+        the depth (the simulated sensor's noise draws) can run while the shading does."""
         H, W = K.height, K.width
         T = np.asarray(T_world_camera, dtype=np.float64)
         R_wc, c_world = T[:3, :3], T[:3, 3]
-        rays_camera, inv_length = _pixel_rays(K)
+        rays_camera, _ = _pixel_rays(K)
         # Rays in float32 (what Embree uses anyway): pixel directions cached per camera,
         # rotated into the world and interleaved with the origin by OpenCV (several times
-        # cheaper than open3d's float64 create_rays_pinhole or numpy's strided writes).
+        # cheaper than open3d's float64 create_rays_pinhole or numpy's strided writes). One
+        # call over the whole image: made in 7 row bands, some rays (and so depths) moved by
+        # an ulp (measured), and the depth must stay what it was.
         origin = np.zeros((3, 4), dtype=np.float32)
         origin[:, 3] = c_world
         rays = cv2.merge([cv2.transform(rays_camera, origin),
@@ -124,8 +138,18 @@ class Scene:
         ans = self._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         # Directions have z = 1 in the camera frame, so t_hit is depth along the optical axis.
         depth = ans["t_hit"].numpy().reshape(-1)
-        gid = ans["geometry_ids"].numpy().reshape(-1)
-        prim = ans["primitive_ids"].numpy().reshape(-1)
+        miss = ~((depth <= max_range) & (depth > 0))    # NaN and inf (no hit) compare False
+        depth[miss] = 0
+        return Hits(K=K, R_wc=R_wc, c_world=c_world, depth=depth.reshape(H, W), miss=miss,
+                    geometry=ans["geometry_ids"].numpy().reshape(-1),
+                    primitive=ans["primitive_ids"].numpy().reshape(-1))
+
+    def shade(self, hits: Hits) -> Rendering:
+        """Labels, colour, incidence and normals of a ray cast (``cast``) of this scene."""
+        K, R_wc, c_world = hits.K, hits.R_wc, hits.c_world
+        H, W = K.height, K.width
+        _, inv_length = _pixel_rays(K)
+        depth, miss, gid, prim = hits.depth.reshape(-1), hits.miss, hits.geometry, hits.primitive
         # Per triangle, for this camera: the plane's signed distance from the camera centre
         # (n . c - h; the camera sees the side the normal points to when it is positive), the
         # normal turned to face the camera, and the shade without the view-dependent term.
@@ -145,15 +169,15 @@ class Scene:
         color = np.empty((N, 3), dtype=np.uint8)
 
         def shade(rows: slice) -> None:
-            d = depth[rows]
-            miss = ~((d <= max_range) & (d > 0))        # NaN and inf (no hit) compare False
-            d[miss] = 0
+            d, m = depth[rows], miss[rows]
             t = np.take(self._first, gid[rows], mode="clip", out=tri[rows])
             t += prim[rows]                             # a miss wraps around: reset next
-            np.copyto(t, self._no_hit, where=miss)
+            np.copyto(t, self._no_hit, where=m)
+            # As numpy's index type once: np.take converts any other on every call.
+            t = t.astype(np.intp)
             np.take(self._tri_labels, t, out=labels[rows])
             inc = np.take(abs_dist, t, out=incidence[rows])
-            inv_t = np.divide(inv_length[rows], d, where=~miss, out=np.zeros(len(d), np.float32))
+            inv_t = np.divide(inv_length[rows], d, where=~m, out=np.zeros(len(d), np.float32))
             inc *= inv_t
             np.minimum(inc, 1, out=inc)
             # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
@@ -168,13 +192,59 @@ class Scene:
 
         # Row bands in threads: numpy releases the GIL on these array operations, so the
         # per-pixel shading runs on every core like the ray casting does.
-        list(pool().map(shade, [slice(b.start * W, b.stop * W) for b in row_bands(H)]))
+        in_bands([slice(b.start * W, b.stop * W) for b in row_bands(H)], shade)
         normals = np.vstack([(facing[:-1] @ R_wc).astype(np.float32), np.zeros((1, 3), np.float32)])
-        return Rendering(depth=depth.reshape(H, W), color=color.reshape(H, W, 3),
+        return Rendering(depth=hits.depth, color=color.reshape(H, W, 3),
                          labels=labels.reshape(H, W), nodes=self.nodes, owners=self.owners,
                          names=self.names, materials=self.materials,
                          incidence=incidence.reshape(H, W), triangle=tri.reshape(H, W),
                          triangle_normals_camera=normals)
+
+
+@dataclass
+class Hits:
+    """A ray cast of one view (``Scene.cast``): ``depth`` (H, W) float32 in metres along the
+    optical axis, 0 where ``miss`` (H*W bools: nothing hit within the range); open3d's
+    per-ray ``geometry`` and ``primitive`` ids (H*W); the camera and its pose."""
+    K: Intrinsics
+    R_wc: np.ndarray
+    c_world: np.ndarray
+    depth: np.ndarray
+    miss: np.ndarray
+    geometry: np.ndarray
+    primitive: np.ndarray
+
+
+_MALLOC_TUNED = False
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3      # glibc's mallopt parameters (malloc.h)
+
+
+def _keep_freed_memory() -> None:
+    """Have glibc's malloc keep up to 128 MB of freed memory for reuse, and serve blocks up to
+    32 MB from it, instead of handing frame-sized blocks back to the kernel after every frame.
+
+    A 640x480 frame frees some 15 MB at once (open3d's ray-cast outputs, the rays, numpy's
+    temporaries), more than glibc's adaptive trim threshold (twice the largest block freed so
+    far), so each frame took ~3,500 fresh pages from the kernel: page faults and zeroing,
+    ~10 ms of CPU a frame (15 %, measured). Process-wide, once, when the first scene is
+    built; nothing where malloc is not glibc's or where the user has set these thresholds
+    (MALLOC_MMAP_THRESHOLD_, MALLOC_TRIM_THRESHOLD_ or GLIBC_TUNABLES)."""
+    global _MALLOC_TUNED
+    if _MALLOC_TUNED:
+        return
+    _MALLOC_TUNED = True
+    if not sys.platform.startswith("linux") or any(
+            k in os.environ for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_",
+                                      "GLIBC_TUNABLES")):
+        return
+    try:
+        libc = ctypes.CDLL(None)
+        if not hasattr(libc, "gnu_get_libc_version"):     # not glibc (musl: another malloc)
+            return
+        libc.mallopt(_M_MMAP_THRESHOLD, 32 << 20)
+        libc.mallopt(_M_TRIM_THRESHOLD, 128 << 20)
+    except (OSError, AttributeError):
+        return
 
 
 _RAYS_CACHE: dict = {}

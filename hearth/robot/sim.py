@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.noise import KinectNoise, add_kinect_noise
+from hearth.robot.noise import KinectNoise, finish_kinect_noise, start_kinect_noise
 from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
@@ -172,9 +172,17 @@ def render_view(world, K: Intrinsics, T_world_camera, rng: Optional[np.random.Ge
     The frame's ``T_world_camera`` is ``T_world_camera_believed`` when given, else the truth."""
     T_true = np.asarray(T_world_camera, dtype=float)
     scene = scene if scene is not None else world_scene(world, states)
-    clean = scene.render(K, T_true)
-    rng = rng if rng is not None else np.random.default_rng(0)
-    noisy = add_kinect_noise(clean, rng, noise) if noise is not None else clean
+    hits = scene.cast(K, T_true)
+    if noise is None:
+        clean = noisy = scene.shade(hits)
+    else:
+        # The noise's lateral jitter and random draws need only the depth: they run on a
+        # pool thread while this one (and the other) shades; the same frame as
+        # add_kinect_noise(scene.render(...)).
+        started = start_kinect_noise(hits.depth, rng if rng is not None else np.random.default_rng(0),
+                                     noise)
+        clean = scene.shade(hits)
+        noisy = finish_kinect_noise(clean, started)
     T_bel = T_true if T_world_camera_believed is None else np.asarray(T_world_camera_believed)
     return Frame(color=noisy.color, depth=noisy.depth, intrinsics=K, T_world_camera=T_bel.copy(),
                  timestamp=timestamp, T_world_camera_true=T_true.copy(), labels=clean.labels,

@@ -75,6 +75,34 @@ def test_same_seed_same_noise_and_none_is_noise_free():
     assert a.labels is clean.labels          # ground truth stays
 
 
+def test_render_view_gives_the_frame_of_render_then_noise(demo_world):
+    """render_view draws the noise while it shades: the same frame, for a seed, as the noise
+    added to the rendering afterwards, and the generator left in the same state."""
+    from hearth.robot.sim import world_scene
+    w = demo_world
+    base = w.parking_positions("oven")[0][1]
+    T = camera_pose(base, *pan_tilt_to(base, w.T_world("oven")[:3, 3]))
+    scene = world_scene(w)
+    for k in (K, K.scaled(0.25)):
+        r1, r2 = np.random.default_rng(3), np.random.default_rng(3)
+        frame = render_view(w, k, T, r1, scene=scene)
+        noisy = add_kinect_noise(scene.render(k, T), r2)
+        assert np.array_equal(frame.depth, noisy.depth)
+        assert np.array_equal(frame.color, noisy.color)
+        assert np.array_equal(frame.labels, noisy.labels)
+        assert r1.random() == r2.random()
+
+
+def test_a_one_row_frame_gets_noise_too():
+    m = o3d.geometry.TriangleMesh.create_box(8.0, 8.0, 0.01)
+    m.translate((-4.0, -4.0, 1.0))
+    row = Intrinsics(500.0, 500.0, 1.0, 0.0, 3, 1)
+    clean = Scene([LabelledMesh("wall", "wall", m, (0.8, 0.8, 0.8))]).render(row, np.eye(4))
+    noisy = add_kinect_noise(clean, np.random.default_rng(0))
+    assert noisy.depth.shape == (1, 3) and noisy.color.shape == (1, 3, 3)
+    assert np.all(np.abs(noisy.depth[noisy.depth > 0] - 1.0) < 0.05)
+
+
 def test_head_looks_exactly_at_the_point_and_camera_is_1_3_m_high():
     base = (1.0, 2.0, 0.5)
     T0 = camera_pose(base, 0.0, 0.0)
