@@ -539,10 +539,14 @@ def _surface_by_name(world, surface: str):
 
 
 def _normals(pts: np.ndarray, clusters: list[np.ndarray]) -> np.ndarray:
+    """Normals per cluster from the 16 nearest points within 4 cm: on a dense surface the 16
+    nearest lie within a centimetre, so the radius only matters where points are sparse (a
+    glass jar returns about one pixel in ten), where a 2 cm radius left 3-5 neighbours and
+    normals too noisy to agree with the model's."""
     out = np.zeros_like(pts)
     for idx in clusters:
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[idx]))
-        pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=16))
+        pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.04, max_nn=16))
         out[idx] = np.asarray(pc.normals)
     return out
 
@@ -577,7 +581,43 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         yaws = [0.0] if model.symmetric else list(np.arange(config.yaw_steps) * 2 * math.pi
                                                   / config.yaw_steps)
         out.append([(float(x), float(y), float(a)) for a in yaws])
+        if not model.symmetric and len(g) >= 10:
+            out.append(_rectangle_seeds(xy[g], model))
     return out
+
+
+def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, float, float]]:
+    """Seeds for a flat or boxy object seen from above: its whole top is in view, so the
+    smallest rectangle around the piece (OpenCV ``minAreaRect``) has the object's centre and
+    its sides along the object's principal axes (four yaws, a rectangle's sides are a
+    quarter turn apart). Point-to-point ICP alone does not pull a flat face across itself:
+    inside the overlap every scene point has a model point within the sampling distance, so
+    only the few points beyond an edge move it, and a seed shifted away from the camera (the
+    other seeds) stalls centimetres off."""
+    import cv2
+    (cx, cy), _, angle = cv2.minAreaRect(np.asarray(xy, np.float32))
+    base = math.radians(angle) - _principal_angle(model)
+    return [(float(cx), float(cy), float(base + k * math.pi / 2)) for k in range(4)]
+
+
+def _footprint_tree(model: ObjectModel) -> cKDTree:
+    """KD-tree of the model's points projected on its base plane (cached): its outline seen
+    from above."""
+    t = model.__dict__.get("_footprint")
+    if t is None:
+        t = model.__dict__["_footprint"] = cKDTree(model.points[:, :2])
+    return t
+
+
+def _principal_angle(model: ObjectModel) -> float:
+    """Angle (object frame, rad) of the major axis of the model's footprint (cached)."""
+    a = model.__dict__.get("_principal")
+    if a is None:
+        xy = model.points[:, :2] - model.points[:, :2].mean(0)
+        w, v = np.linalg.eigh(xy.T @ xy)
+        major = v[:, int(np.argmax(w))]
+        a = model.__dict__["_principal"] = float(math.atan2(major[1], major[0]))
+    return a
 
 
 def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_xy, tree_xyz,
@@ -614,8 +654,9 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     local = (pts[col] - T[:3, 3]) @ R
     dd, jj = model.tree.query(local)
     expl = dd < config.inlier_distance
-    r_xy = np.linalg.norm(local[:, :2], axis=1)
-    inner = r_xy < model.radius + 0.015
+    # The footprint is the model's outline seen from above (not the circle around it: beside
+    # a long book that circle holds its neighbours).
+    inner = _footprint_tree(model).query(local[:, :2], distance_upper_bound=0.015)[0] < 0.015
     # Beyond the footprint, unexplained points count only where they continue the object's
     # surface in the object's colour (a bigger object of that colour); a neighbour does not.
     ring = ~inner & ~expl & (dd < 0.04)
