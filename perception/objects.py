@@ -581,19 +581,20 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         yaws = [0.0] if model.symmetric else list(np.arange(config.yaw_steps) * 2 * math.pi
                                                   / config.yaw_steps)
         out.append([(float(x), float(y), float(a)) for a in yaws])
-        if not model.symmetric and len(g) >= 10:
+        if not model.symmetric and model.height < model.radius and len(g) >= 10:
             out.append(_rectangle_seeds(xy[g], model))
     return out
 
 
 def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, float, float]]:
-    """Seeds for a flat or boxy object seen from above: its whole top is in view, so the
-    smallest rectangle around the piece (OpenCV ``minAreaRect``) has the object's centre and
-    its sides along the object's principal axes (four yaws, a rectangle's sides are a
-    quarter turn apart). Point-to-point ICP alone does not pull a flat face across itself:
-    inside the overlap every scene point has a model point within the sampling distance, so
-    only the few points beyond an edge move it, and a seed shifted away from the camera (the
-    other seeds) stalls centimetres off."""
+    """Seeds for a flat object (lower than its radius: a book lying down, a remote) seen
+    from above: its whole top is in view, so the smallest rectangle around the piece
+    (OpenCV ``minAreaRect``) has the object's centre and its sides along the object's
+    principal axes (four yaws: a rectangle's sides are a quarter turn apart). Point-to-point
+    ICP alone does not pull a flat face across itself: inside the overlap every scene point
+    has a model point within the sampling distance, so only the few points beyond an edge
+    move it, and a seed shifted away from the camera (the other seeds) stalls centimetres
+    off."""
     import cv2
     (cx, cy), _, angle = cv2.minAreaRect(np.asarray(xy, np.float32))
     base = math.radians(angle) - _principal_angle(model)
