@@ -658,16 +658,19 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     # The footprint is the model's outline seen from above (not the circle around it: beside
     # a long book that circle holds its neighbours).
     inner = _footprint_tree(model).query(local[:, :2], distance_upper_bound=0.015)[0] < 0.015
-    # Beyond the footprint, unexplained points count only where they continue the object's
-    # surface in the object's colour (a bigger object of that colour); a neighbour does not.
-    ring = ~inner & ~expl & (dd < 0.04)
+    # Just outside the outline and near the model's surface: within the circle around the
+    # model any such point counts (a bigger object this one would be part of), beyond it
+    # only where it continues the object's surface in the object's colour; a neighbour
+    # further from the surface does not.
+    close = ~inner & ~expl & (dd < 0.04)
+    hug = close & (np.linalg.norm(local[:, :2], axis=1) < model.radius + 0.015)
+    ring = close & ~hug
+    extension = int(hug.sum())
     if ring.any() and expl.any():
         adj, _ = cKDTree(local[expl]).query(local[ring], distance_upper_bound=config.cluster_radius)
         same = color_agreement(hsv[col][ring], np.tile(np.median(model.hsv, 0), (ring.sum(), 1))) \
             if use_color else np.ones(ring.sum())
-        extension = int((np.isfinite(adj) & (same > 0)).sum())
-    else:
-        extension = 0
+        extension += int((np.isfinite(adj) & (same > 0)).sum())
     n_region = int(inner.sum()) + extension
     unexplained = float((int((inner & ~expl).sum()) + extension) / n_region) if n_region else 1.0
     sel = expl & inner
