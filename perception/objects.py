@@ -555,8 +555,9 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
                    config: DetectionConfig):
     """Seeds (x, y, yaw) for a model in a cluster: one per model-sized piece of the cluster
     (k-means centres), moved half a radius away from the camera (only the near side is seen);
-    several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose colours mostly disagree with the
-    model's are skipped (a cheap gate before any ICP)."""
+    several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose
+    colours mostly disagree with each of the model's colours are skipped (a cheap gate
+    before any ICP)."""
     xy = cp[:, :2]
     extent = np.ptp(xy, axis=0).max() if len(xy) > 1 else 0.0
     k = max(1, int(math.ceil(extent / (2 * model.radius + 0.01))))
@@ -567,13 +568,15 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         from scipy.cluster.vq import kmeans2
         centres, lab = kmeans2(xy, min(k, len(xy)), seed=0, minit="++")
         groups = [np.flatnonzero(lab == i) for i in range(len(centres))]
-    model_hsv = np.median(model.hsv, axis=0)
+    # Every colour of the model, not their median: a glass jar's median colour is its glass,
+    # which returns almost no depth; what is seen of it is mostly its lid.
+    colours = np.unique(model.hsv, axis=0)
     out = []
     for c, g in zip(centres, groups):
         if len(g) < 6:
             continue
-        if hsv is not None and \
-                color_agreement(hsv[g], np.tile(model_hsv, (len(g), 1))).mean() < 0.25:
+        if hsv is not None and max(color_agreement(hsv[g], np.tile(m, (len(g), 1))).mean()
+                                   for m in colours) < 0.25:
             continue
         v = c - cam[:2]
         v /= max(np.linalg.norm(v), 1e-9)
