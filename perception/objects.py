@@ -556,7 +556,7 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
     """Seeds (x, y, yaw) for a model in a cluster: one per model-sized piece of the cluster
     (k-means centres), moved half a radius away from the camera (only the near side is seen);
     several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose
-    colours mostly disagree with each of the model's colours are skipped (a cheap gate
+    colours mostly disagree with the model's (``_gate_colours``) are skipped (a cheap gate
     before any ICP)."""
     xy = cp[:, :2]
     extent = np.ptp(xy, axis=0).max() if len(xy) > 1 else 0.0
@@ -568,9 +568,7 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         from scipy.cluster.vq import kmeans2
         centres, lab = kmeans2(xy, min(k, len(xy)), seed=0, minit="++")
         groups = [np.flatnonzero(lab == i) for i in range(len(centres))]
-    # Every colour of the model, not their median: a glass jar's median colour is its glass,
-    # which returns almost no depth; what is seen of it is mostly its lid.
-    colours = np.unique(model.hsv, axis=0)
+    colours = _gate_colours(model)
     out = []
     for c, g in zip(centres, groups):
         if len(g) < 6:
@@ -587,6 +585,19 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         if not model.symmetric and model.height < model.radius and len(g) >= 10:
             out.append(_rectangle_seeds(xy[g], model))
     return out
+
+
+def _gate_colours(model: ObjectModel) -> list[np.ndarray]:
+    """The colours a piece of the model is expected to show (cached): the median colour of
+    the parts a depth sensor returns, and that of its glass, dark or shiny parts, apart. A
+    glass jar's median colour over all its surface is its glass, which returns almost no
+    depth: what is seen of it is mostly its lid."""
+    got = model.__dict__.get("_gate")
+    if got is None:
+        got = [np.median(model.hsv[m], axis=0) for m in (~model.dropout, model.dropout)
+               if m.any()]
+        model.__dict__["_gate"] = got
+    return got
 
 
 def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, float, float]]:
