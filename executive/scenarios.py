@@ -60,6 +60,11 @@ PLACE_WEIGHTS = (0.60, 0.25, 0.15)
 RESIDUAL_LIMIT_CM = 2.0
 #: A found object further than this from its true place is a wrong success (metres).
 FOUND_TOLERANCE_M = 0.10
+#: An achievable fetch case puts its object where some pose of the search shows at least this
+#: many pixels of it in the head camera's 640 x 480 image (about 50 depth points at the
+#: detector's stride of 2; docs/suite.md). A placement no pose shows (a shelf or a cupboard's
+#: front hiding it from every pose the head can take) is drawn again.
+MIN_VISIBLE_PX = 200
 
 
 @dataclass(frozen=True)
@@ -243,6 +248,29 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
     return False
 
 
+def place_observably(truth, object_id: str, place_id: str, rng, fallback=(),
+                     tries: int = 6) -> bool:
+    """Put the object at a free spot of the place (``place_on``) that the robot can see:
+    :func:`observable`. A spot no pose of the search shows is drawn again (``tries`` times at
+    the place, then at each ``fallback`` place in turn); with none observable it stays at the
+    last spot drawn. Returns whether the placement is observable."""
+    for pid in [place_id, *[p for p in fallback if p != place_id]]:
+        for _ in range(tries):
+            if not place_on(truth, object_id, pid, rng):
+                break
+            if observable(truth, object_id):
+                return True
+    return False
+
+
+def observable(truth, object_id: str) -> bool:
+    """Whether a search can see the object where it stands in the truth: some pose it can take
+    (a parking position of its furniture or a next-best-view candidate, doors open) shows at
+    least MIN_VISIBLE_PX pixels of it (``hearth.robot.scenario.visible_pixels``)."""
+    from hearth.robot.scenario import visible_pixels
+    return visible_pixels(truth, object_id)[0] >= MIN_VISIBLE_PX
+
+
 def warm_up(belief, object_id: str, n: int, rng, places: list[tuple[str, float]],
             start=None) -> None:
     """Record ``n`` map-level searches: walk the learned search order (from ``start``, a base
@@ -282,9 +310,8 @@ def make_case_scenario(case: Case, world=None):
         params = {"object": object_words(world, target), "learned": case.learned}
         places = object_places(world, target)
         if case.achievable:
-            place = sample_place(places, rng)
-            if not place_on(sc.truth, target, place, rng):
-                place_on(sc.truth, target, world.parent(target).id, rng)
+            place_observably(sc.truth, target, sample_place(places, rng), rng,
+                             fallback=[p for p, _ in places] + [world.parent(target).id])
         else:
             sc.truth.remove_small_object(target, source="scenario")
         if case.warmup:

@@ -199,6 +199,36 @@ def parking_candidates(world, centre) -> list[tuple[float, float, float]]:
     return out
 
 
+def candidate_bases(world, centre, config: NBVConfig = NBVConfig(), room=None
+                    ) -> list[tuple[float, float, float, int]]:
+    """Base poses (x, y, yaw, ring) the planner considers around the world point ``centre``:
+    on the rings, facing it, and (``config.parking_candidates``) the parking positions of
+    the furniture it stands on (ring ``len(config.radii)``); those that leave ``room``
+    (default: the room at ``centre``) or come within the robot's radius of a large object's
+    footprint (current articulation state) dropped. Obstacles seen in a view are not known
+    here: the planner drops those near them."""
+    room = room or room_at(world, float(centre[0]), float(centre[1]))
+    cands = []
+    for ri, r in enumerate(config.radii):
+        for k in range(config.n_angles):
+            a = 2 * math.pi * (k + 0.5 * ri) / config.n_angles
+            cands.append((centre[0] + r * math.cos(a), centre[1] + r * math.sin(a),
+                          math.atan2(-math.sin(a), -math.cos(a)), ri))
+    if config.parking_candidates:
+        cands += [(x, y, yaw, len(config.radii)) for x, y, yaw in parking_candidates(world, centre)]
+    xy = np.array([c[:2] for c in cands])
+    ok = np.ones(len(cands), bool)
+    for T, box in footprints(world, room.id if room is not None else None):
+        ok &= _box_distance(xy, T, box) > config.robot_radius
+    if room is not None and room.bounds is not None:
+        x0, y0, x1, y1 = room.bounds
+        local = to_room(room, xy)
+        rr = config.robot_radius
+        ok &= (local[:, 0] > x0 + rr) & (local[:, 0] < x1 - rr) & \
+              (local[:, 1] > y0 + rr) & (local[:, 1] < y1 - rr)
+    return [c for c, good in zip(cands, ok) if good]
+
+
 def _cast(scene, origin: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Distance to the first hit along rays from ``origin`` towards ``targets`` (inf: none)."""
     d = targets - origin
@@ -244,29 +274,11 @@ def plan_next_best_view(world, hypotheses: Sequence[ObjectHypothesis], depth: np
     # The room where the hypotheses stand (an object the map keeps in another room still
     # stands where it was seen).
     room = room_at(world, float(centre[0]), float(centre[1])) or world.room_of(hypotheses[0].object_id)
-    cands = []
-    for ri, r in enumerate(config.radii):
-        for k in range(config.n_angles):
-            a = 2 * math.pi * (k + 0.5 * ri) / config.n_angles
-            cands.append((centre[0] + r * math.cos(a), centre[1] + r * math.sin(a),
-                          math.atan2(-math.sin(a), -math.cos(a)), ri))
-    if config.parking_candidates:
-        cands += [(x, y, yaw, len(config.radii)) for x, y, yaw in parking_candidates(world, centre)]
-    xy = np.array([c[:2] for c in cands])
-    ok = np.ones(len(cands), bool)
-    for T, box in footprints(world, room.id):
-        ok &= _box_distance(xy, T, box) > config.robot_radius
-    if room.bounds is not None:
-        x0, y0, x1, y1 = room.bounds
-        local = to_room(room, xy)
-        rr = config.robot_radius
-        ok &= (local[:, 0] > x0 + rr) & (local[:, 0] < x1 - rr) & \
-              (local[:, 1] > y0 + rr) & (local[:, 1] < y1 - rr)
-    if len(obstacles):
+    cands = candidate_bases(world, centre, config, room)
+    if len(obstacles) and cands:
         from scipy.spatial import cKDTree
-        d, _ = cKDTree(obstacles[:, :2]).query(xy)
-        ok &= d > config.robot_radius
-    cands = [c for c, good in zip(cands, ok) if good]
+        d, _ = cKDTree(obstacles[:, :2]).query(np.array([c[:2] for c in cands]))
+        cands = [c for c, dist in zip(cands, d) if dist > config.robot_radius]
     if not cands:
         raise PerceptionError("no collision-free view around the object")
 

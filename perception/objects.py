@@ -539,10 +539,14 @@ def _surface_by_name(world, surface: str):
 
 
 def _normals(pts: np.ndarray, clusters: list[np.ndarray]) -> np.ndarray:
+    """Normals per cluster from the 16 nearest points within 4 cm: on a dense surface the 16
+    nearest lie within a centimetre, so the radius only matters where points are sparse (a
+    glass jar returns about one pixel in ten), where a 2 cm radius left 3-5 neighbours and
+    normals too noisy to agree with the model's."""
     out = np.zeros_like(pts)
     for idx in clusters:
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[idx]))
-        pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.02, max_nn=16))
+        pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.04, max_nn=16))
         out[idx] = np.asarray(pc.normals)
     return out
 
@@ -551,8 +555,9 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
                    config: DetectionConfig):
     """Seeds (x, y, yaw) for a model in a cluster: one per model-sized piece of the cluster
     (k-means centres), moved half a radius away from the camera (only the near side is seen);
-    several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose colours mostly disagree with the
-    model's are skipped (a cheap gate before any ICP)."""
+    several yaws unless the model is symmetric (one list of seeds per piece). Pieces whose
+    colours mostly disagree with the model's (``_gate_colours``) are skipped (a cheap gate
+    before any ICP)."""
     xy = cp[:, :2]
     extent = np.ptp(xy, axis=0).max() if len(xy) > 1 else 0.0
     k = max(1, int(math.ceil(extent / (2 * model.radius + 0.01))))
@@ -563,13 +568,13 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         from scipy.cluster.vq import kmeans2
         centres, lab = kmeans2(xy, min(k, len(xy)), seed=0, minit="++")
         groups = [np.flatnonzero(lab == i) for i in range(len(centres))]
-    model_hsv = np.median(model.hsv, axis=0)
+    colours = _gate_colours(model)
     out = []
     for c, g in zip(centres, groups):
         if len(g) < 6:
             continue
-        if hsv is not None and \
-                color_agreement(hsv[g], np.tile(model_hsv, (len(g), 1))).mean() < 0.25:
+        if hsv is not None and max(color_agreement(hsv[g], np.tile(m, (len(g), 1))).mean()
+                                   for m in colours) < 0.25:
             continue
         v = c - cam[:2]
         v /= max(np.linalg.norm(v), 1e-9)
@@ -577,7 +582,57 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
         yaws = [0.0] if model.symmetric else list(np.arange(config.yaw_steps) * 2 * math.pi
                                                   / config.yaw_steps)
         out.append([(float(x), float(y), float(a)) for a in yaws])
+        if not model.symmetric and model.height < model.radius and len(g) >= 10:
+            out.append(_rectangle_seeds(xy[g], model))
     return out
+
+
+def _gate_colours(model: ObjectModel) -> list[np.ndarray]:
+    """The colours a piece of the model is expected to show (cached): the median colour of
+    the parts a depth sensor returns, and that of its glass, dark or shiny parts, apart. A
+    glass jar's median colour over all its surface is its glass, which returns almost no
+    depth: what is seen of it is mostly its lid."""
+    got = model.__dict__.get("_gate")
+    if got is None:
+        got = [np.median(model.hsv[m], axis=0) for m in (~model.dropout, model.dropout)
+               if m.any()]
+        model.__dict__["_gate"] = got
+    return got
+
+
+def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, float, float]]:
+    """Seeds for a flat object (lower than its radius: a book lying down, a remote) seen
+    from above: its whole top is in view, so the smallest rectangle around the piece
+    (OpenCV ``minAreaRect``) has the object's centre and its sides along the object's
+    principal axes (four yaws: a rectangle's sides are a quarter turn apart). Point-to-point
+    ICP alone does not pull a flat face across itself: inside the overlap every scene point
+    has a model point within the sampling distance, so only the few points beyond an edge
+    move it, and a seed shifted away from the camera (the other seeds) stalls centimetres
+    off."""
+    import cv2
+    (cx, cy), _, angle = cv2.minAreaRect(np.asarray(xy, np.float32))
+    base = math.radians(angle) - _principal_angle(model)
+    return [(float(cx), float(cy), float(base + k * math.pi / 2)) for k in range(4)]
+
+
+def _footprint_tree(model: ObjectModel) -> cKDTree:
+    """KD-tree of the model's points projected on its base plane (cached): its outline seen
+    from above."""
+    t = model.__dict__.get("_footprint")
+    if t is None:
+        t = model.__dict__["_footprint"] = cKDTree(model.points[:, :2])
+    return t
+
+
+def _principal_angle(model: ObjectModel) -> float:
+    """Angle (object frame, rad) of the major axis of the model's footprint (cached)."""
+    a = model.__dict__.get("_principal")
+    if a is None:
+        xy = model.points[:, :2] - model.points[:, :2].mean(0)
+        w, v = np.linalg.eigh(xy.T @ xy)
+        major = v[:, int(np.argmax(w))]
+        a = model.__dict__["_principal"] = float(math.atan2(major[1], major[0]))
+    return a
 
 
 def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_xy, tree_xyz,
@@ -614,18 +669,22 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     local = (pts[col] - T[:3, 3]) @ R
     dd, jj = model.tree.query(local)
     expl = dd < config.inlier_distance
-    r_xy = np.linalg.norm(local[:, :2], axis=1)
-    inner = r_xy < model.radius + 0.015
-    # Beyond the footprint, unexplained points count only where they continue the object's
-    # surface in the object's colour (a bigger object of that colour); a neighbour does not.
-    ring = ~inner & ~expl & (dd < 0.04)
+    # The footprint is the model's outline seen from above (not the circle around it: beside
+    # a long book that circle holds its neighbours).
+    inner = _footprint_tree(model).query(local[:, :2], distance_upper_bound=0.015)[0] < 0.015
+    # Just outside the outline and near the model's surface: within the circle around the
+    # model any such point counts (a bigger object this one would be part of), beyond it
+    # only where it continues the object's surface in the object's colour; a neighbour
+    # further from the surface does not.
+    close = ~inner & ~expl & (dd < 0.04)
+    hug = close & (np.linalg.norm(local[:, :2], axis=1) < model.radius + 0.015)
+    ring = close & ~hug
+    extension = int(hug.sum())
     if ring.any() and expl.any():
         adj, _ = cKDTree(local[expl]).query(local[ring], distance_upper_bound=config.cluster_radius)
         same = color_agreement(hsv[col][ring], np.tile(np.median(model.hsv, 0), (ring.sum(), 1))) \
             if use_color else np.ones(ring.sum())
-        extension = int((np.isfinite(adj) & (same > 0)).sum())
-    else:
-        extension = 0
+        extension += int((np.isfinite(adj) & (same > 0)).sum())
     n_region = int(inner.sum()) + extension
     unexplained = float((int((inner & ~expl).sum()) + extension) / n_region) if n_region else 1.0
     sel = expl & inner

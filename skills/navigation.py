@@ -10,6 +10,8 @@ from skills.values import as_pose
 
 #: ``parking: another``: the nearest parking position other than the one the robot is at.
 ANOTHER = "another"
+#: ``parking: nearest``: the parking position nearest the robot (it may be already there).
+NEAREST = "nearest"
 #: A robot closer than this (m) to a parking position is at it.
 AT_PARKING_M = 0.15
 
@@ -25,9 +27,10 @@ class NavigateTo(RobotActionSkill):
     DESCRIPTION = "drive the base to a pose or to a node's parking position"
     INPUTS = (Port("target", "any", description="node id, pose, or search place"),
               Port("parking", "string", required=False, default=None,
-                   description="parking position id (default: the node's default), or "
+                   description="parking position id (default: the node's default), "
                                "'another': the nearest one the robot is not at (a second "
-                               "view of the same thing)"))
+                               "view of the same thing), or 'nearest': the nearest one "
+                               "(back within reach of the node from a view further away)"))
     OUTPUTS = (Port("pose", "pose", required=False, description="the goal pose (world, x/y/yaw)"),)
 
     def start(self):
@@ -36,6 +39,8 @@ class NavigateTo(RobotActionSkill):
         if isinstance(target, str):
             if parking == ANOTHER:
                 parking, goal = self._another(target)
+            elif parking == NEAREST:
+                parking, goal = self._nearest(target)
             elif parking:
                 goal = self.world.parking_pose(target, parking)
             else:
@@ -60,6 +65,16 @@ class NavigateTo(RobotActionSkill):
         if not others:
             raise ValueError(f"{target} has no other parking position than the one the robot is at")
         return others[0][1], others[0][2]
+
+    def _nearest(self, target: str):
+        """The parking position of ``target`` nearest to the robot (ValueError when it has
+        none)."""
+        here = self.robot.base_pose()
+        found = sorted((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
+                       for p, pose in self.world.parking_positions(target))
+        if not found:
+            raise ValueError(f"{target} has no parking position")
+        return found[0][1], found[0][2]
 
     def describe(self) -> str:
         return f"navigating {getattr(self, '_what', '')}".strip()

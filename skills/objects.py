@@ -187,9 +187,12 @@ class PlanNextBestView(_PerceptionSkill):
                       f"of its facing surface unoccluded, {len(views)} candidates")
 
     def _at_place(self, oid: str) -> list:
-        """A hypothesis of the object standing at the place being searched: on the surface
-        the map believes it on when the place is its parent, else on the highest surface;
-        the map's pose when no place is given."""
+        """Hypotheses of the object standing at the place being searched, for a view of the
+        whole place: where the map believes it when the place is its parent, and at the
+        middle of each of the place's surface levels, lowest first (the levels a shelf or a
+        cupboard's front hides from the first view; PlanNextBestView keeps four); the map's
+        pose when no place is given. Not only the believed pose: the object was not seen
+        there, and a view chosen for a cupboard's top may not see into it at all."""
         from perception.nbv import ObjectHypothesis, from_map
         from skills.map import place_id
         place = self.input("place")
@@ -197,15 +200,21 @@ class PlanNextBestView(_PerceptionSkill):
             return from_map(self.world, oid)
         pid = place_id(place)
         parent = self.world.parent(oid)
-        if parent is not None and parent.id == pid:
-            return from_map(self.world, oid)
-        if isinstance(place, dict) and place.get("look_at") is not None:
+        if isinstance(place, dict) and place.get("look_at") is not None \
+                and (parent is None or parent.id != pid):
             T = np.eye(4)
             T[:3, 3] = np.asarray(place["look_at"], dtype=float)[:3]
             return [ObjectHypothesis(oid, T, 1.0)]
+        out = from_map(self.world, oid) if parent is not None and parent.id == pid else []
         levels = self.world.surfaces_of(pid)
-        if not levels:
+        if not levels and not out:
             T = np.eye(4)
             T[:3, 3] = self.world.aim_point(pid, "top")
             return [ObjectHypothesis(oid, T, 1.0)]
-        return [ObjectHypothesis(oid, levels[0].T_world_surface, 1.0)]
+        believed = out[0].T_world_object[:3, 3] if out else None
+        for lv in reversed(levels):
+            if believed is not None and \
+                    abs(lv.T_world_surface[2, 3] - believed[2]) < 0.05 and len(levels) > 1:
+                continue            # the believed pose stands for its own level
+            out.append(ObjectHypothesis(oid, lv.T_world_surface, 1.0))
+        return out

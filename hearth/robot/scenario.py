@@ -366,3 +366,78 @@ def _clutter(oid: str, kind: str, rng, pose: Pose) -> SmallObject:
         vis = Visual("cylinder", Pose(0, 0, h / 2), radius=r, length=h, color=color)
     return SmallObject(id=oid, type=kind, pose=pose, description=f"scenario {kind}",
                        graspable=False, model=Model(visuals=[vis]))
+
+
+# -- what the robot can see of a placement -------------------------------------------------------
+
+def visible_pixels(world, object_id: str, open_doors: bool = True,
+                   intrinsics=None) -> tuple[int, Optional[tuple[float, float, float]]]:
+    """How well the robot's head camera can see a small object where it stands in ``world``
+    (the truth): the most pixels of it, unhidden, in one view (640 x 480 Kinect image by
+    default) over the poses a search can take near it (the parking positions of the furniture
+    it stands on, and the next-best-view candidates around it, ``perception.nbv``), the head
+    aimed at its middle within the head's tilt and pan limits, the furniture's doors open as
+    the robot opens them (revolute ones a quarter turn) when ``open_doors``. Returns (pixels,
+    the base pose (x, y, yaw) that sees them; None when none does).
+
+    Only the object's bounding box in each image is ray cast (open3d RaycastingScene with the
+    room's meshes: its walls, furniture and small objects), so a few hundred candidate views
+    cost about as much as one full rendering."""
+    import open3d as o3d
+    from perception.camera import Intrinsics, project
+    from perception.nbv import NBVConfig, candidate_bases
+    from hearth.robot.sim import HEAD, camera_pose, pan_tilt_to
+    from worldmodel.geometry import scene_meshes, small_object_meshes
+    from worldmodel.nodes import LargeArticulatedObject
+
+    K = intrinsics or Intrinsics.kinect()
+    obj = world.get(object_id)
+    parent = world.parent(object_id)
+    room = world.room_of(parent.id)
+    states = {}
+    if open_doors and isinstance(parent, LargeArticulatedObject):
+        for p in _all_parts(parent.parts):
+            if p.joint.type == "revolute":
+                states[p.id] = min(math.radians(90), p.joint.upper)
+    scene = o3d.t.geometry.RaycastingScene()
+    mine = set()
+    for lm in scene_meshes(world, room_ids=[room.id], states=states or None):
+        if len(lm.mesh.triangles):
+            gid = scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+            if lm.node == object_id:
+                mine.add(gid)
+    verts = np.vstack([np.asarray(lm.mesh.vertices) for lm in small_object_meshes(world, obj)])
+    centre = verts.mean(0)
+    aim = np.r_[centre[:2], (verts[:, 2].min() + verts[:, 2].max()) / 2]
+    poses = [(p.x, p.y, p.yaw) for _, p in world.parking_positions(parent.id)]
+    poses += [c[:3] for c in candidate_bases(world, centre, NBVConfig(), room)]
+    best, best_pose = 0, None
+    for x, y, yaw in poses:
+        base = Pose.planar(x, y, yaw)
+        pan, tilt = pan_tilt_to(base, aim, HEAD)
+        T_wc = camera_pose(base, pan, tilt, HEAD)
+        T_cw = np.linalg.inv(T_wc)
+        uv, front = project(verts @ T_cw[:3, :3].T + T_cw[:3, 3], K)
+        if not front.any():
+            continue
+        u0, v0 = np.floor(uv[front].min(0)).astype(int)
+        u1, v1 = np.ceil(uv[front].max(0)).astype(int)
+        u0, v0 = max(u0, 0), max(v0, 0)
+        u1, v1 = min(u1, K.width - 1), min(v1, K.height - 1)
+        if u1 < u0 or v1 < v0:
+            continue
+        u, v = np.meshgrid(np.arange(u0, u1 + 1), np.arange(v0, v1 + 1))
+        d = np.stack([(u.ravel() - K.cx) / K.fx, (v.ravel() - K.cy) / K.fy,
+                      np.ones(u.size)], axis=1) @ T_wc[:3, :3].T
+        rays = np.c_[np.tile(T_wc[:3, 3], (len(d), 1)), d].astype(np.float32)
+        ids = scene.cast_rays(o3d.core.Tensor(rays))["geometry_ids"].numpy()
+        n = int(np.isin(ids, list(mine)).sum())
+        if n > best:
+            best, best_pose = n, (float(x), float(y), float(yaw))
+    return best, best_pose
+
+
+def _all_parts(parts):
+    for p in parts:
+        yield p
+        yield from _all_parts(p.parts)

@@ -351,7 +351,27 @@ def test_a_missed_grasp_is_retried_after_relocalising_and_looking_again(world):
         Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
         + ROBOT_SCRIPTS, object="blue cup")
     assert result.outcome == "succeeded", result.reason
-    assert sub.made["/fetch_object/pick_up/relocalise_and_grasp/grasp_again"].activations == 1
+    assert sub.made["/fetch_object/pick_up/relocalise_and_grasp/grasp_again_or_where_seen/"
+                    "sequence/grasp_again"].activations == 1
+
+
+def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_seen(world):
+    # Found from a view further than the arm reaches; from the parking position the object
+    # is not seen again: the robot grasps it where the far view saw it.
+    seen = on_top_of(world, "kitchen_table")
+    result, sub = run("fetch_object.yaml", world, [
+        Script("/fetch_object/pick_up/Grasp", outcomes=["failure"]),
+        Script("*/detect_again", outcomes=["failure"]),
+        Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
+        + ROBOT_SCRIPTS, object="blue cup")
+    assert result.outcome == "succeeded", result.reason
+    base = "/fetch_object/pick_up/relocalise_and_grasp"
+    back = sub.made[f"{base}/come_closer/sequence/back_within_reach"]
+    assert back.activations == 1
+    assert back.seen_inputs[0] == {"target": "kitchen_table", "parking": "nearest"}
+    assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].activations == 1
+    assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].seen_inputs[0]["pose"] \
+        == seen
 
 
 def test_a_knob_whose_off_state_is_not_called_off_is_turned_to_its_own_off(world):

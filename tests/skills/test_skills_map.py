@@ -172,6 +172,20 @@ def test_navigate_to_another_parking_position_leaves_the_one_the_robot_is_at(dem
     assert "no other parking position" in s.feedback_message
 
 
+def test_navigate_to_the_nearest_parking_position_comes_back_within_reach(demo_world):
+    parking = {p.id: pose for p, pose in demo_world.parking_positions("oven")}
+    robot = FakeRobot()
+    right = parking["oven_right"]
+    # a view 40 cm behind the right parking position: back to it, not to the default one
+    robot.base_pose = lambda: type(right).planar(right.x - 0.4 * math.cos(right.yaw),
+                                                 right.y - 0.4 * math.sin(right.yaw), right.yaw)
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "nearest"})
+    assert tick(s) == S.RUNNING
+    goal = robot.calls[0][1]
+    assert (goal.x, goal.y) == pytest.approx((right.x, right.y))
+    assert "oven_right" in s.describe()
+
+
 def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
     robot = FakeRobot()
     robot.next = ScriptedAction(ticks=0)
