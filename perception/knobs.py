@@ -119,7 +119,8 @@ class KnobConfig:
     offset_sigma_m: float = read_time(0.008)
     offset_weight: float = read_time(0.05)
     align_iterations: int = read_time(5)
-    angle_stages: int = read_time(2)
+    depth_align_iterations: int = read_time(2)
+    angle_stages: int = read_time(1)
     candidates: int = read_time(3)
     decimate_above_px: float = read_time(16.0)
     min_radius_px: float = read_time(4.0)
@@ -695,9 +696,18 @@ def _depth_center(hc, hv, template, cell, inside, off, rho, reach: int = 2, min_
     measured heights best, within ``reach`` canvas pixels of ``cell`` (row, column of the
     offset grid ``off``) and inside the search region, refined by a parabola through its
     neighbours in each direction; None when the best fit is under ``min_fit``."""
-    d = depth_offset_scores(hc, hv, template)
-    d = np.where(inside, d, -np.inf)
+    # only the offsets within reach (and their neighbours, for the parabola) are scored: the
+    # measured heights are cut to the windows of those offsets (correlation is blind to the
+    # reference height, so the cut changes nothing of the fit)
     ci, cj = cell
+    n = template.shape[0]
+    H, W = inside.shape
+    a0, a1 = max(ci - reach - 1, 0), min(ci + reach + 2, H)
+    b0, b1 = max(cj - reach - 1, 0), min(cj + reach + 2, W)
+    d = np.full(inside.shape, -np.inf)
+    d[a0:a1, b0:b1] = depth_offset_scores(hc[a0:a1 + n - 1, b0:b1 + n - 1],
+                                          hv[a0:a1 + n - 1, b0:b1 + n - 1], template)
+    d = np.where(inside, d, -np.inf)
     i0, i1 = max(ci - reach, 0), min(ci + reach + 1, d.shape[0])
     j0, j1 = max(cj - reach, 0), min(cj + reach + 1, d.shape[1])
     sub = d[i0:i1, j0:j1]
@@ -1105,8 +1115,12 @@ class KnobReader:
         caster = self.caster(prior.shape)
         R_canvas_cam = np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]
         max_shift = cfg.search_m * rho
+        iterations = cfg.align_iterations
         if depth is not None:
+            # the depth placed the knob: the colour only settles it within a fraction of a
+            # pixel, which Gauss-Newton reaches in a step or two
             max_shift = min(max_shift, cfg.depth_settle_radii * cfg.fine_px_per_radius)
+            iterations = min(iterations, cfg.depth_align_iterations)
         slack = shape.face / max(math.cos(theta), 0.3) + 0.03
         w_depth = cfg.depth_weight
 
@@ -1128,16 +1142,17 @@ class KnobReader:
                 panel = -O[2] / dz                     # the panel plane (z = 0 of the knob)
                 valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
                 if valid.mean() >= 0.3:
-                    win.depth_fit = lambda t: float(depth_scores(
-                        m[None], valid[None], np.where(np.isfinite(t), t, panel)[None])[0, 0])
+                    win.depth_fit = lambda ts: depth_scores(
+                        m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]))[0]
             return win
 
-        def score(win, lab, t) -> float:
-            f = win.fit(lab)
-            return f + w_depth * win.depth_fit(t) if win.depth_fit is not None else f
+        def scores(win, labs, ts) -> np.ndarray:
+            """The fits of renderings (B, N) and their ray parameters, in one go."""
+            f = win.fits(labs)
+            return f + w_depth * win.depth_fit(ts) if win.depth_fit is not None else f
 
         def settle(win: _Window, alpha: float) -> Optional[_Window]:
-            t = win.settle(win.render([alpha])[0][0], cfg.align_iterations, max_shift)
+            t = win.settle(win.render([alpha])[0][0], iterations, max_shift)
             if np.hypot(*t) <= 0.05:
                 return win
             return look((win.c[0] + t[0] / rho, win.c[1] + t[1] / rho))
@@ -1154,17 +1169,21 @@ class KnobReader:
             few steps off)."""
             ks = list(range(-span, span + 1))
             labs, ts = win.render([a + k * st for a in starts for k in ks])
-            fits = iter(score(win, lab, t) for lab, t in zip(labs, ts))
-            out = []
-            for a in starts:
-                found = {k: next(fits) for k in ks}        # by whole steps
-                for _ in range(2):         # walk while an end is the best
+            fits = iter(scores(win, labs, ts).tolist())
+            curves = [{k: next(fits) for k in ks} for _ in starts]     # by whole steps
+            for _ in range(2):             # walk while an end is the best (all starts at once)
+                steps = []
+                for i, found in enumerate(curves):
                     top = max(found, key=found.get)
-                    if top not in (min(found), max(found)):
-                        break
-                    k = top + (1 if top == max(found) else -1)
-                    labs, ts = win.render([a + k * st])
-                    found[k] = score(win, labs[0], ts[0])
+                    if top in (min(found), max(found)):
+                        steps.append((i, top + (1 if top == max(found) else -1)))
+                if not steps:
+                    break
+                labs, ts = win.render([starts[i] + k * st for i, k in steps])
+                for (i, k), f in zip(steps, scores(win, labs, ts).tolist()):
+                    curves[i][k] = f
+            out = []
+            for a, found in zip(starts, curves):
                 top = max(found, key=found.get)
                 y1, ym, yp = found[top], found.get(top - 1), found.get(top + 1)
                 if ym is not None and yp is not None and ym - 2 * y1 + yp < 0:
@@ -1281,6 +1300,32 @@ class _Window:
             return 0.0
         mu, b = self._solve(self.maps(labels, t))
         return float(np.vdot(b, mu)) / self.tv
+
+    def fits(self, labels: np.ndarray) -> np.ndarray:
+        """``fit`` of each of B renderings (B, N box pixels) at no shift, solved together: the
+        labels of all of them are the columns of one batch (a label a rendering lacks has no
+        pixels, its colour solves to 0 and adds nothing: the same fit as alone)."""
+        B = len(labels)
+        if self.tv <= 1e-6 * len(self.X):
+            return np.zeros(B)
+        idx, wts = self._sampling((0.0, 0.0))
+        present = np.flatnonzero(np.bincount(labels.ravel()))
+        lut = np.zeros(int(present[-1]) + 1, np.int64)
+        lut[present] = np.arange(len(present))
+        L = len(present)
+        # each window pixel mixes four box pixels' labels: the Gram matrix W W^T and W X are
+        # sums over pixels of those four labels' weight products (sparse, no dense W)
+        lab = lut[labels[:, idx]] + (np.arange(B) * L)[:, None, None]        # (B, 4, N)
+        w = np.broadcast_to(wts, lab.shape)
+        pair_keys = (lab[:, :, None, :] * L + (lab[:, None, :, :] % L)).ravel()
+        pair_w = (w[:, :, None, :] * w[:, None, :, :]).ravel()
+        G = np.bincount(pair_keys, pair_w, minlength=B * L * L).reshape(B, L, L)
+        keys = lab.ravel()
+        b = np.stack([np.bincount(keys, (w * self.Xc[:, c]).ravel(), minlength=B * L)
+                      for c in range(3)], -1).reshape(B, L, 3)
+        G[:, np.arange(L), np.arange(L)] += 1e-6 + self.ridge
+        mu = np.linalg.solve(G, b)
+        return np.einsum("blc,blc->b", b, mu) / self.tv
 
     def settle(self, labels: np.ndarray, iterations: int, max_shift: float) -> np.ndarray:
         """The shift t (px, canvas x right, y up) of the rendered knob that fits the window
