@@ -700,17 +700,8 @@ def _depth_center(hc, hv, template, cell, inside, off, rho, reach: int = 2, min_
     measured heights best, within ``reach`` canvas pixels of ``cell`` (row, column of the
     offset grid ``off``) and inside the search region, refined by a parabola through its
     neighbours in each direction; None when the best fit is under ``min_fit``."""
-    # only the offsets within reach (and their neighbours, for the parabola) are scored: the
-    # measured heights are cut to the windows of those offsets (correlation is blind to the
-    # reference height, so the cut changes nothing of the fit)
+    d = depth_offset_scores(hc, hv, template)
     ci, cj = cell
-    n = template.shape[0]
-    H, W = inside.shape
-    a0, a1 = max(ci - reach - 1, 0), min(ci + reach + 2, H)
-    b0, b1 = max(cj - reach - 1, 0), min(cj + reach + 2, W)
-    d = np.full(inside.shape, -np.inf)
-    d[a0:a1, b0:b1] = depth_offset_scores(hc[a0:a1 + n - 1, b0:b1 + n - 1],
-                                          hv[a0:a1 + n - 1, b0:b1 + n - 1], template)
     d = np.where(inside, d, -np.inf)
     i0, i1 = max(ci - reach, 0), min(ci + reach + 1, d.shape[0])
     j0, j1 = max(cj - reach, 0), min(cj + reach + 1, d.shape[1])
