@@ -204,13 +204,30 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     return out
 
 
+def _read_views(reader: KnobReader, views, jobs: int = -1) -> tuple[list[dict], list[dict]]:
+    """``validation_readings`` of ``views`` with their depth images and on colour alone, in
+    the views' order; the work split in chunks over ``jobs`` processes (joblib)."""
+    import os
+    n_jobs = min(4, os.cpu_count() or 1) if jobs in (None, -1) else max(1, int(jobs))
+    if n_jobs == 1 or len(views) < 40:
+        return validation_readings(reader, views), validation_readings(reader, views, use_depth=False)
+    from joblib import Parallel, delayed
+    k = 2 * n_jobs
+    chunks = [views[i * len(views) // k:(i + 1) * len(views) // k] for i in range(k)]
+    tasks = [(c, d) for d in (True, False) for c in chunks]
+    out = Parallel(n_jobs=n_jobs)(delayed(validation_readings)(reader, c, d) for c, d in tasks)
+    flat = lambda parts: [r for part in parts for r in part]
+    return flat(out[:k]), flat(out[k:])
+
+
 def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = KnobConfig(),
           noise: Optional[Callable] = None, progress: Optional[Progress] = None,
           jobs: int = -1) -> KnobReader:
     """Make the reader of ``world``'s knobs: templates of their shapes, then the gates on
     validation views. ``noise(rendering, rng)``: the sensor model applied to every view (e.g.
     the simulated robot's Kinect noise); ``progress(stage, done, total)`` is called now and
-    then. ``jobs`` is accepted for compatibility (the work is a few seconds on one core)."""
+    then. ``jobs``: processes reading the validation views (-1: one per core, at most 4; 1:
+    in this process)."""
     say = progress or (lambda stage, done, total: None)
     shapes = shapes_of(world)
     say(f"rendering templates of {len(shapes)} knob shape{'s' if len(shapes) != 1 else ''}", 0, len(shapes))
@@ -229,9 +246,11 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
                          scenes=scenes, progress=lambda d, n: say("rendering validation views", d, n))
     say("reading validation views", 0, len(views))
     # the gates of readings with the depth image, and those of readings on colour alone
-    # (a caller without depth)
-    colour = calibrate(reader, validation_readings(reader, views, use_depth=False), cfg)
-    reader = calibrate(reader, validation_readings(reader, views), cfg)
+    # (a caller without depth): the two passes over the views, in chunks, on ``jobs``
+    # processes (joblib; -1: every core, at most 4)
+    with_depth, colour_only = _read_views(reader, views, jobs)
+    colour = calibrate(reader, colour_only, cfg)
+    reader = calibrate(reader, with_depth, cfg)
     reader.colour_gates = colour
     d, s = reader.detect_gate, reader.state_gate
     say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"

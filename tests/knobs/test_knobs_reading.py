@@ -252,3 +252,16 @@ def test_the_detector_threshold_is_calibrated_on_validation_views(world, reader,
                       replace(reader.config, threshold=50.0))
     v = next(v for v in views if v.present)
     assert not high.read(v.image, v.K, v.T_world_camera, [v.believed])[0].found
+
+
+def test_validation_views_read_alike_on_several_processes(world, reader, scenes):
+    """Training reads its validation views on several processes: the readings (and so the
+    gates) are those of one process, in the views' order."""
+    from perception.knob_data import render_views
+    from perception.knob_training import _read_views
+    views = render_views(world, 40, 7, TrainingConfig().data, reader.config, scenes=scenes)
+    one = _read_views(reader, views, jobs=1)
+    two = _read_views(reader, views, jobs=2)
+    assert one == two
+    assert len(one[0]) == len(one[1]) == 40
+    assert any(r["found"] for r in one[0]) and any(r["found"] for r in one[1])
