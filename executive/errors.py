@@ -1,7 +1,7 @@
 """The executive's exception family: mission files, parameters, running."""
 from __future__ import annotations
 
-from hearth.errors import HearthError
+from hearth.errors import HearthError, problem_lines
 
 
 class MissionError(HearthError):
@@ -31,4 +31,4 @@ class MissionValidationError(MissionError):
         self.problems = problems
 
     def __str__(self) -> str:
-        return "\n".join(str(p) for p in self.problems)
+        return problem_lines(self.problems)

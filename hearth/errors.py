@@ -48,3 +48,18 @@ class HearthError(Exception):
     def __str__(self) -> str:
         where = self.where()
         return self.message if where is None else f"{where}: {self.message}"
+
+
+#: At most this many problems of one file are printed, one line each; a line after them says how
+#: many more there are (a world of 300 copied rooms has 2,100 problems, all of one kind).
+MOST_PROBLEMS_PRINTED = 50
+
+
+def problem_lines(problems) -> str:
+    """The problems of one file, one line each, at most ``MOST_PROBLEMS_PRINTED`` of them and a
+    last line counting the rest (the full list stays on the exception's ``problems``)."""
+    lines = [str(p) for p in problems[:MOST_PROBLEMS_PRINTED]]
+    rest = len(problems) - len(lines)
+    if rest > 0:
+        lines.append(f"... and {rest} more problems ({len(problems)} in all)")
+    return "\n".join(lines)

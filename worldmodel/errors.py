@@ -1,7 +1,7 @@
 """The world model's exception family: every error says where the problem is."""
 from __future__ import annotations
 
-from hearth.errors import HearthError
+from hearth.errors import HearthError, problem_lines
 
 
 class WorldError(HearthError):
@@ -22,7 +22,7 @@ class WorldValidationError(WorldError):
         self.problems = problems
 
     def __str__(self) -> str:
-        return "\n".join(str(p) for p in self.problems)
+        return problem_lines(self.problems)
 
 
 class UnknownNode(WorldError):

@@ -1,8 +1,8 @@
 """`hearth validate FILE...`: check world files (.xml) and mission files (.yaml/.yml).
 
 Check world files (XML, schema and semantics) and mission files (YAML). Prints nothing and
-exits 0 when all are valid; otherwise one 'path:line: message' line per problem and exit
-status 2.
+exits 0 when all are valid; otherwise one 'path:line: message' line per problem (the first 50
+of a file, then a line counting the rest) and exit status 2.
 """
 from __future__ import annotations
 
@@ -30,9 +30,12 @@ def problems_in(path: str) -> list[str]:
 
 
 def _run(args) -> int:
+    from hearth.errors import problem_lines
+
     bad = False
     for path in args.files:
-        for line in problems_in(path):
-            print(line, file=sys.stderr)
+        problems = problems_in(path)
+        if problems:
+            print(problem_lines(problems), file=sys.stderr)
             bad = True
     return 2 if bad else 0

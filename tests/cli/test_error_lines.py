@@ -65,3 +65,15 @@ def test_the_cli_turns_a_skill_error_into_one_line_and_status_2(monkeypatch, cap
     monkeypatch.setattr(validate, "problems_in", broken)
     assert main(["validate", "whatever.xml"]) == 2
     assert capsys.readouterr().err == "node kitchen_table: not a pose: 'x'\n"
+
+
+def test_a_file_with_many_problems_prints_the_first_fifty_and_counts_the_rest():
+    from hearth.errors import MOST_PROBLEMS_PRINTED
+
+    problems = [WorldError(f"problem {i}", file="w.xml", line=i + 1) for i in range(120)]
+    lines = str(WorldValidationError(problems)).splitlines()
+    assert len(lines) == MOST_PROBLEMS_PRINTED + 1 == 51
+    assert lines[0] == "w.xml:1: problem 0" and lines[49] == "w.xml:50: problem 49"
+    assert lines[-1] == "... and 70 more problems (120 in all)"
+    mission = MissionValidationError([MissionError(f"p{i}", file="m.yaml", line=i) for i in range(51)])
+    assert str(mission).splitlines()[-1] == "... and 1 more problems (51 in all)"
