@@ -6,14 +6,32 @@ import math
 from skills.actions import RobotActionSkill
 from skills.base import Port
 from skills.values import as_pose
+from worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
 
 
 #: ``parking: another``: the nearest parking position other than the one the robot is at.
 ANOTHER = "another"
 #: ``parking: nearest``: the parking position nearest the robot (it may be already there).
 NEAREST = "nearest"
+#: ``parking: knobs``: straight in front of the node's knob panel, facing it, the robot centre
+#: KNOB_VIEW_DISTANCE from its knobs (``knobs 1.1``: 1.1 m); another view of knobs the parking
+#: positions left unread (worldmodel.viewing.knob_view_pose).
+KNOBS = "knobs"
 #: A robot closer than this (m) to a parking position is at it.
 AT_PARKING_M = 0.15
+
+
+def _knob_distance(parking: str) -> float:
+    """The metres of ``knobs`` / ``knobs <metres>`` (ValueError for anything else)."""
+    words = parking.split()
+    if len(words) == 1:
+        return KNOB_VIEW_DISTANCE
+    try:
+        if len(words) == 2 and 0.3 <= float(words[1]) <= 3.0:
+            return float(words[1])
+    except ValueError:
+        pass
+    raise ValueError(f"parking {parking!r}: give 'knobs' or 'knobs <metres, 0.3-3>'")
 
 
 class NavigateTo(RobotActionSkill):
@@ -30,7 +48,9 @@ class NavigateTo(RobotActionSkill):
                    description="parking position id (default: the node's default), "
                                "'another': the nearest one the robot is not at (a second "
                                "view of the same thing), or 'nearest': the nearest one "
-                               "(back within reach of the node from a view further away)"))
+                               "(back within reach of the node from a view further away), or "
+                               "'knobs' (or 'knobs 1.1'): straight in front of its knob "
+                               "panel, facing it (1.0 m or the given metres from the knobs)"))
     OUTPUTS = (Port("pose", "pose", required=False, description="the goal pose (world, x/y/yaw)"),)
 
     def start(self):
@@ -41,6 +61,10 @@ class NavigateTo(RobotActionSkill):
                 parking, goal = self._another(target)
             elif parking == NEAREST:
                 parking, goal = self._nearest(target)
+            elif parking and parking.split()[0] == KNOBS:
+                goal = knob_view_pose(self.world, target, _knob_distance(parking))
+                if goal is None:
+                    raise ValueError(f"{target} has no free pose in front of its knobs")
             elif parking:
                 goal = self.world.parking_pose(target, parking)
             else:

@@ -304,11 +304,24 @@ def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
 
 
-def test_a_knob_unread_from_both_places_is_never_taken_for_off(world):
+def test_a_knob_unread_from_both_parking_positions_is_read_from_straight_in_front(world):
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}, {"oven_knob_4"}])
+    result, sub = _turn_off_oven(world, robot)
+    assert result.outcome == "succeeded", result.reason
+    assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs 1.0"
+    assert robot.reads[:3] == [None, ["oven_knob_4"], ["oven_knob_4"]]
+    assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_a_knob_unread_from_every_place_is_never_taken_for_off(world):
+    # unread from the parking position, another one, and every view straight in front
+    robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
+                      unreadable=[{"oven_knob_4"}] * 5)
     result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
+    assert robot.reads == [None] + [["oven_knob_4"]] * 4   # all, then four more views
     assert robot.said[-1] == ("I could not read the oven knob 4 of the oven, so I cannot tell "
                               "whether it is off; please check it")
     assert robot.truth_knobs["oven_knob_4"] != pytest.approx(0.0)   # not touched

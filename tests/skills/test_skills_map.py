@@ -186,6 +186,23 @@ def test_navigate_to_the_nearest_parking_position_comes_back_within_reach(demo_w
     assert "oven_right" in s.describe()
 
 
+def test_navigate_to_the_knobs_stands_straight_in_front_of_the_panel_facing_it(demo_world):
+    knobs = [demo_world.T_world(k.id) for k in demo_world.knobs("oven")]
+    centre = sum(T[:3, 3] for T in knobs) / len(knobs)
+    axis = knobs[0][:3, 2]
+    robot = FakeRobot()
+    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "knobs 1.1"})
+    assert tick(s) == S.RUNNING
+    goal = robot.calls[0][1]
+    # 1.1 m out along the knobs' axis, looking back at them
+    assert (goal.x, goal.y) == pytest.approx((centre[0] + 1.1 * axis[0], centre[1] + 1.1 * axis[1]))
+    assert (math.cos(goal.yaw), math.sin(goal.yaw)) == pytest.approx((-axis[0], -axis[1]), abs=1e-9)
+    for bad in ("knobs far", "knobs 0.1"):
+        s = make(NavigateTo, demo_world, FakeRobot(), inputs={"target": "oven", "parking": bad})
+        assert tick(s) == S.FAILURE
+        assert "give 'knobs' or 'knobs <metres" in s.feedback_message
+
+
 def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
     robot = FakeRobot()
     robot.next = ScriptedAction(ticks=0)

@@ -219,3 +219,20 @@ def test_cli_map_find_asks_which_one_when_words_name_several():
                         "data/demo_home/world.xml", "cup"], capture_output=True, text=True)
     assert r.returncode == 1
     assert r.stdout.startswith("which cup do you mean: the blue cup (blue_cup) on the kitchen table or ")
+
+
+def test_knob_view_pose_is_refused_outside_the_rooms_or_against_furniture(demo_world):
+    from worldmodel.viewing import knob_view_pose
+    near = knob_view_pose(demo_world, "oven", distance=1.0)
+    assert near is not None
+    assert knob_view_pose(demo_world, "oven", distance=30.0) is None      # outside every room
+    # another large object's footprint where the robot would stand: refused
+    other = next(o for o in demo_world.large_objects()
+                 if demo_world.large_object_of("oven").id != o.id)
+    lo, hi = demo_world.bounds_world(other.id)
+    centre = (lo + hi) / 2
+    demo_world.set_pose(other.id, Pose.planar(near.x - centre[0] + other.pose.x,
+                                              near.y - centre[1] + other.pose.y, other.pose.yaw))
+    assert knob_view_pose(demo_world, "oven", distance=1.0) is None
+    # a node without knobs has no such pose
+    assert knob_view_pose(demo_world, other.id) is None
