@@ -14,24 +14,24 @@ ANOTHER = "another"
 #: ``parking: nearest``: the parking position nearest the robot (it may be already there).
 NEAREST = "nearest"
 #: ``parking: knobs``: straight in front of the node's knob panel, facing it, the robot centre
-#: KNOB_VIEW_DISTANCE from its knobs (``knobs 1.1``: 1.1 m); another view of knobs the parking
+#: ``distance`` (default KNOB_VIEW_DISTANCE) from its knobs; another view of knobs the parking
 #: positions left unread (worldmodel.viewing.knob_view_pose).
 KNOBS = "knobs"
+#: The distances (m) ``parking: knobs`` accepts.
+KNOB_DISTANCES = (0.3, 3.0)
 #: A robot closer than this (m) to a parking position is at it.
 AT_PARKING_M = 0.15
 
 
-def _knob_distance(parking: str) -> float:
-    """The metres of ``knobs`` / ``knobs <metres>`` (ValueError for anything else)."""
-    words = parking.split()
-    if len(words) == 1:
+def _knob_distance(distance) -> float:
+    """The metres of ``parking: knobs``: ``distance``, or KNOB_VIEW_DISTANCE when not given
+    (ValueError outside KNOB_DISTANCES)."""
+    if distance is None:
         return KNOB_VIEW_DISTANCE
-    try:
-        if len(words) == 2 and 0.3 <= float(words[1]) <= 3.0:
-            return float(words[1])
-    except ValueError:
-        pass
-    raise ValueError(f"parking {parking!r}: give 'knobs' or 'knobs <metres, 0.3-3>'")
+    lo, hi = KNOB_DISTANCES
+    if not lo <= float(distance) <= hi:
+        raise ValueError(f"distance {distance!r}: the knobs are viewed from {lo:g} to {hi:g} m")
+    return float(distance)
 
 
 class NavigateTo(RobotActionSkill):
@@ -49,8 +49,10 @@ class NavigateTo(RobotActionSkill):
                                "'another': the nearest one the robot is not at (a second "
                                "view of the same thing), or 'nearest': the nearest one "
                                "(back within reach of the node from a view further away), or "
-                               "'knobs' (or 'knobs 1.1'): straight in front of its knob "
-                               "panel, facing it (1.0 m or the given metres from the knobs)"))
+                               "'knobs': straight in front of its knob panel, facing it"),
+              Port("distance", "number", required=False, default=None,
+                   description="with parking 'knobs': metres from the knobs (0.3-3; default "
+                               "1.0)"))
     OUTPUTS = (Port("pose", "pose", required=False, description="the goal pose (world, x/y/yaw)"),)
 
     def start(self):
@@ -61,8 +63,9 @@ class NavigateTo(RobotActionSkill):
                 parking, goal = self._another(target)
             elif parking == NEAREST:
                 parking, goal = self._nearest(target)
-            elif parking and parking.split()[0] == KNOBS:
-                goal = knob_view_pose(self.world, target, _knob_distance(parking))
+            elif parking == KNOBS:
+                goal = knob_view_pose(self.world, target,
+                                      _knob_distance(self.input("distance")))
                 if goal is None:
                     raise ValueError(f"{target} has no free pose in front of its knobs")
             elif parking:

@@ -309,7 +309,8 @@ def test_a_knob_unread_from_both_parking_positions_is_read_from_straight_in_fron
                       unreadable=[{"oven_knob_4"}, {"oven_knob_4"}])
     result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
-    assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs 1.0"
+    assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs"
+    assert _made(sub, "drive_straight").seen_inputs[-1]["distance"] == 1.0
     assert robot.reads[:3] == [None, ["oven_knob_4"], ["oven_knob_4"]]
     assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
@@ -381,7 +382,8 @@ def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_se
     base = "/fetch_object/pick_up/relocalise_and_grasp"
     back = sub.made[f"{base}/come_closer/sequence/back_within_reach"]
     assert back.activations == 1
-    assert back.seen_inputs[0] == {"target": "kitchen_table", "parking": "nearest"}
+    assert back.seen_inputs[0] == {"target": "kitchen_table", "parking": "nearest",
+                                   "distance": None}
     assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].activations == 1
     assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].seen_inputs[0]["pose"] \
         == seen

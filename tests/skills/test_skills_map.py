@@ -191,16 +191,18 @@ def test_navigate_to_the_knobs_stands_straight_in_front_of_the_panel_facing_it(d
     centre = sum(T[:3, 3] for T in knobs) / len(knobs)
     axis = knobs[0][:3, 2]
     robot = FakeRobot()
-    s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "knobs 1.1"})
+    s = make(NavigateTo, demo_world, robot,
+             inputs={"target": "oven", "parking": "knobs", "distance": 1.1})
     assert tick(s) == S.RUNNING
     goal = robot.calls[0][1]
     # 1.1 m out along the knobs' axis, looking back at them
     assert (goal.x, goal.y) == pytest.approx((centre[0] + 1.1 * axis[0], centre[1] + 1.1 * axis[1]))
     assert (math.cos(goal.yaw), math.sin(goal.yaw)) == pytest.approx((-axis[0], -axis[1]), abs=1e-9)
-    for bad in ("knobs far", "knobs 0.1"):
-        s = make(NavigateTo, demo_world, FakeRobot(), inputs={"target": "oven", "parking": bad})
+    for bad in (0.1, 5.0):
+        s = make(NavigateTo, demo_world, FakeRobot(),
+                 inputs={"target": "oven", "parking": "knobs", "distance": bad})
         assert tick(s) == S.FAILURE
-        assert "give 'knobs' or 'knobs <metres" in s.feedback_message
+        assert "the knobs are viewed from 0.3 to 3 m" in s.feedback_message
 
 
 def test_open_door_writes_its_new_state_and_failure_keeps_the_map(demo_world):
