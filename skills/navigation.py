@@ -85,23 +85,26 @@ class NavigateTo(RobotActionSkill):
     def _another(self, target: str):
         """The parking position of ``target`` nearest to the robot among those more than
         ``AT_PARKING_M`` from where it stands (ValueError when there is none)."""
-        here = self.robot.base_pose()
-        others = [(math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
-                  for p, pose in self.world.parking_positions(target)]
-        others = sorted(o for o in others if o[0] > AT_PARKING_M)
-        if not others:
+        found = self._by_distance(target, beyond=AT_PARKING_M)
+        if not found:
             raise ValueError(f"{target} has no other parking position than the one the robot is at")
-        return others[0][1], others[0][2]
+        return found[0][1], found[0][2]
 
     def _nearest(self, target: str):
         """The parking position of ``target`` nearest to the robot (ValueError when it has
         none)."""
-        here = self.robot.base_pose()
-        found = sorted((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
-                       for p, pose in self.world.parking_positions(target))
+        found = self._by_distance(target)
         if not found:
             raise ValueError(f"{target} has no parking position")
         return found[0][1], found[0][2]
+
+    def _by_distance(self, target: str, beyond: float = -1.0):
+        """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
+        further than ``beyond``, nearest first."""
+        here = self.robot.base_pose()
+        found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
+                 for p, pose in self.world.parking_positions(target))
+        return sorted(f for f in found if f[0] > beyond)
 
     def describe(self) -> str:
         return f"navigating {getattr(self, '_what', '')}".strip()
