@@ -150,3 +150,19 @@ def test_colour_agreement_is_symmetric_and_wraps_hue(a, b):
     assert color_agreement(A, A)[0] == 1.0
     near_wrap = np.array([[0.99, 0.8, 0.5]]), np.array([[0.01, 0.8, 0.5]])
     assert color_agreement(*near_wrap)[0] == 1.0
+
+
+def test_bench_counts_an_object_of_the_room_found_where_it_stands_as_no_false_positive(demo_world):
+    """The objects benchmark: a small object outside the scene that the view also shows (on
+    other furniture of the room) is neither required nor a false positive when it is found
+    where it stands; found elsewhere it is still a false positive."""
+    from types import SimpleNamespace
+
+    from hearth.benchmarks.objects import score
+    oid = demo_world.small_objects()[0].id
+    where = demo_world.T_world(oid)[:3, 3]
+    found = SimpleNamespace(accepted=[SimpleNamespace(object_id=oid, position=where.copy())])
+    assert score(found, demo_world, {}, bystanders=frozenset({oid}))[:3] == (0, 0, 0)
+    assert score(found, demo_world, {})[:3] == (0, 1, 0)
+    off = SimpleNamespace(accepted=[SimpleNamespace(object_id=oid, position=where + [0.2, 0, 0])])
+    assert score(off, demo_world, {}, bystanders=frozenset({oid}))[:3] == (0, 1, 0)
