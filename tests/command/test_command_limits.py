@@ -192,3 +192,20 @@ def test_a_client_leaving_a_busy_stream_logs_no_server_error(server, caplog):
     with server.client.stream("GET", "/api/events", params={"since": hub.last_seq}) as r:
         assert r.status_code == 200
     assert not [rec for rec in caplog.records if "Exception in ASGI" in rec.getMessage()]
+
+
+@pytest.mark.skipif(not hasattr(socket, "TCP_USER_TIMEOUT"), reason="Linux socket options")
+def test_connections_of_a_client_gone_without_closing_are_dropped_within_the_documented_time():
+    """What the server accepts carries TCP keep-alive probes and a user timeout, so that an
+    event stream whose client lost its network gives its place back (docs: Limits)."""
+    from executive.command.server import DEAD_PEER_S, bind_socket
+    listener = bind_socket("127.0.0.1", 0)
+    with listener, socket.create_connection(listener.getsockname()):
+        accepted, _ = listener.accept()
+        with accepted:
+            assert accepted.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) == 1
+            idle = accepted.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE)
+            every = accepted.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL)
+            count = accepted.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT)
+            assert idle + every * count <= DEAD_PEER_S <= 30
+            assert accepted.getsockopt(socket.IPPROTO_TCP, socket.TCP_USER_TIMEOUT) == DEAD_PEER_S * 1000
