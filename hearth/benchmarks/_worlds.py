@@ -68,7 +68,7 @@ def add_arguments(parser, homes: int = 2) -> None:
                         help="a world file to run on instead of generated homes (repeatable)")
     parser.add_argument("--homes", type=int, default=None, metavar="N",
                         help=f"generated homes to run on, seeds --seed .. --seed + N - 1 "
-                             f"(default {homes}; 1 with --quick)")
+                             + (f"(default {homes}; 1 with --quick)" if homes else "(default none)"))
     parser.add_argument("--no-demo", action="store_true", help="leave the demo home out")
 
 
@@ -79,7 +79,7 @@ def world_specs(args, homes: int = 2) -> list[str]:
         return out + [str(w) for w in args.world]
     n = getattr(args, "homes", None)
     if n is None:
-        n = 1 if getattr(args, "quick", False) else homes
+        n = min(1, homes) if getattr(args, "quick", False) else homes
     seed = int(getattr(args, "seed", 0) or 0)
     return out + [f"home:{seed + i}" for i in range(max(0, int(n)))]
 

@@ -69,17 +69,17 @@ DOOR_RANGE = math.radians(90)
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--world", action="append", default=None, metavar="WORLD",
-                        help="a world file, 'demo' or 'home:SEED' (repeatable)")
-    parser.add_argument("--homes", type=int, default=None,
-                        help="generated homes (seeds --seed .. --seed + N - 1)")
+    from hearth.benchmarks import _worlds
+    _worlds.add_arguments(parser, homes=0)   # --world W (repeatable), --homes N, --no-demo
 
 
 def worlds_of(args) -> list[str]:
-    out = list(getattr(args, "world", None) or [])
-    homes = getattr(args, "homes", None) or 0
-    out += [f"home:{int(getattr(args, 'seed', 0)) + i}" for i in range(max(0, int(homes)))]
-    return out or ["demo"]
+    """The demo home (unless ``--no-demo``), then ``--world`` files or ``--homes`` homes."""
+    from hearth.benchmarks import _worlds
+    out = _worlds.world_specs(args, homes=0)
+    if not out:
+        raise _worlds.NoScenes("registration: no world to run on (--no-demo needs --world or --homes)")
+    return out
 
 
 # -- simulated observations ---------------------------------------------------------------------
@@ -694,6 +694,12 @@ def run(args) -> dict:
     }
     if len(worlds) > 1:
         out["per_world"] = {w: figures(done[w]) for w in worlds}
+        gen = [w for w in worlds if w.startswith("home:")]
+        if gen and len(gen) < len(worlds):
+            generated = Tally()
+            for w in gen:
+                generated.merge(done[w])
+            out["generated"] = figures(generated)
     out["worlds"] = worlds
     out["noise_model"] = ("hearth.robot.noise.add_kinect_noise" if _kinect_noise() is not None
                           else "axial gaussian 1.2 mm + 1.9 mm (z - 0.4)^2")

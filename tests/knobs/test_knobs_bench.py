@@ -21,3 +21,23 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
     assert out["per_design"]["plain"]["views"] == 40
     assert out["detector_threshold"] == round(reader.detect_gate.threshold_, 4)
     assert out["detector_calibration"]["positives"] > 0
+
+
+def test_bench_knobs_pools_the_worlds_it_is_given_and_says_when_it_has_none(reader, monkeypatch,
+                                                                          capsys):
+    import skills.knob_models as km
+    from executive.cli import main
+    from tests.conftest import DEMO_WORLD
+    from worldmodel import model_store
+    monkeypatch.setattr(km, "load_or_train", lambda world, *a, **k: (reader, km.ModelInfo(
+        model_store.path_of(km.MODEL_NAME, {}), "memory")))
+    assert main(["bench", "knobs", "--json", "--scenarios", "12", "--quick",
+                 "--world", str(DEMO_WORLD)]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["worlds"] == ["demo", str(DEMO_WORLD)]
+    assert out["views"] == 24 and set(out["per_world"]) == {"demo", str(DEMO_WORLD)}
+    assert sum(w["views"] for w in out["per_world"].values()) == out["views"]
+    assert [w["world"] for w in out["per_home"]] == out["worlds"]
+    assert main(["bench", "knobs", "--json", "--no-demo"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("knobs: no world to run on (--no-demo needs --world or --homes)")
