@@ -1,6 +1,8 @@
-"""Simulated robot: time to render one noisy 640x480 RGB-D frame of the demo home's busiest
-room (ray casting + colour + Kinect noise), its parts, scene rebuild, recording and replay per frame,
-recording time per capture at the start and at the end of a 2,000-capture recording (Hearth
+"""Simulated robot: time to render one noisy 640x480 RGB-D frame (ray casting + colour +
+Kinect noise) of the busiest room of the demo home and of generated homes (``--world``,
+``--homes``, ``--no-demo``: ``per_world``, and ``render_640x480_ms_pooled``, the median of
+the worlds' medians); on the first world: the frame's parts, scene rebuild, recording and
+replay per frame, recording time per capture at the start and at the end of a 2,000-capture recording (Hearth
 format and ROS 2 bag), and the noise model's measured depth std against its formula."""
 from __future__ import annotations
 
@@ -9,8 +11,6 @@ import tempfile
 import time
 
 import numpy as np
-from hearth import demo_world_path
-
 
 
 def _median_ms(fn, n: int, cpu: list | None = None) -> float:
@@ -101,6 +101,27 @@ def _record_scaling(make_writer, frame, n: int) -> tuple[float, float]:
     return (round(float(np.median(first)) * 1000, 3), round(float(np.median(last)) * 1000, 3))
 
 
+def add_arguments(parser) -> None:
+    from hearth.benchmarks import _worlds
+    _worlds.add_arguments(parser, homes=2)   # --world W (repeatable), --homes N, --no-demo
+
+
+def _render_figures(world, K, rng, n: int) -> dict:
+    """Median wall and CPU ms of one noisy 640x480 frame of ``world``'s busiest room, from
+    the parking positions of its furniture, with the scene prebuilt."""
+    from hearth.robot.sim import render_view, world_scene
+    views = _kitchen_views(world)
+    scene = world_scene(world)
+    for T in views:                                   # warm caches (rays per camera)
+        render_view(world, K, T, rng, scene=scene)
+    i = iter(range(10 ** 9))
+    cpu: list = []
+    ms = _median_ms(lambda: render_view(world, K, views[next(i) % len(views)], rng, scene=scene),
+                    max(n, len(views)), cpu)
+    return dict(render_640x480_ms=ms, render_640x480_cpu_ms=cpu[0], views=len(views),
+                triangles=int(len(scene._tri_labels)))
+
+
 def run(args) -> dict:
     from perception.camera import Intrinsics
     from hearth.robot.adapter import wait
@@ -109,12 +130,15 @@ def run(args) -> dict:
     from hearth.robot.recording import RecordingRobot, ReplayRobot
     from hearth.robot.sim import render_view, world_scene
     from hearth.robot.simulated import SimulatedRobot
-    from worldmodel.io import load_world
 
     quick = getattr(args, "quick", False)
     n = 5 if quick else 15
     rng = np.random.default_rng(getattr(args, "seed", 0) or 0)
-    world = load_world(demo_world_path())
+    from hearth.benchmarks import _worlds
+    specs = _worlds.world_specs(args, homes=2)
+    if not specs:
+        raise _worlds.NoScenes("robot: no world to run on (--no-demo needs --world or --homes)")
+    world = _worlds.load(specs[0])
     K = Intrinsics.kinect()
     views = _kitchen_views(world)
     scene = world_scene(world)
@@ -189,6 +213,18 @@ def run(args) -> dict:
         out["record_mcap_ms_per_capture_last_100"] = last
         out["record_mcap_last_to_first_ratio"] = round(last / first, 3)
     out["views"] = len(views)
+    # Every world asked for (the demo and generated homes by default): its busiest room.
+    # The frame figures above are the first world's; render_640x480_ms_pooled is the median
+    # of the worlds' medians.
+    from hearth.benchmarks import _worlds
+    out["worlds"] = specs
+    out["per_world"] = {specs[0]: dict(render_640x480_ms=out["render_640x480_ms"],
+                                       render_640x480_cpu_ms=out["render_640x480_cpu_ms"],
+                                       views=len(views), triangles=int(len(scene._tri_labels)))}
+    for spec in specs[1:]:
+        out["per_world"][spec] = _render_figures(_worlds.load(spec), K, rng, frames)
+    out["render_640x480_ms_pooled"] = round(float(np.median(
+        [w["render_640x480_ms"] for w in out["per_world"].values()])), 2)
     out["target_render_640x480_ms"] = 25.0
     out["target_record_last_to_first_ratio"] = 1.2
     out["note"] = ("medians on this machine; render = ray casting + shading + Kinect noise "
