@@ -169,26 +169,32 @@ class Scene:
         color = np.empty((N, 3), dtype=np.uint8)
 
         def shade(rows: slice) -> None:
+            if rows.stop <= rows.start:                 # (an empty band: OpenCV refuses it)
+                return
             d, m = depth[rows], miss[rows]
             t = np.take(self._first, gid[rows], mode="clip", out=tri[rows])
             t += prim[rows]                             # a miss wraps around: reset next
             np.copyto(t, self._no_hit, where=m)
             # As numpy's index type once: np.take converts any other on every call.
             t = t.astype(np.intp)
-            np.take(self._tri_labels, t, out=labels[rows])
-            inc = np.take(abs_dist, t, out=incidence[rows])
+            # mode="clip" (the indices are all in range): with the default, take buffers
+            # whatever it writes into ``out``.
+            np.take(self._tri_labels, t, out=labels[rows], mode="clip")
+            inc = np.take(abs_dist, t, out=incidence[rows], mode="clip")
             inv_t = np.divide(inv_length[rows], d, where=~m, out=np.zeros(len(d), np.float32))
             inc *= inv_t
             np.minimum(inc, 1, out=inc)
             # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
             s = np.take(shade0, t)
             s += np.float32(0.15) * inc
-            out = color[rows]
+            planes = []
             for ch in range(3):                         # label -1: the trailing black
                 c = np.take(self._tri_palette[ch], t)
                 c *= s
                 np.minimum(c, 255, out=c)
-                out[:, ch] = c
+                planes.append(c.astype(np.uint8))
+            # Interleaved by OpenCV: numpy's strided stores into one channel cost more.
+            color[rows] = cv2.merge(planes).reshape(-1, 3)
 
         # Row bands in threads: numpy releases the GIL on these array operations, so the
         # per-pixel shading runs on every core like the ray casting does.
