@@ -162,6 +162,11 @@ class Scene:
         # A ray along d (z = 1) meets the plane at depth t with n . d = -dist / t, so the cosine
         # between ray and normal is |dist| / (t |d|).
         abs_dist = np.abs(dist).astype(np.float32)
+        # Per triangle, colour and shade in one row of four float32 (16 bytes: numpy gathers
+        # rows of that size in one step), so that a pixel's are gathered at once.
+        colour_shade = np.empty((len(shade0), 4), dtype=np.float32)
+        colour_shade[:, :3] = self._tri_palette.T
+        colour_shade[:, 3] = shade0
         N = H * W
         tri = np.empty(N, dtype=np.uint32)
         labels = np.empty(N, dtype=np.int32)
@@ -185,12 +190,12 @@ class Scene:
             inc *= inv_t
             np.minimum(inc, 1, out=inc)
             # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
-            s = np.take(shade0, t)
-            s += np.float32(0.15) * inc
+            rgbs = np.take(colour_shade, t, axis=0)     # label -1: the trailing black
+            s = np.float32(0.15) * inc
+            s += rgbs[:, 3]
             planes = []
-            for ch in range(3):                         # label -1: the trailing black
-                c = np.take(self._tri_palette[ch], t)
-                c *= s
+            for ch in range(3):
+                c = np.multiply(rgbs[:, ch], s)
                 np.minimum(c, 255, out=c)
                 planes.append(c.astype(np.uint8))
             # Interleaved by OpenCV: numpy's strided stores into one channel cost more.
