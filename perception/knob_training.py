@@ -43,7 +43,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 13
+CODE_VERSION = 16
 
 _canon = canon   # the name earlier code imported
 
@@ -162,7 +162,7 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
-                        shape=v.believed.shape,
+                        shape=v.believed.shape, dot=bool(r.evidence.get("dot", False)),
                         radius_px=float(r.evidence.get("radius_px", 0.0)),
                         off_axis=off_axis_deg(v.T_world_camera, v.believed),
                         hard=hard_view(float(r.evidence.get("radius_px", 0.0)),
@@ -179,6 +179,19 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         np.array([[r["score"]] for r in looked] or [[0.0]]),
         np.array([r["present"] and r["near"] for r in looked] or [False]))
     passed = [r for r in readings if r["found"] and r["present"] and r["near"] and r["score"] > det.threshold_]
+    # readings whose angle came from a round body's marker (``KnobReader._dot_reading``) have
+    # a margin of their own (the marker's evidence, 0 to 1), so they get gates of their own
+    dots = [r for r in passed if r.get("dot")]
+    passed = [r for r in passed if not r.get("dot")]
+    gates = _level_gates(passed, cfg)
+    out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
+    out.state_gate_very_hard = gates[2]
+    out.dot_gates = _level_gates(dots, cfg) if dots else None
+    return out
+
+
+def _level_gates(passed: list[dict], cfg: TrainingConfig) -> list[CalibratedThreshold]:
+    """The state gates of the three view levels, calibrated on ``passed`` readings."""
 
     def gate(rs):
         return CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
@@ -199,9 +212,7 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
         gates.append(g)
-    out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
-    out.state_gate_very_hard = gates[2]
-    return out
+    return gates
 
 
 def _read_views(reader: KnobReader, views, jobs: int = -1) -> tuple[list[dict], list[dict]]:
