@@ -1148,11 +1148,12 @@ class KnobReader:
         picks = _candidates(curve, allowed, state_of, cfg.candidates)
         dot = self._dot_reading(rgb, K, T_wc, prior, shape, T_c, center, psi, r_px) if cfg.dot_angle else None
         if dot is not None:
-            # the angle from the marker's colour about that centre; the fit (for the detect
-            # gate) of the exact rendering there, the margin the marker's evidence
+            # the angle from the marker's colour about that centre, the margin the marker's
+            # evidence; the fit (for the detect gate) that of the exact check from there, as
+            # the other knobs' (offset settled, angle searched)
             a_dot, margin, rival = dot
             fit = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center, [a_dot - psi], psi,
-                               r_px, depth, theta, hold=True)[0][0]
+                               r_px, depth, theta)[0][0]
             return [(fit, a_dot, center), (fit - margin, rival, center)], curve, picks, True
         flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
         if flip not in picks and allowed[flip]:
