@@ -40,6 +40,16 @@ contrast is (its marker alone fits as well flipped by half a turn a radius away)
 way a protruding grip lies. The centre is then taken from the depth, each candidate angle at
 the centre the depth gives the shape at that angle.
 
+**Round bodies** (``round_body_levels``: every visual but the marker a cylinder or disc on
+the axis, such as a skirt with a cap, and a marker off the axis no wider than
+``dot_max_size`` of its distance from it, ``marker_dot``): the body says nothing of the
+angle and, in its panel's colour, only depth says where it is, while a centre a millimetre
+off turns a dot 6-11 mm from the axis by 5-9 degrees. So the centre comes from the depth of
+the body's rims at the image's own pixels (``body_center``: the measured and the rendered
+masks above each step's mid-height, centroid against centroid) and the angle from the dot's
+colour about that centre (``dot_profile``, ``KnobReader._dot_reading``), with a margin in
+units of the angle's expected error and state gates of its own (``dot_gates``).
+
 **Reading a knob** (``KnobReader.read``): (1) the canvas at the coarse scale; (2) where the
 knob is: the labels averaged over every angle (what the knob looks like whatever its angle)
 are fitted at every offset within ``search_m`` of where the map puts it (a soft-label
@@ -1530,12 +1540,13 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
                 caster: "_Caster", levels: Sequence[float], center, alpha: float, psi: float,
                 iterations: int = 4, roi_radii: float = 1.35, min_pixels: int = 8):
     """The centre (m, canvas frame of ``T_c``) of a round-bodied knob (``round_body_levels``)
-    from the depth image at its own pixels, starting at ``center``: for each level of the
-    body (the skirt, the cap) the pixels measured above the midpoint below that level, and the
-    same pixels of the body rendered at the current centre (the exact caster, the real
-    camera), each mask's centroid taken on the plane of its level; the centre moves by the
-    difference of the measured and rendered centroids (weighted by their pixel counts) until
-    it settles. A shift of the knob along its face shifts every mask's centroid by as much,
+    from the depth image at its own pixels, starting at ``center``: the pixels measured
+    above the mid-height between the body's top and the step below it (the cap over the
+    skirt), and the same pixels of the body rendered at the current centre (the exact caster,
+    the real camera), each mask's centroid taken on the plane of the top; the centre moves by the
+    difference of the measured and rendered centroids until it settles. Only the top's mask
+    (the pixels above the mid-height between the top and the step below it) is used: the
+    marker stands on it. A shift of the knob along its face shifts the mask's centroid by as much,
     while what the view does to the masks (a side wall seen obliquely, the pixel lattice,
     the rim's share of pixels) is the same in both: so the centre comes to a fraction of a
     pixel from a hundred or more rim pixels, where the correlation peak of the canvas heights
@@ -1572,8 +1583,8 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
     valid = (Zm > 0) & (hm > -0.03) & (hm < face + 0.03)
     tops = [float(z) for z in levels]
     taus = [(lo + hi) / 2 for lo, hi in zip([0.0] + tops[:-1], tops)]
-    # each pixel's ray on each level's plane (canvas z = level - face)
-    q = [C[None, :2] + d[:, :2] * ((z - face - C[2]) / dz)[:, None] for z in tops]
+    # each pixel's ray on the top's plane (canvas z = top - face)
+    q = [C[None, :2] + d[:, :2] * ((tops[-1] - face - C[2]) / dz)[:, None]]
     q_panel = C[None, :2] + d[:, :2] * ((-face - C[2]) / dz)[:, None]
     q_face = C[None, :2] + d[:, :2] * ((0.0 - C[2]) / dz)[:, None]
     c = np.array(center, dtype=float)
@@ -1588,19 +1599,15 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
         if panel.sum() < min_pixels:
             return None
         h = hm - float(np.median(hm[panel]))          # the panel's measured height as 0
-        step, weight = np.zeros(2), 0.0
-        used = 0
-        for tau, qk in zip(taus, q):
-            mm, mr = roi & (h > tau), roi & (hr > tau)
-            nm, nr = int(mm.sum()), int(mr.sum())
-            if nm < min_pixels or nr < min_pixels:
-                continue
-            step += nr * (qk[mm].mean(0) - qk[mr].mean(0))
-            weight += nr
-            used += nm
-        if weight == 0:
+        # the top's rim only: the marker stands on the top, and a lower step's centre (the
+        # skirt's) is off the top's when the believed axis leans (and its step over the
+        # panel is nearer the depth noise): home 1's centre error 0.60 -> 0.36 mm at the
+        # median (p90 1.20 -> 0.89) against both steps weighted by their pixels
+        mm, mr = roi & (h > taus[-1]), roi & (hr > taus[-1])
+        used, nr = int(mm.sum()), int(mr.sum())
+        if used < min_pixels or nr < min_pixels:
             return None
-        step /= weight
+        step = q[-1][mm].mean(0) - q[-1][mr].mean(0)
         c = c + step
         moved = float(np.hypot(*(c - np.asarray(center))))
         if np.hypot(*step) < 2e-5:
