@@ -45,8 +45,8 @@ the axis, such as a skirt with a cap, and a marker off the axis no wider than
 ``dot_max_size`` of its distance from it, ``marker_dot``): the body says nothing of the
 angle and, in its panel's colour, only depth says where it is, while a centre a millimetre
 off turns a dot 6-11 mm from the axis by 5-9 degrees. So the centre comes from the depth of
-the body's rims at the image's own pixels (``body_center``: the measured and the rendered
-masks above each step's mid-height, centroid against centroid) and the angle from the dot's
+the top's rim at the image's own pixels (``body_center``: the measured and the rendered
+masks of the top, centroid against centroid) and the angle from the dot's
 colour about that centre (``dot_profile``, ``KnobReader._dot_reading``), with a margin in
 units of the angle's expected error and state gates of its own (``dot_gates``).
 
@@ -1022,10 +1022,10 @@ class KnobReader:
                              tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
                 picks = _candidates(curve, allowed, state_of, cfg.candidates)
 
-        # a knob whose body is round about its axis (a skirt and cap, a plain cylinder): its
-        # angle is only where the marker stands about the centre, and only depth places that
-        # centre; to a fraction of a pixel from the body's rims at the image's own pixels
-        # (``body_center``), then every candidate at that one centre
+        # a knob whose body is round about its axis (a skirt and cap) with a dot off the axis:
+        # its angle is only where the dot stands about the centre, and only depth places that
+        # centre; to a fraction of a pixel from the top's rim at the image's own pixels
+        # (``body_center``), then the angle from the dot's colour about it
         fine, from_dot = None, False
         if use_depth and cfg.round_body_center:
             fine = self._round_body(rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks,
@@ -1129,11 +1129,15 @@ class KnobReader:
 
     def _round_body(self, rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks, allowed,
                     state_of, psi, r_px, depth, theta, flat):
-        """The candidates of a round-bodied knob (``round_body_levels``) read at the centre
-        ``body_center`` gives (from ``center``, the canvas depth fit's): the coarse angles
-        again in a canvas centred there, the best of them and the best turned by half a
-        turn checked exactly with the centre held. Returns (fine, coarse curve, picks) as
-        ``evidence`` uses them, or None (not a round body, or too few depth pixels)."""
+        """The candidates of a round-bodied knob (``round_body_levels``, a dot no wider than
+        ``dot_max_size`` of its distance from the axis) read at the centre ``body_center``
+        gives (from ``center``, the canvas depth fit's): the coarse angles again in a canvas
+        centred there; the angle from the dot (``_dot_reading``) and, as rival, the nearest
+        other state at the fit less the dot's margin; without a dot profile (``dot_angle``
+        off, no top to see it on) the best coarse angles and the best turned by half a turn
+        checked exactly with the centre held. Returns (fine, coarse curve, picks, whether
+        from the dot) as ``evidence`` uses them, or None (not such a knob, or too few depth
+        pixels)."""
         cfg, tm = self.config, self.templates
         levels = round_body_levels(shape)
         md = marker_dot(shape)
