@@ -6,7 +6,6 @@ off: the centre from the canvas depth fit), in the same rendered frames."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
