@@ -14,7 +14,12 @@ other than the benchmark's):
   ``view_level``): the margin over the best other state a reading needs, just above the
   largest margin of any validation reading of its level whose state was wrong (times
   ``margin_safety``, at least ``margin_floor``), so that no wrong reading of the validation
-  views would pass.
+  views would pass. Readings of a round body's marker (evidence ``dot``) get gates of their
+  own (``KnobReader.dot_gates``, their margin is in units of the angle's expected error), at
+  least ``dot_margin_floor``: a state needs its angle at least that many expected errors
+  inside its half step with a clear marker, however few wrong readings validation had; and
+  ``dot_margin_safety`` (2, not 1.25) times the largest wrong margin: held-out views of
+  home 1 had wrong dot readings 1.14 and 1.32 times over the gate of 1.25 times.
 
 The gates are fitted on readings with the views' depth images, and again on readings of
 colour alone (``KnobReader.colour_gates``, for a caller without depth).
@@ -43,7 +48,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 13
+CODE_VERSION = 18
 
 _canon = canon   # the name earlier code imported
 
@@ -61,6 +66,8 @@ class TrainingConfig:
     seed: int = 4
     margin_safety: float = 1.25
     margin_floor: float = 0.002
+    dot_margin_floor: float = 1.0
+    dot_margin_safety: float = 2.0
     min_easy_readings: int = 40
     data: KnobDataConfig = field(default_factory=lambda: KnobDataConfig(at_states=True))
 
@@ -162,7 +169,7 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
-                        shape=v.believed.shape,
+                        shape=v.believed.shape, dot=bool(r.evidence.get("dot", False)),
                         radius_px=float(r.evidence.get("radius_px", 0.0)),
                         off_axis=off_axis_deg(v.T_world_camera, v.believed),
                         hard=hard_view(float(r.evidence.get("radius_px", 0.0)),
@@ -179,9 +186,29 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         np.array([[r["score"]] for r in looked] or [[0.0]]),
         np.array([r["present"] and r["near"] for r in looked] or [False]))
     passed = [r for r in readings if r["found"] and r["present"] and r["near"] and r["score"] > det.threshold_]
+    # readings whose angle came from a round body's marker (``KnobReader._dot_reading``) have
+    # a margin of their own (in expected errors of the angle), so they get gates of their own,
+    # never under ``dot_margin_floor`` (a tiny validation set may hold no wrong one: a dot
+    # too small to see then read a fixed speck of noise as a state at margin 0.02)
+    dots = [r for r in passed if r.get("dot")]
+    passed = [r for r in passed if not r.get("dot")]
+    gates = _level_gates(passed, cfg)
+    out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
+    out.state_gate_very_hard = gates[2]
+    out.dot_gates = _level_gates(dots, cfg, cfg.dot_margin_floor, cfg.dot_margin_safety) if dots else None
+    return out
+
+
+def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float] = None,
+                 safety: Optional[float] = None) -> list[CalibratedThreshold]:
+    """The state gates of the three view levels, calibrated on ``passed`` readings, at least
+    ``floor`` (default: ``margin_floor``), ``safety`` times the largest wrong margin (default:
+    ``margin_safety``)."""
+    floor = cfg.margin_floor if floor is None else floor
+    safety = cfg.margin_safety if safety is None else safety
 
     def gate(rs):
-        return CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
+        return CalibratedThreshold("no_false_accepts", safety=safety, floor=floor).fit(
             np.array([[r["margin"]] for r in rs] or [[0.0]]), np.array([r["right"] for r in rs] or [True]))
     # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
     # never below the first, so that a few confident wrong readings far away do not make
@@ -199,9 +226,7 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
         gates.append(g)
-    out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
-    out.state_gate_very_hard = gates[2]
-    return out
+    return gates
 
 
 def _read_views(reader: KnobReader, views, jobs: int = -1) -> tuple[list[dict], list[dict]]:
