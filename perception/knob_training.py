@@ -43,7 +43,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 13
+CODE_VERSION = 14
 
 _canon = canon   # the name earlier code imported
 
@@ -161,6 +161,7 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
         out.append(dict(present=bool(v.present), found=bool(r.found), near=near,
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
+                        half_turn=r.evidence.get("half_turn"), angle=r.angle,
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         shape=v.believed.shape,
                         radius_px=float(r.evidence.get("radius_px", 0.0)),
@@ -183,6 +184,28 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     def gate(rs):
         return CalibratedThreshold("no_false_accepts", safety=cfg.margin_safety, floor=cfg.margin_floor).fit(
             np.array([[r["margin"]] for r in rs] or [[0.0]]), np.array([r["right"] for r in rs] or [True]))
+
+    def turned(r, g):
+        """Whether a reading passes the half-turn gate ``g``."""
+        return r.get("half_turn") is None or r["half_turn"] > g
+
+    def gates_of(rs):
+        """The half-turn gate and the state gate of a level: of the half-turn gates that
+        leave out the wrong readings at or under one wrong reading's ``half_turn`` (times the
+        safety, and at least 0: a reading that explains where it and its half turn differ
+        worse than the half turn does is never enough), or none, the one that, with the state
+        gate calibrated on the readings it lets through, lets the most right readings
+        through (the lowest of equals)."""
+        best = None
+        for h in [-math.inf] + sorted({r["half_turn"] for r in rs
+                                        if not r["right"] and r.get("half_turn") is not None}):
+            g = max(0.0, h * cfg.margin_safety) if h > -math.inf else h
+            kept = [r for r in rs if turned(r, g)]
+            s = gate(kept)
+            n = sum(r["right"] and r["margin"] > s.threshold_ for r in kept)
+            if best is None or n > best[0]:
+                best = (n, g, s)
+        return best[1], best[2]
     # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
     # never below the first, so that a few confident wrong readings far away do not make
     # every near knob unknown, and a hard view needs what the hard views of validation needed
@@ -190,17 +213,29 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # 55 degrees off) get their own, so that one confident wrong reading at 59 degrees does
     # not make every view at 46 unknown. A level with too few readings takes the gate of
     # itself and every harder level together; no level's gate is below an easier one's.
-    gates = []
+    # A reading of a knob without symmetry also needs to explain the pixels where it and
+    # itself turned by half a turn differ better than the turned knob does (``half_turn``,
+    # KnobReader._half_turn): most confident wrong readings were such half turns. Each level
+    # has a half-turn gate too, chosen with its state gate (``gates_of``), neither below an
+    # easier level's: still no wrong validation reading passes both. With the half turns
+    # left out, a level's gate rests on its few other wrong readings (a level-0 gate on one
+    # reading's margin let through a wrong reading of held-out views), so each level's gates
+    # are calibrated on its readings and those of the next harder level together.
+    gates, turns = [], []
     for level in range(3):
-        rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) == level]
+        rs = [r for r in passed if level <= r.get("level", int(bool(r.get("hard")))) <= level + 1]
         if len(rs) < cfg.min_easy_readings:
             rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) >= max(level - 1, 0)]
-        g = gate(rs)
+        t, g = gates_of(rs)
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
+        if turns and t < turns[-1]:
+            t = turns[-1]
         gates.append(g)
+        turns.append(t)
     out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
     out.state_gate_very_hard = gates[2]
+    out.half_turn_gates = [float(t) for t in turns]
     return out
 
 
@@ -256,5 +291,6 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"
         f"{d.validation_['positives']} knobs, {d.validation_['negatives_passed']}/"
         f"{d.validation_['negatives']} empty regions pass); margin > {s.threshold_:.4f} "
-        f"({s.validation_['negatives']} wrong readings, none pass)", len(views), len(views))
+        f"({s.validation_['negatives']} wrong readings, none pass); half turn > "
+        f"{', '.join(f'{t:.2f}' for t in reader.half_turn_gates)}", len(views), len(views))
     return reader

@@ -844,6 +844,9 @@ class KnobReader:
         #: the gates of readings made without a depth image (the fit and margins of colour
         #: alone are on another scale), as a reader whose gates they are; None: these gates
         self.colour_gates = colour_gates
+        #: the least ``half_turn`` (``_half_turn``) a reading of a knob without symmetry needs
+        #: per ``view_level`` (0, 1, 2), calibrated with the state gates; None: no such gate
+        self.half_turn_gates: Optional[list] = None
         self._casters: dict = {}
 
     def __getstate__(self):
@@ -884,6 +887,11 @@ class KnobReader:
         if level >= 2 and getattr(self, "state_gate_very_hard", None) is not None:
             g = self.state_gate_very_hard
         return g.threshold_
+
+    def half_turn_gate_for(self, level) -> float:
+        """The half-turn gate of a view (``view_level``); -inf when there is none."""
+        g = getattr(self, "half_turn_gates", None)
+        return float(g[min(int(level), len(g) - 1)]) if g else -math.inf
 
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
              priors: Sequence[KnobPrior], depth: Optional[np.ndarray] = None) -> list[KnobReading]:
@@ -1021,6 +1029,7 @@ class KnobReader:
                                 [tpl.alphas[c] for c in picks], psi, r_px, None, theta)
         fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
         fine.sort(key=lambda f: -f[0])
+        checked = list(fine)
         best = fine[0]
         s_best = snap_to_state(best[1], prior)[0]
         rivals = [f for f in fine[1:] if snap_to_state(f[1], prior)[0] != s_best]
@@ -1037,6 +1046,27 @@ class KnobReader:
             margin = max(0.0, min(margin, score_best))
         fine = [best] + rivals
         c_best = picks[0]
+        half_turn = None
+        # the reading against itself turned by half a turn (``_half_turn``), the rival the
+        # margin tells worst: the best exact check that ended within 45 degrees of the half
+        # turn; else the allowed coarse angle nearest to it, checked now (at the centre the
+        # depth gives the shape turned so). None of them allowed: no half turn to fear.
+        near = [f for f in checked[1:] if abs(_wrap(f[1] - angle - math.pi)) < math.radians(45)]
+        turned = max(near, key=lambda f: f[0]) if near else None
+        if shape.symmetry == 1 and turned is None:
+            d = np.abs(_wrap(knob_angles - angle - math.pi))
+            d = np.where(allowed, d, np.inf)
+            k = int(np.argmin(d))
+            if d[k] < math.radians(45):
+                c_at = center_c
+                if use_depth:
+                    c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
+                turned = self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, [float(tpl.alphas[k])],
+                                      psi, r_px, depth if use_depth else None, theta)[0]
+        if shape.symmetry == 1 and turned is not None:
+            half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
+                                        (float(turned[1]) - psi, turned[2]), psi, r_px,
+                                        depth if use_depth else None, theta)
         center_k = rotate_xy(center_c, psi)              # canvas frame -> knob face frame
         p_world = prior.T_world_face() @ np.array([center_k[0], center_k[1], 0.0, 1.0])
         pcam = np.linalg.inv(T_wc) @ p_world
@@ -1047,6 +1077,8 @@ class KnobReader:
                   runner_up=(snap_to_state(fine[1][1], prior)[0] if len(fine) > 1 else None),
                   coarse_score=round(float(curve[c_best]), 4), radius_px=round(r_px, 2),
                   depth=bool(use_depth))
+        if half_turn is not None:
+            ev.update(half_turn)
         return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
                            angles={"fused": float(angle)}, evidence=ev)
 
@@ -1067,9 +1099,13 @@ class KnobReader:
         need = gates.margin_threshold_for(hard) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
+        need_turn = gates.half_turn_gate_for(hard)
         if ev["margin"] <= need:
             r.reason = (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
                         f"needs {need:.3f})")
+        elif ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
+            r.reason = (f"unsure ({state}: turned by half a turn it fits nearly as well, "
+                        f"{ev['half_turn']:.2f}, needs {need_turn:.2f})")
         elif 1.0 - c_snap > cfg.max_snap:
             r.reason = f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
         elif r.confidence < cfg.min_confidence:
@@ -1080,6 +1116,68 @@ class KnobReader:
 
     def _allowed(self, prior: KnobPrior, angles: np.ndarray) -> np.ndarray:
         return np.array([allowed_angle(prior, a) for a in angles])
+
+    def _half_turn(self, rgb, K, T_wc, prior, shape, T_c, C, reading, turned, psi, r_px,
+                   depth=None, theta=0.0) -> Optional[dict]:
+        """How much better the reading (``reading`` = (relative angle rad, centre in the canvas
+        frame m)) explains the image than the knob turned by half a turn from it
+        (``turned``, the same, each from its own exact check): a knob without symmetry
+        looks much the same both ways (a pointer, a tip, a marker: most of the grip
+        coincides), so a fit over the whole window tells them apart weakly and the state
+        gate was set by such readings. Both are rendered exactly (as ``_refine`` renders,
+        each at its own centre) in one window between them and compared only where they
+        differ: the window pixels whose labels differ between the two renderings (the marker,
+        tip or point under one, the grip, bezel or panel under the other), each weighted by
+        the share of its label weights that differ. Each rendering's label colours are its
+        own least-squares fit over the whole window; ``half_turn_colour`` is (SSE_turned -
+        SSE) / (SSE_turned + SSE) of the colour residuals over those pixels (1: only the
+        reading explains them, -1: only the turned knob, 0: both or neither). With
+        ``depth``, ``half_turn_depth`` is the same of the depth residuals over the image
+        pixels whose rendered depths differ, each rendering put at the measured depth by the
+        median difference over the pixels where the two agree (the believed plane's height
+        error). ``half_turn``: the colour's plus ``depth_weight`` times the depth's, checked
+        against ``half_turn_gate_for`` (calibrated like the state gate). None when the window
+        leaves the image."""
+        cfg = self.config
+        if r_px > cfg.decimate_above_px:
+            rgb = rgb[::2, ::2]
+            depth = None if depth is None else depth[::2, ::2]
+            K = Intrinsics(K.fx / 2, K.fy / 2, K.cx / 2, K.cy / 2, rgb.shape[1], rgb.shape[0])
+        rho = cfg.fine_px_per_radius / prior.radius
+        n = 2 * int(math.ceil(self.templates.window_radii * cfg.fine_px_per_radius)) + 1
+        mid = ((reading[1][0] + turned[1][0]) / 2, (reading[1][1] + turned[1][1]) / 2)
+        win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, mid), n, ridge=cfg.fine_ridge_px)
+        if win.box is None:
+            return None
+        dirs = win.rays_camera() @ (np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]).T
+        caster = self.caster(prior.shape)
+        labs, ts = [], []
+        for a, c in (reading, turned):
+            lab, t = caster.labels(C - np.array([c[0], c[1], -shape.face]), dirs, np.array([a]), -psi,
+                                   fine=True, with_t=True)
+            labs.append(lab[0])
+            ts.append(t[0])
+        colour = _contrast_ratio(*win.contrast(np.stack(labs)))
+        out = dict(half_turn=colour, half_turn_colour=colour)
+        if depth is not None:
+            u0, v0, u1, v1 = win.box
+            m = depth[v0:v1, u0:u1].ravel().astype(np.float64)
+            dz = np.where(np.abs(dirs[:, 2]) > 1e-6, dirs[:, 2], 1e-6)
+            panel = -(C[2] + shape.face) / dz          # the panel plane (z = 0 of the knob)
+            slack = shape.face / max(math.cos(theta), 0.3) + 0.03
+            valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
+            z = [np.where(np.isfinite(t), t, panel) for t in ts]
+            differ = np.abs(z[0] - z[1]) > 1e-4
+            agree, d = valid & ~differ, valid & differ
+            if valid.mean() >= 0.3 and agree.sum() >= 10 and d.any():
+                res, noise = [], 0.0
+                for zh in z:
+                    e = m - zh - float(np.median(m[agree] - zh[agree]))
+                    res.append(float(e[d] @ e[d]))
+                    noise += float(np.mean(e[agree] ** 2)) / 2
+                out["half_turn_depth"] = _contrast_ratio(res[0], res[1], d.sum() * noise)
+                out["half_turn"] += cfg.depth_weight * out["half_turn_depth"]
+        return {k: round(float(v), 4) for k, v in out.items()}
 
     def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px,
                 depth=None, theta=0.0):
@@ -1321,6 +1419,30 @@ class _Window:
         mu = np.linalg.solve(G, b)
         return np.einsum("blc,blc->b", b, mu) / self.tv
 
+    def contrast(self, labels: np.ndarray) -> tuple[float, float, float]:
+        """The colour residual (sum of squares) of each of two renderings (2, N box pixels)
+        over the window pixels whose labels differ between them, each pixel weighted by the
+        share of its label weights that differ (``KnobReader._half_turn``), and what the
+        residual of those pixels would be if they fitted as well as the window does on
+        average (the weights' sum times the mean residual per pixel of the two renderings over
+        the whole window: the noise and the edges every pixel has); each rendering's label
+        colours are its own least-squares fit over the whole window."""
+        idx, wts = self._sampling((0.0, 0.0))
+        present = np.flatnonzero(np.bincount(labels.ravel()))
+        lut = np.zeros(int(present[-1]) + 1, np.int64)
+        lut[present] = np.arange(len(present))
+        N, L = self.n * self.n, len(present)
+        maps = [np.bincount((lut[lab[idx]] * N + np.arange(N)).ravel(), wts.ravel(),
+                            minlength=L * N).reshape(L, N) for lab in labels]
+        differ = 0.5 * np.abs(maps[0] - maps[1]).sum(0)
+        out, everywhere = [], 0.0
+        for W in maps:
+            mu, _ = self._solve(W)
+            r2 = ((self.Xc - W.T @ mu) ** 2).sum(1)
+            out.append(float(differ @ r2))
+            everywhere += float(r2.mean()) / 2
+        return out[0], out[1], float(differ.sum()) * everywhere
+
     def settle(self, labels: np.ndarray, iterations: int, max_shift: float) -> np.ndarray:
         """The shift t (px, canvas x right, y up) of the rendered knob that fits the window
         best: Gauss-Newton (Lucas-Kanade) with the model image's gradient."""
@@ -1344,6 +1466,15 @@ class _Window:
             if np.all(np.abs(step) < 0.02):
                 break
         return t
+
+
+def _contrast_ratio(sse: float, sse_other: float, expected: float = 0.0) -> float:
+    """(other - this) / (other + this + 2 expected) of two residual sums over the same
+    pixels, ``expected`` what each would be if those pixels fitted as well as the rest (so
+    that two fits of the noise alone, both small, come out near 0, not anywhere in [-1, 1]):
+    in (-1, 1), 0 when they are equal."""
+    total = sse + sse_other + 2 * expected
+    return (sse_other - sse) / total if total > 1e-12 else 0.0
 
 
 def allowed_angle(prior: KnobPrior, angle: float, margin: float = math.radians(15)) -> bool:
