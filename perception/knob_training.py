@@ -14,7 +14,11 @@ other than the benchmark's):
   ``view_level``): the margin over the best other state a reading needs, just above the
   largest margin of any validation reading of its level whose state was wrong (times
   ``margin_safety``, at least ``margin_floor``), so that no wrong reading of the validation
-  views would pass.
+  views would pass;
+- ``half_turn_gates``: for a knob without symmetry, what a reading's comparison with itself
+  turned by half a turn (``KnobReader._half_turn``) needs, chosen with the state gate of its
+  level (the pair that lets the most right readings through while no wrong one passes
+  both); each level's gates are calibrated on its readings and the next harder level's.
 
 The gates are fitted on readings with the views' depth images, and again on readings of
 colour alone (``KnobReader.colour_gates``, for a caller without depth).
@@ -189,21 +193,21 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         """Whether a reading passes the half-turn gate ``g``."""
         return r.get("half_turn") is None or r["half_turn"] > g
 
-    def gates_of(rs):
-        """The half-turn gate and the state gate of a level: of the half-turn gates that
-        leave out the wrong readings at or under one wrong reading's ``half_turn`` (times the
-        safety, and at least 0: a reading that explains where it and its half turn differ
-        worse than the half turn does is never enough), or none, the one that, with the state
-        gate calibrated on the readings it lets through, lets the most right readings
-        through (the lowest of equals)."""
-        best = None
-        for h in [-math.inf] + sorted({r["half_turn"] for r in rs
-                                        if not r["right"] and r.get("half_turn") is not None}):
-            g = max(0.0, h * cfg.margin_safety) if h > -math.inf else h
-            kept = [r for r in rs if turned(r, g)]
-            s = gate(kept)
-            n = sum(r["right"] and r["margin"] > s.threshold_ for r in kept)
-            if best is None or n > best[0]:
+    def gates_of(rs, wider):
+        """The half-turn gate and the state gate of a level (its readings ``rs``): none and
+        the state gate of ``rs`` as without the half-turn test, or a half-turn gate just above
+        one wrong reading's ``half_turn`` (times the safety, and at least 0: a reading that
+        explains where it and its half turn differ worse than the half turn does is never
+        enough) with the state gate calibrated on the readings of ``wider`` (the level and
+        the next harder one) that it lets through; whichever lets the most right readings of
+        the level through (none of equals)."""
+        s = gate(rs)
+        best = (sum(r["right"] and r["margin"] > s.threshold_ for r in rs), -math.inf, s)
+        for h in sorted({r["half_turn"] for r in wider if not r["right"] and r.get("half_turn") is not None}):
+            g = max(0.0, h * cfg.margin_safety)
+            s = gate([r for r in wider if turned(r, g)])
+            n = sum(r["right"] and r["margin"] > s.threshold_ and turned(r, g) for r in rs)
+            if n > best[0]:
                 best = (n, g, s)
         return best[1], best[2]
     # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
@@ -218,15 +222,19 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # KnobReader._half_turn): most confident wrong readings were such half turns. Each level
     # has a half-turn gate too, chosen with its state gate (``gates_of``), neither below an
     # easier level's: still no wrong validation reading passes both. With the half turns
-    # left out, a level's gate rests on its few other wrong readings (a level-0 gate on one
-    # reading's margin let through a wrong reading of held-out views), so each level's gates
-    # are calibrated on its readings and those of the next harder level together.
+    # left out, a level's state gate rests on its few other wrong readings (home 4: a level-0
+    # gate on one reading's margin, 0.006, let through a wrong reading of held-out views), so
+    # with a half-turn gate the state gate is calibrated on the level's readings and those of
+    # the next harder level together.
     gates, turns = [], []
+    level_of = lambda r: r.get("level", int(bool(r.get("hard"))))
     for level in range(3):
-        rs = [r for r in passed if level <= r.get("level", int(bool(r.get("hard")))) <= level + 1]
+        rs = [r for r in passed if level_of(r) == level]
         if len(rs) < cfg.min_easy_readings:
-            rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) >= max(level - 1, 0)]
-        t, g = gates_of(rs)
+            rs = [r for r in passed if level_of(r) >= max(level - 1, 0)]
+        harder = [] if any(level_of(r) == level + 1 for r in rs) else [
+            r for r in passed if level_of(r) == level + 1]
+        t, g = gates_of(rs, rs + harder)
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
         if turns and t < turns[-1]:

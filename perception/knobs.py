@@ -56,6 +56,12 @@ it; an "off" reading needs more; a reading without depth has gates of its own,
 ``colour_gates``), and the angle lies well inside the state's
 half step. Otherwise "unknown", with the reason.
 
+**Half turns.** A knob without symmetry looks much like itself turned by half a turn (the
+grip of a pointer or tip mostly coincides), so over the whole window the two fit nearly
+alike. The reading is also compared with the exact check nearest its half turn only where
+the two renderings differ (``KnobReader._half_turn``), and needs that comparison above a
+gate calibrated like the state gate (``half_turn_gates``).
+
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
 shape (the constructor stores parameters, ``fit`` returns self, learned attributes end in
 ``_``, every other method starts with ``check_is_fitted``). Training is
@@ -1130,8 +1136,10 @@ class KnobReader:
         tip or point under one, the grip, bezel or panel under the other), each weighted by
         the share of its label weights that differ. Each rendering's label colours are its
         own least-squares fit over the whole window; ``half_turn_colour`` is (SSE_turned -
-        SSE) / (SSE_turned + SSE) of the colour residuals over those pixels (1: only the
-        reading explains them, -1: only the turned knob, 0: both or neither). With
+        SSE) / (SSE_turned + SSE + 2 E) of the colour residuals over those pixels, E what
+        their residual would be if they fitted as well as the window does on average (near
+        1: only the reading explains them, near -1: only the turned knob, 0: both, or
+        neither, or noise alone; ``_contrast_ratio``). With
         ``depth``, ``half_turn_depth`` is the same of the depth residuals over the image
         pixels whose rendered depths differ, each rendering put at the measured depth by the
         median difference over the pixels where the two agree (the believed plane's height
@@ -1150,14 +1158,12 @@ class KnobReader:
         if win.box is None:
             return None
         dirs = win.rays_camera() @ (np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]).T
-        caster = self.caster(prior.shape)
-        labs, ts = [], []
-        for a, c in (reading, turned):
-            lab, t = caster.labels(C - np.array([c[0], c[1], -shape.face]), dirs, np.array([a]), -psi,
-                                   fine=True, with_t=True)
-            labs.append(lab[0])
-            ts.append(t[0])
-        colour = _contrast_ratio(*win.contrast(np.stack(labs)))
+        # both in one cast: the rays of each from the camera as seen from its own centre
+        origins = np.stack([np.broadcast_to(C - np.array([c[0], c[1], -shape.face]), dirs.shape)
+                            for _, c in (reading, turned)])
+        labs, ts = self.caster(prior.shape).labels(origins, dirs, np.array([reading[0], turned[0]]), -psi,
+                                                   fine=True, with_t=True)
+        colour = _contrast_ratio(*win.contrast(labs))
         out = dict(half_turn=colour, half_turn_colour=colour)
         if depth is not None:
             u0, v0, u1, v1 = win.box
