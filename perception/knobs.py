@@ -1055,20 +1055,18 @@ class KnobReader:
         half_turn = None
         # the reading against itself turned by half a turn (``_half_turn``), the rival the
         # margin tells worst: the best exact check that ended within 45 degrees of the half
-        # turn; else the allowed coarse angle nearest to it, checked now (at the centre the
-        # depth gives the shape turned so). None of them allowed: no half turn to fear.
+        # turn; else the half turn itself when the knob's travel allows it, at the centre the
+        # depth gives the shape turned so (not refined: an exact check more per knob tripled
+        # the CPU of a skirt knob, whose checks seldom end there). Not allowed: no half turn
+        # to fear.
         near = [f for f in checked[1:] if abs(_wrap(f[1] - angle - math.pi)) < math.radians(45)]
         turned = max(near, key=lambda f: f[0]) if near else None
-        if shape.symmetry == 1 and turned is None:
-            d = np.abs(_wrap(knob_angles - angle - math.pi))
-            d = np.where(allowed, d, np.inf)
-            k = int(np.argmin(d))
-            if d[k] < math.radians(45):
-                c_at = center_c
-                if use_depth:
-                    c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
-                turned = self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, [float(tpl.alphas[k])],
-                                      psi, r_px, depth if use_depth else None, theta)[0]
+        if shape.symmetry == 1 and turned is None and allowed_angle(prior, angle + math.pi):
+            c_at = center_c
+            if use_depth:
+                k = int(np.argmin(np.abs(_wrap(knob_angles - angle - math.pi))))
+                c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
+            turned = (None, float(angle) + math.pi, c_at)
         if shape.symmetry == 1 and turned is not None:
             half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
                                         (float(turned[1]) - psi, turned[2]), psi, r_px,
@@ -1127,7 +1125,8 @@ class KnobReader:
                    depth=None, theta=0.0) -> Optional[dict]:
         """How much better the reading (``reading`` = (relative angle rad, centre in the canvas
         frame m)) explains the image than the knob turned by half a turn from it
-        (``turned``, the same, each from its own exact check): a knob without symmetry
+        (``turned``, the same: the exact check that ended nearest the half turn, or the half
+        turn at the centre the depth gives it): a knob without symmetry
         looks much the same both ways (a pointer, a tip, a marker: most of the grip
         coincides), so a fit over the whole window tells them apart weakly and the state
         gate was set by such readings. Both are rendered exactly (as ``_refine`` renders,
@@ -1442,9 +1441,17 @@ class _Window:
                             minlength=L * N).reshape(L, N) for lab in labels]
         differ = 0.5 * np.abs(maps[0] - maps[1]).sum(0)
         out, everywhere = [], 0.0
-        for W in maps:
-            mu, _ = self._solve(W)
-            r2 = ((self.Xc - W.T @ mu) ** 2).sum(1)
+        for lab in labels:
+            # the Gram matrix and W X as sums over the four labels each pixel mixes (as
+            # ``fits``: a dense W W^T of a shape with many labels cost 30 ms)
+            lab = lut[lab[idx]]                                           # (4, N)
+            G = np.bincount((lab[:, None, :] * L + lab[None, :, :]).ravel(),
+                            (wts[:, None, :] * wts[None, :, :]).ravel(), minlength=L * L).reshape(L, L)
+            b = np.stack([np.bincount(lab.ravel(), (wts * self.Xc[:, c]).ravel(), minlength=L)
+                          for c in range(3)], -1)
+            G.flat[::L + 1] += 1e-6 + self.ridge
+            mu = np.linalg.solve(G, b)
+            r2 = ((self.Xc - np.einsum("kn,knc->nc", wts, mu[lab])) ** 2).sum(1)
             out.append(float(differ @ r2))
             everywhere += float(r2.mean()) / 2
         return out[0], out[1], float(differ.sum()) * everywhere
