@@ -1055,18 +1055,20 @@ class KnobReader:
         half_turn = None
         # the reading against itself turned by half a turn (``_half_turn``), the rival the
         # margin tells worst: the best exact check that ended within 45 degrees of the half
-        # turn; else the half turn itself when the knob's travel allows it, at the centre the
-        # depth gives the shape turned so (not refined: an exact check more per knob tripled
-        # the CPU of a skirt knob, whose checks seldom end there). Not allowed: no half turn
-        # to fear.
+        # turn; else the allowed template angle nearest to the half turn, within 45 degrees,
+        # at the centre the depth gives the shape turned so (not refined: an exact check more
+        # per knob tripled the CPU of a skirt knob, whose checks seldom end there). None
+        # allowed: no half turn to fear.
         near = [f for f in checked[1:] if abs(_wrap(f[1] - angle - math.pi)) < math.radians(45)]
         turned = max(near, key=lambda f: f[0]) if near else None
-        if shape.symmetry == 1 and turned is None and allowed_angle(prior, angle + math.pi):
-            c_at = center_c
-            if use_depth:
-                k = int(np.argmin(np.abs(_wrap(knob_angles - angle - math.pi))))
-                c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
-            turned = (None, float(angle) + math.pi, c_at)
+        if shape.symmetry == 1 and turned is None:
+            d = np.where(allowed, np.abs(_wrap(knob_angles - angle - math.pi)), np.inf)
+            k = int(np.argmin(d))
+            if d[k] < math.radians(45):
+                c_at = center_c
+                if use_depth:
+                    c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
+                turned = (None, float(knob_angles[k]), c_at)
         if shape.symmetry == 1 and turned is not None:
             half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
                                         (float(turned[1]) - psi, turned[2]), psi, r_px,
