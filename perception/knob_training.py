@@ -19,7 +19,12 @@ other than the benchmark's):
   least ``dot_margin_floor``: a state needs its angle at least that many expected errors
   inside its half step with a clear marker, however few wrong readings validation had; and
   ``dot_margin_safety`` (2, not 1.25) times the largest wrong margin: held-out views of
-  home 1 had wrong dot readings 1.14 and 1.32 times over the gate of 1.25 times.
+  home 1 had wrong dot readings 1.14 and 1.32 times over the gate of 1.25 times;
+- ``half_turn_gates``: for a knob without symmetry (other than a round body's dot reading),
+  what a reading's comparison with itself turned by half a turn (``KnobReader._half_turn``)
+  needs, chosen with the state gate of its level (the pair that lets the most right readings
+  through while no wrong one passes both); with a half-turn gate, the state gate is
+  calibrated on the level's readings and the next harder level's.
 
 The gates are fitted on readings with the views' depth images, and again on readings of
 colour alone (``KnobReader.colour_gates``, for a caller without depth).
@@ -48,7 +53,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 18
+CODE_VERSION = 19
 
 _canon = canon   # the name earlier code imported
 
@@ -168,6 +173,7 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
         out.append(dict(present=bool(v.present), found=bool(r.found), near=near,
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
+                        half_turn=r.evidence.get("half_turn"), angle=r.angle,
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         shape=v.believed.shape, dot=bool(r.evidence.get("dot", False)),
                         radius_px=float(r.evidence.get("radius_px", 0.0)),
@@ -192,24 +198,48 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # too small to see then read a fixed speck of noise as a state at margin 0.02)
     dots = [r for r in passed if r.get("dot")]
     passed = [r for r in passed if not r.get("dot")]
-    gates = _level_gates(passed, cfg)
+    gates, turns = _level_gates(passed, cfg)
     out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
     out.state_gate_very_hard = gates[2]
-    out.dot_gates = _level_gates(dots, cfg, cfg.dot_margin_floor, cfg.dot_margin_safety) if dots else None
+    out.half_turn_gates = [float(t) for t in turns]
+    # (dot readings carry no half-turn comparison: their turns are all none)
+    out.dot_gates = _level_gates(dots, cfg, cfg.dot_margin_floor, cfg.dot_margin_safety)[0] if dots else None
     return out
 
 
 def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float] = None,
-                 safety: Optional[float] = None) -> list[CalibratedThreshold]:
-    """The state gates of the three view levels, calibrated on ``passed`` readings, at least
-    ``floor`` (default: ``margin_floor``), ``safety`` times the largest wrong margin (default:
-    ``margin_safety``)."""
+                 safety: Optional[float] = None) -> tuple[list[CalibratedThreshold], list[float]]:
+    """The state gates and the half-turn gates of the three view levels, calibrated on
+    ``passed`` readings, the state gates at least ``floor`` (default: ``margin_floor``),
+    ``safety`` times the largest wrong margin (default: ``margin_safety``)."""
     floor = cfg.margin_floor if floor is None else floor
     safety = cfg.margin_safety if safety is None else safety
 
     def gate(rs):
         return CalibratedThreshold("no_false_accepts", safety=safety, floor=floor).fit(
             np.array([[r["margin"]] for r in rs] or [[0.0]]), np.array([r["right"] for r in rs] or [True]))
+
+    def turned(r, g):
+        """Whether a reading passes the half-turn gate ``g``."""
+        return r.get("half_turn") is None or r["half_turn"] > g
+
+    def gates_of(rs, wider):
+        """The half-turn gate and the state gate of a level (its readings ``rs``): none and
+        the state gate of ``rs`` as without the half-turn test, or a half-turn gate just above
+        one wrong reading's ``half_turn`` (times the safety, and at least 0: a reading that
+        explains where it and its half turn differ worse than the half turn does is never
+        enough) with the state gate calibrated on the readings of ``wider`` (the level and
+        the next harder one) that it lets through; whichever lets the most right readings of
+        the level through (none of equals)."""
+        s = gate(rs)
+        best = (sum(r["right"] and r["margin"] > s.threshold_ for r in rs), -math.inf, s)
+        for h in sorted({r["half_turn"] for r in wider if not r["right"] and r.get("half_turn") is not None}):
+            g = max(0.0, h * cfg.margin_safety)
+            s = gate([r for r in wider if turned(r, g)])
+            n = sum(r["right"] and r["margin"] > s.threshold_ and turned(r, g) for r in rs)
+            if n > best[0]:
+                best = (n, g, s)
+        return best[1], best[2]
     # one gate for every view, and one for the hard ones (far, small, oblique: hard_view),
     # never below the first, so that a few confident wrong readings far away do not make
     # every near knob unknown, and a hard view needs what the hard views of validation needed
@@ -217,16 +247,31 @@ def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float]
     # 55 degrees off) get their own, so that one confident wrong reading at 59 degrees does
     # not make every view at 46 unknown. A level with too few readings takes the gate of
     # itself and every harder level together; no level's gate is below an easier one's.
-    gates = []
+    # A reading of a knob without symmetry also needs to explain the pixels where it and
+    # itself turned by half a turn differ better than the turned knob does (``half_turn``,
+    # KnobReader._half_turn): most confident wrong readings were such half turns. Each level
+    # has a half-turn gate too, chosen with its state gate (``gates_of``), neither below an
+    # easier level's: still no wrong validation reading passes both. With the half turns
+    # left out, a level's state gate rests on its few other wrong readings (home 4: a level-0
+    # gate on one reading's margin, 0.006, let through a wrong reading of held-out views), so
+    # with a half-turn gate the state gate is calibrated on the level's readings and those of
+    # the next harder level together.
+    gates, turns = [], []
+    level_of = lambda r: r.get("level", int(bool(r.get("hard"))))
     for level in range(3):
-        rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) == level]
+        rs = [r for r in passed if level_of(r) == level]
         if len(rs) < cfg.min_easy_readings:
-            rs = [r for r in passed if r.get("level", int(bool(r.get("hard")))) >= max(level - 1, 0)]
-        g = gate(rs)
+            rs = [r for r in passed if level_of(r) >= max(level - 1, 0)]
+        harder = [] if any(level_of(r) == level + 1 for r in rs) else [
+            r for r in passed if level_of(r) == level + 1]
+        t, g = gates_of(rs, rs + harder)
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
+        if turns and t < turns[-1]:
+            t = turns[-1]
         gates.append(g)
-    return gates
+        turns.append(t)
+    return gates, turns
 
 
 def _read_views(reader: KnobReader, views, jobs: int = -1) -> tuple[list[dict], list[dict]]:
@@ -281,5 +326,6 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"
         f"{d.validation_['positives']} knobs, {d.validation_['negatives_passed']}/"
         f"{d.validation_['negatives']} empty regions pass); margin > {s.threshold_:.4f} "
-        f"({s.validation_['negatives']} wrong readings, none pass)", len(views), len(views))
+        f"({s.validation_['negatives']} wrong readings, none pass); half turn > "
+        f"{', '.join(f'{t:.2f}' for t in reader.half_turn_gates)}", len(views), len(views))
     return reader

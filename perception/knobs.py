@@ -66,6 +66,12 @@ it; an "off" reading needs more; a reading without depth has gates of its own,
 ``colour_gates``), and the angle lies well inside the state's
 half step. Otherwise "unknown", with the reason.
 
+**Half turns.** A knob without symmetry looks much like itself turned by half a turn (the
+grip of a pointer or tip mostly coincides), so over the whole window the two fit nearly
+alike. The reading is also compared with the exact check nearest its half turn only where
+the two renderings differ (``KnobReader._half_turn``), and needs that comparison above a
+gate calibrated like the state gate (``half_turn_gates``).
+
 Everything here is pure: images and poses in, readings out. Estimators have the scikit-learn
 shape (the constructor stores parameters, ``fit`` returns self, learned attributes end in
 ``_``, every other method starts with ``check_is_fitted``). Training is
@@ -870,6 +876,9 @@ class KnobReader:
         #: the state gates (view levels 0, 1, 2) of readings whose angle came from a round
         #: body's marker (evidence ``dot``: their margin is on a scale of its own); None: none
         self.dot_gates: Optional[list] = None
+        #: the least ``half_turn`` (``_half_turn``) a reading of a knob without symmetry needs
+        #: per ``view_level`` (0, 1, 2), calibrated with the state gates; None: no such gate
+        self.half_turn_gates: Optional[list] = None
         self._casters: dict = {}
 
     def __getstate__(self):
@@ -915,6 +924,11 @@ class KnobReader:
         if level >= 2 and getattr(self, "state_gate_very_hard", None) is not None:
             g = self.state_gate_very_hard
         return g.threshold_
+
+    def half_turn_gate_for(self, level) -> float:
+        """The half-turn gate of a view (``view_level``); -inf when there is none."""
+        g = getattr(self, "half_turn_gates", None)
+        return float(g[min(int(level), len(g) - 1)]) if g else -math.inf
 
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
              priors: Sequence[KnobPrior], depth: Optional[np.ndarray] = None) -> list[KnobReading]:
@@ -1065,6 +1079,7 @@ class KnobReader:
                                 [tpl.alphas[c] for c in picks], psi, r_px, None, theta)
         fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
         fine.sort(key=lambda f: -f[0])
+        checked = list(fine)
         best = fine[0]
         s_best = snap_to_state(best[1], prior)[0]
         rivals = [f for f in fine[1:] if snap_to_state(f[1], prior)[0] != s_best]
@@ -1081,6 +1096,29 @@ class KnobReader:
             margin = max(0.0, min(margin, score_best))
         fine = [best] + rivals
         c_best = picks[0]
+        half_turn = None
+        # the reading against itself turned by half a turn (``_half_turn``), the rival the
+        # margin tells worst: the best exact check that ended within 45 degrees of the half
+        # turn; else the allowed template angle nearest to the half turn, within 45 degrees,
+        # at the centre the depth gives the shape turned so (not refined: an exact check more
+        # per knob tripled the CPU of a skirt knob, whose checks seldom end there). None
+        # allowed: no half turn to fear.
+        near = [f for f in checked[1:] if abs(_wrap(f[1] - angle - math.pi)) < math.radians(45)]
+        turned = max(near, key=lambda f: f[0]) if near else None
+        # (not for a round body's dot reading: its margin already weighs the dot against
+        # every other dot-sized spot of the top, the half turn's place included)
+        if shape.symmetry == 1 and turned is None and not from_dot:
+            d = np.where(allowed, np.abs(_wrap(knob_angles - angle - math.pi)), np.inf)
+            k = int(np.argmin(d))
+            if d[k] < math.radians(45):
+                c_at = center_c
+                if use_depth:
+                    c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
+                turned = (None, float(knob_angles[k]), c_at)
+        if shape.symmetry == 1 and turned is not None and not from_dot:
+            half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
+                                        (float(turned[1]) - psi, turned[2]), psi, r_px,
+                                        depth if use_depth else None, theta)
         center_k = rotate_xy(center_c, psi)              # canvas frame -> knob face frame
         p_world = prior.T_world_face() @ np.array([center_k[0], center_k[1], 0.0, 1.0])
         pcam = np.linalg.inv(T_wc) @ p_world
@@ -1093,6 +1131,8 @@ class KnobReader:
                   depth=bool(use_depth))
         if from_dot:
             ev["dot"] = True
+        if half_turn is not None:
+            ev.update(half_turn)
         return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
                            angles={"fused": float(angle)}, evidence=ev)
 
@@ -1113,9 +1153,13 @@ class KnobReader:
         need = gates.margin_threshold_for(hard, bool(ev.get("dot"))) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
+        need_turn = gates.half_turn_gate_for(hard)
         if ev["margin"] <= need:
             r.reason = (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
                         f"needs {need:.3f})")
+        elif ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
+            r.reason = (f"unsure ({state}: turned by half a turn it fits nearly as well, "
+                        f"{ev['half_turn']:.2f}, needs {need_turn:.2f})")
         elif 1.0 - c_snap > cfg.max_snap:
             r.reason = f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
         elif r.confidence < cfg.min_confidence:
@@ -1227,6 +1271,69 @@ class KnobReader:
         d = np.where(names == state, np.inf, d)
         rival = float(sa[int(np.argmin(d))]) if np.isfinite(d).any() else float(_wrap(a_dot + math.pi))
         return a_dot, float(margin), rival
+
+    def _half_turn(self, rgb, K, T_wc, prior, shape, T_c, C, reading, turned, psi, r_px,
+                   depth=None, theta=0.0) -> Optional[dict]:
+        """How much better the reading (``reading`` = (relative angle rad, centre in the canvas
+        frame m)) explains the image than the knob turned by half a turn from it
+        (``turned``, the same: the exact check that ended nearest the half turn, or the half
+        turn at the centre the depth gives it): a knob without symmetry
+        looks much the same both ways (a pointer, a tip, a marker: most of the grip
+        coincides), so a fit over the whole window tells them apart weakly and the state
+        gate was set by such readings. Both are rendered exactly (as ``_refine`` renders,
+        each at its own centre) in one window between them and compared only where they
+        differ: the window pixels whose labels differ between the two renderings (the marker,
+        tip or point under one, the grip, bezel or panel under the other), each weighted by
+        the share of its label weights that differ. Each rendering's label colours are its
+        own least-squares fit over the whole window; ``half_turn_colour`` is (SSE_turned -
+        SSE) / (SSE_turned + SSE + 2 E) of the colour residuals over those pixels, E what
+        their residual would be if they fitted as well as the window does on average (near
+        1: only the reading explains them, near -1: only the turned knob, 0: both, or
+        neither, or noise alone; ``_contrast_ratio``). With
+        ``depth``, ``half_turn_depth`` is the same of the depth residuals over the image
+        pixels whose rendered depths differ, each rendering put at the measured depth by the
+        median difference over the pixels where the two agree (the believed plane's height
+        error). ``half_turn``: the colour's plus ``depth_weight`` times the depth's, checked
+        against ``half_turn_gate_for`` (calibrated like the state gate). None when the window
+        leaves the image."""
+        cfg = self.config
+        if r_px > cfg.decimate_above_px:
+            rgb = rgb[::2, ::2]
+            depth = None if depth is None else depth[::2, ::2]
+            K = Intrinsics(K.fx / 2, K.fy / 2, K.cx / 2, K.cy / 2, rgb.shape[1], rgb.shape[0])
+        rho = cfg.fine_px_per_radius / prior.radius
+        n = 2 * int(math.ceil(self.templates.window_radii * cfg.fine_px_per_radius)) + 1
+        mid = ((reading[1][0] + turned[1][0]) / 2, (reading[1][1] + turned[1][1]) / 2)
+        win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, mid), n, ridge=cfg.fine_ridge_px)
+        if win.box is None:
+            return None
+        dirs = win.rays_camera() @ (np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]).T
+        # both in one cast: the rays of each from the camera as seen from its own centre
+        origins = np.stack([np.broadcast_to(C - np.array([c[0], c[1], -shape.face]), dirs.shape)
+                            for _, c in (reading, turned)])
+        labs, ts = self.caster(prior.shape).labels(origins, dirs, np.array([reading[0], turned[0]]), -psi,
+                                                   fine=True, with_t=True)
+        colour = _contrast_ratio(*win.contrast(labs))
+        out = dict(half_turn=colour, half_turn_colour=colour)
+        if depth is not None:
+            u0, v0, u1, v1 = win.box
+            m = depth[v0:v1, u0:u1].ravel().astype(np.float64)
+            dz = np.where(np.abs(dirs[:, 2]) > 1e-6, dirs[:, 2], 1e-6)
+            panel = -(C[2] + shape.face) / dz          # the panel plane (z = 0 of the knob)
+            slack = shape.face / max(math.cos(theta), 0.3) + 0.03
+            valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
+            z = [np.where(np.isfinite(t), t, panel) for t in ts]
+            differ = np.abs(z[0] - z[1]) > 1e-4
+            agree, d = valid & ~differ, valid & differ
+            if valid.mean() >= 0.3 and agree.sum() >= 10 and d.any():
+                res, noise = [], 0.0
+                for zh in z:
+                    e = m - zh - float(np.median(m[agree] - zh[agree]))
+                    res.append(float(e[d] @ e[d]))
+                    noise += float(np.mean(e[agree] ** 2)) / 2
+                out["half_turn_depth"] = _contrast_ratio(res[0], res[1], d.sum() * noise)
+                out["half_turn"] += cfg.depth_weight * out["half_turn_depth"]
+        return {k: round(float(v), 4) for k, v in out.items()}
 
     def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px,
                 depth=None, theta=0.0, hold=False):
@@ -1470,6 +1577,38 @@ class _Window:
         mu = np.linalg.solve(G, b)
         return np.einsum("blc,blc->b", b, mu) / self.tv
 
+    def contrast(self, labels: np.ndarray) -> tuple[float, float, float]:
+        """The colour residual (sum of squares) of each of two renderings (2, N box pixels)
+        over the window pixels whose labels differ between them, each pixel weighted by the
+        share of its label weights that differ (``KnobReader._half_turn``), and what the
+        residual of those pixels would be if they fitted as well as the window does on
+        average (the weights' sum times the mean residual per pixel of the two renderings over
+        the whole window: the noise and the edges every pixel has); each rendering's label
+        colours are its own least-squares fit over the whole window."""
+        idx, wts = self._sampling((0.0, 0.0))
+        present = np.flatnonzero(np.bincount(labels.ravel()))
+        lut = np.zeros(int(present[-1]) + 1, np.int64)
+        lut[present] = np.arange(len(present))
+        N, L = self.n * self.n, len(present)
+        maps = [np.bincount((lut[lab[idx]] * N + np.arange(N)).ravel(), wts.ravel(),
+                            minlength=L * N).reshape(L, N) for lab in labels]
+        differ = 0.5 * np.abs(maps[0] - maps[1]).sum(0)
+        out, everywhere = [], 0.0
+        for lab in labels:
+            # the Gram matrix and W X as sums over the four labels each pixel mixes (as
+            # ``fits``: a dense W W^T of a shape with many labels cost 30 ms)
+            lab = lut[lab[idx]]                                           # (4, N)
+            G = np.bincount((lab[:, None, :] * L + lab[None, :, :]).ravel(),
+                            (wts[:, None, :] * wts[None, :, :]).ravel(), minlength=L * L).reshape(L, L)
+            b = np.stack([np.bincount(lab.ravel(), (wts * self.Xc[:, c]).ravel(), minlength=L)
+                          for c in range(3)], -1)
+            G.flat[::L + 1] += 1e-6 + self.ridge
+            mu = np.linalg.solve(G, b)
+            r2 = ((self.Xc - np.einsum("kn,knc->nc", wts, mu[lab])) ** 2).sum(1)
+            out.append(float(differ @ r2))
+            everywhere += float(r2.mean()) / 2
+        return out[0], out[1], float(differ.sum()) * everywhere
+
     def settle(self, labels: np.ndarray, iterations: int, max_shift: float) -> np.ndarray:
         """The shift t (px, canvas x right, y up) of the rendered knob that fits the window
         best: Gauss-Newton (Lucas-Kanade) with the model image's gradient."""
@@ -1493,6 +1632,15 @@ class _Window:
             if np.all(np.abs(step) < 0.02):
                 break
         return t
+
+
+def _contrast_ratio(sse: float, sse_other: float, expected: float = 0.0) -> float:
+    """(other - this) / (other + this + 2 expected) of two residual sums over the same
+    pixels, ``expected`` what each would be if those pixels fitted as well as the rest (so
+    that two fits of the noise alone, both small, come out near 0, not anywhere in [-1, 1]):
+    in (-1, 1), 0 when they are equal."""
+    total = sse + sse_other + 2 * expected
+    return (sse_other - sse) / total if total > 1e-12 else 0.0
 
 
 def allowed_angle(prior: KnobPrior, angle: float, margin: float = math.radians(15)) -> bool:

@@ -265,3 +265,28 @@ def test_validation_views_read_alike_on_several_processes(world, reader, scenes)
     assert one == two
     assert len(one[0]) == len(one[1]) == 40
     assert any(r["found"] for r in one[0]) and any(r["found"] for r in one[1])
+
+
+def test_half_turns_get_a_gate_of_their_own_so_the_state_gate_need_not_cover_them(reader):
+    """Validation readings where the confident wrong ones are half turns (their half-turn
+    test negative) and the others wrong by little margin: the calibrated half-turn gate
+    keeps the half turns out, so the state gate is set by the others and lets most right
+    readings through; no wrong reading passes both gates."""
+    from perception.knob_training import calibrate
+    rng = np.random.default_rng(0)
+
+    def reading(right, margin, half_turn, level=0):
+        return dict(present=True, found=True, near=True, score=1.0, margin=margin, right=right,
+                    off=False, half_turn=half_turn, level=level, hard=bool(level))
+    rows = ([reading(True, m, h) for m, h in zip(rng.uniform(0.01, 0.2, 200), rng.uniform(0.3, 1.5, 200))]
+            + [reading(False, m, h) for m, h in ((0.09, -0.6), (0.07, -0.3), (0.06, -1.1))]
+            + [reading(False, m, None) for m in (0.01, 0.008)]
+            + [reading(True, 0.1, 0.8, level=1) for _ in range(50)])
+    cal = calibrate(reader, rows, TrainingConfig())
+    assert cal.half_turn_gates[0] >= 0.0
+    assert cal.margin_threshold_for(0) < 0.02          # not the half turns' 0.09 * 1.25
+    passes = [r["margin"] > cal.margin_threshold_for(r["level"])
+              and (r["half_turn"] is None or r["half_turn"] > cal.half_turn_gate_for(r["level"]))
+              for r in rows]
+    assert not any(p for p, r in zip(passes, rows) if not r["right"])
+    assert sum(p for p, r in zip(passes, rows) if r["right"] and r["level"] == 0) > 150
