@@ -277,8 +277,13 @@ def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float]
 def _read_views(reader: KnobReader, views, jobs: int = -1) -> tuple[list[dict], list[dict]]:
     """``validation_readings`` of ``views`` with their depth images and on colour alone, in
     the views' order; the work split in chunks over ``jobs`` processes (joblib)."""
+    import multiprocessing
     import os
     n_jobs = min(4, os.cpu_count() or 1) if jobs in (None, -1) else max(1, int(jobs))
+    if multiprocessing.current_process().daemon:
+        # a worker of a pool (the mission suite's): it may start no processes of its own
+        # (joblib would fall back to one with a warning on every training)
+        n_jobs = 1
     if n_jobs == 1 or len(views) < 40:
         return validation_readings(reader, views), validation_readings(reader, views, use_depth=False)
     from joblib import Parallel, delayed
