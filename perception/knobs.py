@@ -1027,13 +1027,8 @@ class KnobReader:
             c_depth = _depth_center(hc, hv, tpl.heights[ti][picks[0]], (ci, cj), inside, off, rho)
             if c_depth is not None:
                 center = c_depth
-                Hd = plane_homography(K, T_wc, T_c, rho, n, center)
-                patch = rectify(rgb, Hd, n).astype(np.float32).reshape(1, -1, 3)
-                hd, vd = canvas_heights(depth, Hd, n, float(C[2]), shape.face)
-                curve = (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels)[0]
-                         + cfg.depth_weight * depth_scores(
-                             hd.reshape(1, -1), vd.reshape(1, -1),
-                             tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
+                curve = self._coarse_at(rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti,
+                                        flat, center)
                 picks = _candidates(curve, allowed, state_of, cfg.candidates)
 
         # a knob whose body is round about its axis (a skirt and cap) with a dot off the axis:
@@ -1171,6 +1166,19 @@ class KnobReader:
     def _allowed(self, prior: KnobPrior, angles: np.ndarray) -> np.ndarray:
         return np.array([allowed_angle(prior, a) for a in angles])
 
+    def _coarse_at(self, rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti, flat, center):
+        """The coarse fit (colour plus ``depth_weight`` times depth) of every template angle
+        in a canvas centred at ``center`` (canvas frame, m)."""
+        rho = self.templates.px_per_radius / prior.radius
+        n = self.templates.window_px
+        Hd = plane_homography(K, T_wc, T_c, rho, n, center)
+        patch = rectify(rgb, Hd, n).astype(np.float32).reshape(1, -1, 3)
+        hd, vd = canvas_heights(depth, Hd, n, float(C[2]), shape.face)
+        return (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels)[0]
+                + self.config.depth_weight * depth_scores(
+                    hd.reshape(1, -1), vd.reshape(1, -1),
+                    tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
+
     def _round_body(self, rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks, allowed,
                     state_of, psi, r_px, depth, theta, flat):
         """The candidates of a round-bodied knob (``round_body_levels``, a dot no wider than
@@ -1182,7 +1190,7 @@ class KnobReader:
         checked exactly with the centre held. Returns (fine, coarse curve, picks, whether
         from the dot) as ``evidence`` uses them, or None (not such a knob, or too few depth
         pixels)."""
-        cfg, tm = self.config, self.templates
+        cfg = self.config
         levels = round_body_levels(shape)
         md = marker_dot(shape)
         if levels is None or md is None or md[2] > cfg.dot_max_size * md[1]:
@@ -1194,15 +1202,7 @@ class KnobReader:
         if got is None:
             return None
         center = got[0]
-        rho = tm.px_per_radius / prior.radius
-        n = tm.window_px
-        Hd = plane_homography(K, T_wc, T_c, rho, n, center)
-        patch = rectify(rgb, Hd, n).astype(np.float32).reshape(1, -1, 3)
-        hd, vd = canvas_heights(depth, Hd, n, float(C[2]), shape.face)
-        curve = (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels)[0]
-                 + cfg.depth_weight * depth_scores(
-                     hd.reshape(1, -1), vd.reshape(1, -1),
-                     tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
+        curve = self._coarse_at(rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti, flat, center)
         picks = _candidates(curve, allowed, state_of, cfg.candidates)
         dot = self._dot_reading(rgb, K, T_wc, prior, shape, T_c, center, psi, r_px) if cfg.dot_angle else None
         if dot is not None:
