@@ -3,6 +3,7 @@ with --verbose, the outcome alone with --quiet, readable values, times since the
 names from the date of the run, no traceback when the reader of stdout goes away."""
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -185,16 +186,23 @@ def test_serve_on_an_ipv6_address_prints_a_bracketed_url(tmp_path):
         socket.socket(socket.AF_INET6).bind(("::1", 0))
     except OSError:
         pytest.skip("no IPv6 loopback here")
+    # faulthandler: should the server not stop, SIGABRT makes it print every thread's stack
     proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--host", "::1",
                              "--port", "0", "--no-save", "--runs-dir", str(tmp_path)],
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"})
     try:
         line = next(line for line in proc.stderr if "http" in line)
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=60)
-        proc.stderr.close()
+        try:
+            rest = proc.communicate(timeout=60)[1]     # read on: a full pipe blocks the server
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            rest = proc.communicate(timeout=30)[1]
+            pytest.fail("hearth serve did not stop within 60 s of SIGINT; its threads:\n" + rest[-6000:])
     assert re.search(r"http://\[::1\]:\d+/ \(API docs at /docs\)$", line.strip()), line
+    assert proc.returncode == 130 and rest.strip().splitlines()[-1].endswith("interrupted"), rest
 
 
 def test_bench_turns_on_per_case_progress_where_a_benchmark_has_it(monkeypatch, capsys):
