@@ -74,9 +74,24 @@ def bind_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
+class _Server(uvicorn.Server):
+    """uvicorn's server, calling ``on_started`` once it has started: its signal handlers are
+    in place and it accepts connections."""
+
+    on_started: Any = None
+
+    async def startup(self, sockets: Any = None) -> None:
+        await super().startup(sockets=sockets)
+        if self.started and self.on_started is not None:
+            self.on_started()
+
+
 def make_server(app: Any, log_level: str = "warning", *, tls_cert: str | None = None,
-                tls_key: str | None = None) -> uvicorn.Server:
-    """uvicorn for ``app``; with ``tls_cert`` and ``tls_key`` (PEM files) it serves HTTPS."""
+                tls_key: str | None = None, on_started: Any = None) -> uvicorn.Server:
+    """uvicorn for ``app``; with ``tls_cert`` and ``tls_key`` (PEM files) it serves HTTPS.
+    ``on_started()`` is called once it serves (``hearth serve`` prints its address then: a
+    Ctrl-C before that moment would meet no handler of uvicorn's, and one inherited as
+    ignored would leave the server running)."""
     # http="h11" whatever is installed: the head-size limit in docs/command-layer.md
     # ("Limits") is h11's, and uvicorn's httptools protocol (about 0.3 ms less CPU per
     # request here) has none. uvloop (loop "auto") made no difference with h11 here. No
@@ -84,7 +99,9 @@ def make_server(app: Any, log_level: str = "warning", *, tls_cert: str | None = 
     config = uvicorn.Config(app, log_level=log_level, access_log=False, http="h11",
                             timeout_graceful_shutdown=1, lifespan="on", backlog=2048,
                             ssl_certfile=tls_cert, ssl_keyfile=tls_key)
-    return uvicorn.Server(config)
+    server = _Server(config)
+    server.on_started = on_started
+    return server
 
 
 class ServerThread:

@@ -128,12 +128,16 @@ def _serve(args: argparse.Namespace) -> int:
         host, port = sock.getsockname()[:2]
         scheme = "https" if args.tls_cert else "http"
         shown = f"[{host}]" if ":" in host else host
-        print(f"hearth serve: missions {names}; {scheme}://{shown}:{port}/ (API docs at /docs)",
-              file=sys.stderr, flush=True)
-        if keeper is not None:
-            print(f"hearth serve: the map is kept in {keeper.path}", file=sys.stderr, flush=True)
+
+        def started() -> None:
+            # once uvicorn serves (and its Ctrl-C handler is in place), not before
+            print(f"hearth serve: missions {names}; {scheme}://{shown}:{port}/ (API docs at /docs)",
+                  file=sys.stderr, flush=True)
+            if keeper is not None:
+                print(f"hearth serve: the map is kept in {keeper.path}", file=sys.stderr, flush=True)
         app = create_app(service, token=args.token, allowed_hosts=args.allowed_host)
-        make_server(app, tls_cert=args.tls_cert, tls_key=args.tls_key).run(sockets=[sock])
+        make_server(app, tls_cert=args.tls_cert, tls_key=args.tls_key,
+                    on_started=started).run(sockets=[sock])
     finally:
         if pub is not None:
             pub.close()

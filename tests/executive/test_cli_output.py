@@ -190,7 +190,10 @@ def test_serve_on_an_ipv6_address_prints_a_bracketed_url(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--host", "::1",
                              "--port", "0", "--no-save", "--runs-dir", str(tmp_path)],
                             stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONFAULTHANDLER": "1"})
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"},
+                            # Ctrl-C as a user's shell gives it, whatever an earlier test left
+                            # in this process (a child inherits an ignored SIGINT)
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = next(line for line in proc.stderr if "http" in line)
     finally:
@@ -248,3 +251,24 @@ def test_show_finds_a_shipped_mission_by_name_from_any_directory(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     assert main(["show", "go_to_rest"]) == 0
     assert capsys.readouterr().out.startswith("go_to_rest: ")
+
+
+def test_serve_announces_its_address_only_once_it_stops_on_ctrl_c(tmp_path):
+    """The address line means the server serves and Ctrl-C stops it: even a server started
+    with SIGINT ignored (as a child of a process that ignores it) stops on a SIGINT sent
+    the moment the line appears."""
+    import signal
+    proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--port", "0",
+                             "--no-save", "--runs-dir", str(tmp_path)],
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        line = next(line for line in proc.stderr if "http" in line)
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert "http://127.0.0.1:" in line
+    assert proc.returncode == 0     # stopped by uvicorn's handler, the ignored SIGINT restored
