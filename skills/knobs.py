@@ -57,20 +57,27 @@ class ReadKnobs(Skill):
         return self.reader
 
     def update(self) -> py_trees.common.Status:
+        from perception.knob_panel import shift_priors
         from perception.knobs import knob_priors
         try:
             obj, ids = self.input("object"), self.input("knobs")
             priors = knob_priors(self.world, obj)
-            if ids:
-                priors = [p for p in priors if p.knob_id in set(ids)]
             if not priors:
                 raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
             frame = self.robot.capture()
             K = getattr(frame, "intrinsics", None) or getattr(frame, "K")
             depth = getattr(frame, "depth", None)
-            readings = self._reader().read(np.asarray(frame.color), K,
-                                           np.asarray(frame.T_world_camera, dtype=float), priors,
-                                           depth=None if depth is None else np.asarray(depth))
+            T_wc = np.asarray(frame.T_world_camera, dtype=float)
+            depth = None if depth is None else np.asarray(depth)
+            # the knobs where the depth image shows their panel (the robot's pose may be a few
+            # centimetres off: perception/knob_panel.py), found with every knob of the panel
+            # though only some are to be read
+            priors, fixes = shift_priors(priors, depth, K, T_wc)
+            if ids:
+                priors = [p for p in priors if p.knob_id in set(ids)]
+                if not priors:
+                    raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
+            readings = self._reader().read(np.asarray(frame.color), K, T_wc, priors, depth=depth)
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE
@@ -91,7 +98,11 @@ class ReadKnobs(Skill):
         if unknown:
             why = "; ".join(f"{r.knob_id}: {r.reason}" for r in readings if r.state == "unknown")
             said += f"; unknown: {why}"
-        self.feedback_message = f"knobs: {said}"
+        moved = [f"panel of {len(f.knob_ids)} knob{'s' if len(f.knob_ids) != 1 else ''} found "
+                 f"{f.shift_m * 100:.1f} cm from where the map puts it" if f.used else
+                 f"panel of {len(f.knob_ids)} knob{'s' if len(f.knob_ids) != 1 else ''} not "
+                 f"moved: {f.why}" for f in fixes if f.used or f.why != "where the map says"]
+        self.feedback_message = f"knobs: {said}" + "".join(f"; {m}" for m in moved)
         return S.SUCCESS if states else S.FAILURE
 
 

@@ -152,8 +152,8 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 
 #: Knob designs: body colour, marker colour, radius range, depth range.
 #: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
-#: 2 = knob designs varied (KNOB_FAMILIES).
-GENERATOR_VERSION = 2
+#: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on.
+GENERATOR_VERSION = 3
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -864,9 +864,14 @@ _MARKER_COLOURS = [(0.85, 0.1, 0.1), (0.95, 0.55, 0.05), (0.1, 0.35, 0.85), (0.0
                    (0.95, 0.95, 0.92)]
 
 
+def _distinct(a, b) -> bool:
+    """Colours the eye tells apart (L1 distance of RGB over 0.6)."""
+    return sum(abs(x - y) for x, y in zip(a, b)) > 0.6
+
+
 def _contrast(drng, body, palette):
     """A colour of ``palette`` that differs from ``body`` (a marker the eye can tell)."""
-    ok = [c for c in palette if sum(abs(a - b) for a, b in zip(c, body)) > 0.6] or palette
+    ok = [c for c in palette if _distinct(c, body)] or palette
     return ok[int(drng.integers(len(ok)))]
 
 
@@ -879,6 +884,11 @@ def _knob_design(ctx: _Ctx, family: str, r: float, depth: float) -> dict:
     body = _KNOB_COLOURS[int(drng.integers(len(_KNOB_COLOURS)))]
     mark = _contrast(drng, body, _MARKER_COLOURS)
     grip_c = body if drng.random() < 0.6 else _contrast(drng, body, _KNOB_COLOURS)
+    if not _distinct(mark, grip_c):
+        # a tip or dot sits on the grip: the colour of the grip would hide it (a black tip on a
+        # black bar is a bar symmetric by half a turn, which no reader can read). The first
+        # marker colour that stands out from both (no draw: other designs stay as they were).
+        mark = next(c for c in _MARKER_COLOURS if _distinct(c, body) and _distinct(c, grip_c))
     if family == "bar":
         hb = _mm(depth * u(0.3, 0.45))
         w = r * u(0.28, 0.4)

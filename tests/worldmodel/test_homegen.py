@@ -311,6 +311,20 @@ def test_knob_designs_vary_and_describe_their_shape(worlds):
     assert packed >= 4
 
 
+def test_a_tip_or_dot_stands_out_from_the_grip_it_sits_on(worlds):
+    """A marker the colour of its grip (a black tip on a black bar) would make a knob that is
+    the same turned by half a turn: no reader, human or not, could read it."""
+    seen = 0
+    for w in worlds.values():
+        for k in w.knobs():
+            if k.marker is None or k.grip is None or k.base_fixed:
+                continue
+            mark, grip = k.marker.visuals[0].color, k.grip.visuals[0].color
+            assert sum(abs(a - b) for a, b in zip(mark, grip)) > 0.6, (k.id, mark, grip)
+            seen += 1
+    assert seen >= 20
+
+
 def test_some_furniture_and_doors_are_meshes_that_load(worlds, homes):
     mesh_doors = 0
     for s, w in worlds.items():

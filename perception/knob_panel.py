@@ -1,0 +1,231 @@
+"""Where an appliance's knobs really are: one shift of the whole knob panel, from the depth image.
+
+The knob reader looks for each knob within a few centimetres of where the map and the robot's
+pose put it (``KnobConfig`` search radius: the registration error). When the robot's pose is
+off by more (a flush front that fixes nothing along it, a landmark fix a few centimetres
+short), every knob region misses its knob and the mission can only say "no knob found". All
+knobs of one panel are off by the same shift, though, and knobs stand out of their panel
+whatever their colours, so the depth image says where the panel's knobs are as a set:
+
+1. the knobs are grouped by their panel plane (``panel_groups``: axes parallel, planes within
+   ``plane_tol``);
+2. the depth image is seen through a canvas on that plane (``px_per_m``), covering the knobs
+   and ``max_shift`` around them, as heights above the plane (the same ray geometry as
+   ``perception.knobs.canvas_heights``); what stands out of the surface by less than a
+   knob's width is kept (a top-hat: the panel's slope, edges and steps are taken off), so
+   that the pose's error across and about the plane does not matter;
+3. a template of the knobs as the map places them, seen from the camera (cylinders of 0.85
+   radii and the knob's face height, the panel flat around them) is slid over it (OpenCV's ``matchTemplate``,
+   normalised correlation): the best shift within ``max_shift``;
+4. the shift is used only when the match is good (``min_score``) and unambiguous: no other
+   peak at least ``min_separation`` radii away (a row shifted by one knob pitch) scores within
+   ``min_lead`` of it. A row of equal knobs shifted by one pitch matches everywhere but at its
+   two ends, so its lead is small; then nothing is shifted and each knob is searched where the
+   map says, as before.
+
+The knobs are then read where the panel is (``shift_priors``). Only the knobs' image
+positions change, not the map or the robot's pose. Written here because no library matches a
+set of protrusions on a plane seen in perspective; the matching itself is OpenCV's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Optional, Sequence
+
+import cv2
+import numpy as np
+
+from perception.camera import Intrinsics
+
+
+@dataclass(frozen=True)
+class PanelConfig:
+    """``max_shift``: the largest shift searched (m); ``px_per_m``: the canvas scale;
+    ``min_score``: the normalised correlation a match needs; ``min_lead``: how much better
+    than any other peak ``min_separation`` radii away it must be; ``min_shift``: a shift below
+    it (m) is left alone (the per-knob search covers it); ``min_valid``: the share of the canvas that needs a
+    depth reading."""
+    max_shift: float = 0.12
+    px_per_m: float = 400.0
+    min_score: float = 0.45
+    min_lead: float = 0.08
+    min_separation: float = 0.7
+    min_shift: float = 0.004
+    min_valid: float = 0.3
+    plane_tol: float = 0.01
+
+
+@dataclass(frozen=True)
+class PanelFix:
+    """The shift (m, world frame) of a group of knobs, its size in the plane (m), the match's
+    score and its lead over the next other peak; ``used``: whether it passed the gates."""
+    knob_ids: tuple[str, ...]
+    shift_world: np.ndarray
+    shift_m: float
+    score: float
+    lead: float
+    used: bool
+    why: str = ""
+
+
+def panel_groups(priors: Sequence, tol: float = 0.01) -> list[list]:
+    """The priors grouped by panel: knob axes parallel (within about 3 degrees) and their
+    planes (z = 0 of the knob frames) within ``tol`` of each other."""
+    groups: list[list] = []
+    for p in priors:
+        T = p.T_world_knob
+        for g in groups:
+            R = g[0].T_world_knob
+            if float(T[:3, 2] @ R[:3, 2]) > 0.9985 and abs(float(R[:3, 2] @ (T[:3, 3] - R[:3, 3]))) < tol:
+                g.append(p)
+                break
+        else:
+            groups.append([p])
+    return groups
+
+
+def _canvas_homography(K: Intrinsics, T_wc: np.ndarray, T_wp: np.ndarray, ppm: float,
+                       x0: float, y1: float) -> np.ndarray:
+    """Canvas pixel (j, i) -> image pixel: the canvas shows plane z = 0 of ``T_wp`` head-on at
+    ``ppm``, pixel (0, 0) at plane point (x0, y1), right = +x, down = -y."""
+    T_cp = np.linalg.inv(T_wc) @ T_wp
+    H = K.matrix() @ np.column_stack([T_cp[:3, 0], T_cp[:3, 1], T_cp[:3, 3]])
+    return H @ np.array([[1.0 / ppm, 0.0, x0], [0.0, -1.0 / ppm, y1], [0.0, 0.0, 1.0]])
+
+
+def _heights(depth: np.ndarray, H: np.ndarray, w: int, h: int, cam_height: float):
+    """Heights (m) above the plane of what the depth image shows through each canvas pixel,
+    and where there is a reading (``perception.knobs.canvas_heights``' geometry)."""
+    Z = cv2.warpPerspective(np.asarray(depth, np.float32), H, (w, h),
+                            flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    jj, ii = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    zq = H[2, 0] * jj + H[2, 1] * ii + H[2, 2]
+    hh = cam_height * (1.0 - Z / np.where(zq > 1e-6, zq, 1e-6))
+    valid = (Z > 0) & (zq > 1e-6) & (np.abs(hh) < 0.15)
+    return np.where(valid, hh, 0.0), valid
+
+
+def _bumps(hh: np.ndarray, valid: np.ndarray, radius_px: float) -> np.ndarray:
+    """What stands out of the surface by less than a knob's width: the heights less their
+    morphological opening with a disc a little wider than a knob (OpenCV's top-hat), so that
+    the panel's slope, its edges and steps (a door standing out below it, a hob above) are
+    taken off and the knobs are left. Pixels without a reading take the median height; a 5 px
+    median filter first takes off the sensor's speckle."""
+    fill = float(np.median(hh[valid])) if valid.any() else 0.0
+    h = cv2.medianBlur(np.where(valid, hh, fill).astype(np.float32), 5)   # the sensor's speckle
+    k = 2 * int(math.ceil(1.3 * radius_px)) + 1
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    return cv2.morphologyEx(h, cv2.MORPH_TOPHAT, disc)
+
+
+def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequence,
+           cfg: PanelConfig):
+    """One pass on the plane z = 0 of ``ref``: (score, lead, shift x, shift y in the plane,
+    the panel's median height above the plane where the knobs matched); None when the panel
+    is not in view or too little of it has a depth reading."""
+    inv = np.linalg.inv(ref)
+    xy = np.array([(inv @ p.T_world_knob[:, 3])[:2] for p in priors])
+    rmax = max(p.radius for p in priors)
+    rmin = min(p.radius for p in priors)
+    ppm = cfg.px_per_m
+    pad_t = 1.2 * rmax                                      # flat panel around the knobs
+    lo, hi = xy.min(axis=0) - pad_t, xy.max(axis=0) + pad_t
+    tw, th = int(math.ceil((hi[0] - lo[0]) * ppm)), int(math.ceil((hi[1] - lo[1]) * ppm))
+    off = int(math.ceil(cfg.max_shift * ppm))
+    w, h = tw + 2 * off, th + 2 * off
+    x0, y1 = lo[0] - off / ppm, hi[1] + off / ppm
+    H = _canvas_homography(K, T_wc, ref, ppm, x0, y1)
+    cam = inv @ T_wc[:, 3]
+    cam_h = float(cam[2])
+    if cam_h <= 0:
+        return None                                         # the camera is behind the panel
+    hh, valid = _heights(depth, H, w, h, cam_h)
+    if valid[off:off + th, off:off + tw].mean() < cfg.min_valid:
+        return None
+    dmax = max(p.depth for p in priors)
+    measured = np.clip(_bumps(hh, valid, rmax * ppm), 0.0, 1.2 * dmax).astype(np.float32)
+    tpl = np.zeros((th, tw), np.float32)
+    tj, ti = np.meshgrid((np.arange(tw) + 0.5) / ppm + lo[0], hi[1] - (np.arange(th) + 0.5) / ppm)
+    for (x, y), p in zip(xy, priors):
+        # a cylinder seen from the camera: the section at height z lands on the plane pushed
+        # away from the camera's foot by z / (h - z) of its distance and magnified as much;
+        # the canvas shows the height of the highest section over each point
+        for z in np.linspace(0.0, p.depth, 6):
+            g = z / max(cam_h - z, 1e-3)
+            cx, cy = x + g * (x - cam[0]), y + g * (y - cam[1])
+            disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (0.85 * p.radius * (1 + g)) ** 2
+            tpl[disc] = np.maximum(tpl[disc], z)
+    S = np.nan_to_num(cv2.matchTemplate(measured, tpl, cv2.TM_CCOEFF_NORMED), nan=-1.0)
+    dy, dx = np.mgrid[0:S.shape[0], 0:S.shape[1]]
+    sx, sy = (dx - off) / ppm, -(dy - off) / ppm
+    inside = np.hypot(sx, sy) <= cfg.max_shift
+    S = np.where(inside, S, -1.0)
+    k = np.unravel_index(int(np.argmax(S)), S.shape)
+    best = float(S[k])
+    bx, by = float(sx[k]), float(sy[k])
+    far = np.hypot(sx - bx, sy - by) > cfg.min_separation * rmin
+    second = float(S[far & inside].max()) if (far & inside).any() else -1.0
+    # the panel around the matched knobs: how far it stands off the plane
+    foot = valid[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] & (tpl == 0) & (measured[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] < 0.003)
+    lift = float(np.median(hh[dy[k]:dy[k] + th, dx[k]:dx[k] + tw][foot])) if foot.sum() > 20 else 0.0
+    return best, best - second, bx, by, lift
+
+
+def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Sequence,
+                 cfg: PanelConfig = PanelConfig()) -> Optional[PanelFix]:
+    """The shift of one panel's knobs (``priors``, one ``panel_groups`` group) that the depth
+    image shows (module docstring); None when the panel is not in view or too little of it has
+    a depth reading. When the panel stands off its believed plane (the pose's error along the
+    knobs' axis), what the plane shows is matched again on the panel's own plane: an oblique
+    view puts a knob off its believed plane elsewhere on that plane."""
+    if depth is None or not priors:
+        return None
+    ref = priors[0].T_world_knob.copy()
+    m = _match(depth, K, T_wc, ref, priors, cfg)
+    if m is None:
+        return None
+    lift = 0.0
+    if m[0] >= cfg.min_score and abs(m[4]) > 0.003:
+        lift = m[4]
+        ref2, moved = ref.copy(), []
+        ref2[:3, 3] += ref[:3, 2] * lift
+        for p in priors:
+            T = p.T_world_knob.copy()
+            T[:3, 3] += ref[:3, 2] * lift
+            moved.append(replace(p, T_world_knob=T))
+        m2 = _match(depth, K, T_wc, ref2, moved, cfg)
+        if m2 is not None:
+            m = m2
+    best, lead, bx, by, _ = m
+    shift = ref[:3, 0] * bx + ref[:3, 1] * by + ref[:3, 2] * lift
+    size = float(np.linalg.norm(shift))
+    ids = tuple(p.knob_id for p in priors)
+    if best < cfg.min_score:
+        return PanelFix(ids, shift, size, best, lead, False, f"no match (score {best:.2f})")
+    if lead < cfg.min_lead:
+        return PanelFix(ids, shift, size, best, lead, False, f"ambiguous (lead {lead:.2f})")
+    if size < cfg.min_shift:
+        return PanelFix(ids, shift, size, best, lead, False, "where the map says")
+    return PanelFix(ids, shift, size, best, lead, True)
+
+
+def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T_wc: np.ndarray,
+                 cfg: PanelConfig = PanelConfig()) -> tuple[list, list[PanelFix]]:
+    """The priors with each panel's knobs moved by the shift its depth image shows (when
+    ``locate_panel`` found one it trusts), and what was found per panel."""
+    out, fixes = {p.knob_id: p for p in priors}, []
+    if depth is None:
+        return list(priors), fixes
+    for group in panel_groups(priors, cfg.plane_tol):
+        fix = locate_panel(depth, K, T_wc, group, cfg)
+        if fix is None:
+            continue
+        fixes.append(fix)
+        if fix.used:
+            for p in group:
+                T = p.T_world_knob.copy()
+                T[:3, 3] = T[:3, 3] + fix.shift_world
+                out[p.knob_id] = replace(p, T_world_knob=T)
+    return [out[p.knob_id] for p in priors], fixes
