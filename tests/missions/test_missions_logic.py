@@ -329,12 +329,25 @@ def test_a_knob_unread_from_every_place_is_never_taken_for_off(world):
     assert "Every knob" not in " ".join(robot.said)
 
 
-def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
-    # read fine first; after each turn the reading cannot see it
+def test_a_turned_knob_unread_from_here_is_read_back_from_the_other_places(world):
+    # read fine first; after the turn the reading here cannot see it, the next place can
     robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
                       unreadable=[set(), {"oven_knob_2"}, {"oven_knob_2"}])
     result, _ = _turn_off_oven(world, robot)
+    assert result.outcome == "succeeded", result.reason
+    # all, all after the turn, then knob 2 from another parking position and straight in front
+    assert robot.reads == [None, None, ["oven_knob_2"], ["oven_knob_2"]]
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
+    # read fine first; after the turn no place can see it: here, another parking position
+    # and the three views straight in front
+    robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
+                      unreadable=[set()] + [{"oven_knob_2"}] * 5)
+    result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
+    assert robot.reads == [None, None] + [["oven_knob_2"]] * 4
     assert "I turned oven knob 2 of the oven but could not read it back; please check it" in result.reason
     assert not any("it is off now" in x for x in robot.said)
 
