@@ -17,11 +17,16 @@ whatever their colours, so the depth image says where the panel's knobs are as a
 3. a template of the knobs as the map places them, seen from the camera (cylinders of 0.85
    radii and the knob's face height, the panel flat around them) is slid over it (OpenCV's ``matchTemplate``,
    normalised correlation): the best shift within ``max_shift``;
-4. the shift is used only when the match is good (``min_score``) and unambiguous: no other
+4. the shift is used only when the match is good (``min_score``), every knob in view stands
+   where it puts it (a bump over 0.3 of the knob's height on at least half of its face), and
+   it is unambiguous: no other
    peak at least ``min_separation`` radii away (a row shifted by one knob pitch) scores within
    ``min_lead`` of it. A row of equal knobs shifted by one pitch matches everywhere but at its
    two ends, so its lead is small; then nothing is shifted and each knob is searched where the
-   map says, as before.
+   map says, as before;
+5. each knob is then matched on its own within ``local_reach`` radii of where the panel's
+   match puts it: a turn of the pose moves the knobs at the ends of a long panel apart by a
+   centimetre or two.
 
 The knobs are then read where the panel is (``shift_priors``). Only the knobs' image
 positions change, not the map or the robot's pose. Written here because no library matches a
@@ -30,7 +35,7 @@ set of protrusions on a plane seen in perspective; the matching itself is OpenCV
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 import cv2
@@ -42,24 +47,31 @@ from perception.camera import Intrinsics
 @dataclass(frozen=True)
 class PanelConfig:
     """``max_shift``: the largest shift searched (m); ``px_per_m``: the canvas scale;
-    ``min_score``: the normalised correlation a match needs; ``min_lead``: how much better
+    ``min_score``: the normalised correlation a match needs; ``local_reach``: how far (radii)
+    each knob is then looked for on its own around where the panel's match puts it, and
+    ``local_score``: the correlation its own match needs to move it, ``local_min``: the least
+    shift of its own that is used (m; less is left to the reader's search); ``min_lead``: how much better
     than any other peak ``min_separation`` radii away it must be; ``min_shift``: a shift below
     it (m) is left alone (the per-knob search covers it); ``min_valid``: the share of the canvas that needs a
     depth reading."""
-    max_shift: float = 0.12
+    max_shift: float = 0.2
     px_per_m: float = 400.0
     min_score: float = 0.45
     min_lead: float = 0.08
     min_separation: float = 0.7
     min_shift: float = 0.004
+    local_reach: float = 0.6
+    local_score: float = 0.5
+    local_min: float = 0.008
     min_valid: float = 0.3
     plane_tol: float = 0.01
 
 
 @dataclass(frozen=True)
 class PanelFix:
-    """The shift (m, world frame) of a group of knobs, its size in the plane (m), the match's
-    score and its lead over the next other peak; ``used``: whether it passed the gates."""
+    """The shift (m, world frame) of a group of knobs, its size (m), the match's score and its
+    lead over the next other peak; ``used``: whether it passed the gates; ``knobs``: each
+    knob's own shift (the panel's and its own around it, m, world frame)."""
     knob_ids: tuple[str, ...]
     shift_world: np.ndarray
     shift_m: float
@@ -67,6 +79,7 @@ class PanelFix:
     lead: float
     used: bool
     why: str = ""
+    knobs: dict = field(default_factory=dict)
 
 
 def panel_groups(priors: Sequence, tol: float = 0.01) -> list[list]:
@@ -123,8 +136,9 @@ def _bumps(hh: np.ndarray, valid: np.ndarray, radius_px: float) -> np.ndarray:
 def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequence,
            cfg: PanelConfig):
     """One pass on the plane z = 0 of ``ref``: (score, lead, shift x, shift y in the plane,
-    the panel's median height above the plane where the knobs matched); None when the panel
-    is not in view or too little of it has a depth reading."""
+    the panel's median height above the plane where the knobs matched, how many knobs in
+    view have no bump where the match puts them); None when the panel is not in view or too
+    little of it has a depth reading."""
     inv = np.linalg.inv(ref)
     xy = np.array([(inv @ p.T_world_knob[:, 3])[:2] for p in priors])
     rmax = max(p.radius for p in priors)
@@ -148,6 +162,7 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     measured = np.clip(_bumps(hh, valid, rmax * ppm), 0.0, 1.2 * dmax).astype(np.float32)
     tpl = np.zeros((th, tw), np.float32)
     tj, ti = np.meshgrid((np.arange(tw) + 0.5) / ppm + lo[0], hi[1] - (np.arange(th) + 0.5) / ppm)
+    tops, foots = {}, {}                    # each knob's face and all of it, as the camera sees them
     for (x, y), p in zip(xy, priors):
         # a cylinder seen from the camera: the section at height z lands on the plane pushed
         # away from the camera's foot by z / (h - z) of its distance and magnified as much;
@@ -157,6 +172,10 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
             cx, cy = x + g * (x - cam[0]), y + g * (y - cam[1])
             disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (0.85 * p.radius * (1 + g)) ** 2
             tpl[disc] = np.maximum(tpl[disc], z)
+            foots[p.knob_id] = disc | foots.get(p.knob_id, False)
+        g = p.depth / max(cam_h - p.depth, 1e-3)
+        tops[p.knob_id] = ((tj - x - g * (x - cam[0])) ** 2 + (ti - y - g * (y - cam[1])) ** 2
+                           <= (0.6 * p.radius * (1 + g)) ** 2)
     S = np.nan_to_num(cv2.matchTemplate(measured, tpl, cv2.TM_CCOEFF_NORMED), nan=-1.0)
     dy, dx = np.mgrid[0:S.shape[0], 0:S.shape[1]]
     sx, sy = (dx - off) / ppm, -(dy - off) / ppm
@@ -167,10 +186,42 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     bx, by = float(sx[k]), float(sy[k])
     far = np.hypot(sx - bx, sy - by) > cfg.min_separation * rmin
     second = float(S[far & inside].max()) if (far & inside).any() else -1.0
-    # the panel around the matched knobs: how far it stands off the plane
+    # every knob of the panel that is in view must stand where the match puts it: a row
+    # matched one pitch off leaves a knob on bare panel at one end (and a match on a handle
+    # or a neighbouring appliance, knobs in the air)
+    # Each knob then on its own, within ``local_reach`` radii of where the panel's match puts
+    # it (a turn of the pose moves the knobs of a long panel apart, by a centimetre or two
+    # at its ends): its own part of the template matched around there.
+    reach = int(round(cfg.local_reach * rmin * ppm))
+    local, missing = {}, 0
+    for p in priors:
+        top = tops[p.knob_id]
+        ii_, jj_ = np.nonzero(foots[p.knob_id])
+        i0, i1, j0, j1 = ii_.min(), ii_.max() + 1, jj_.min(), jj_.max() + 1
+        r0, c0 = dy[k] + i0 - reach, dx[k] + j0 - reach
+        region = measured[max(r0, 0):dy[k] + i1 + reach, max(c0, 0):dx[k] + j1 + reach]
+        u = v = 0
+        if r0 >= 0 and c0 >= 0 and region.shape == (i1 - i0 + 2 * reach, j1 - j0 + 2 * reach):
+            Sk = np.nan_to_num(cv2.matchTemplate(region, tpl[i0:i1, j0:j1], cv2.TM_CCOEFF_NORMED), nan=-1.0)
+            q = np.unravel_index(int(np.argmax(Sk)), Sk.shape)
+            if Sk[q] >= cfg.local_score:
+                v, u = int(q[0]) - reach, int(q[1]) - reach
+        # (a shift the reader's own search covers is left to it: the match is to a pixel)
+        local[p.knob_id] = (u / ppm, -v / ppm) if math.hypot(u, v) / ppm >= cfg.local_min else (0.0, 0.0)
+        # every knob of the panel that is in view must stand where the match puts it: a row
+        # matched one pitch off leaves a knob on bare panel at one end (and a match on a
+        # handle or a neighbouring appliance, knobs in the air)
+        rows, cols = dy[k] + v, dx[k] + u
+        if rows < 0 or cols < 0 or rows + th > h or cols + tw > w:
+            continue
+        window = measured[rows:rows + th, cols:cols + tw]
+        seen = valid[rows:rows + th, cols:cols + tw]
+        if seen[top].mean() < 0.5:
+            continue                                        # out of view or no reading
+        missing += float((window[top & seen] > 0.3 * p.depth).mean()) < 0.5
     foot = valid[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] & (tpl == 0) & (measured[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] < 0.003)
     lift = float(np.median(hh[dy[k]:dy[k] + th, dx[k]:dx[k] + tw][foot])) if foot.sum() > 20 else 0.0
-    return best, best - second, bx, by, lift
+    return best, best - second, bx, by, lift, missing, local
 
 
 def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Sequence,
@@ -198,17 +249,21 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
         m2 = _match(depth, K, T_wc, ref2, moved, cfg)
         if m2 is not None:
             m = m2
-    best, lead, bx, by, _ = m
+    best, lead, bx, by, _, missing, local = m
     shift = ref[:3, 0] * bx + ref[:3, 1] * by + ref[:3, 2] * lift
+    knobs = {kid: shift + ref[:3, 0] * lx + ref[:3, 1] * ly for kid, (lx, ly) in local.items()}
     size = float(np.linalg.norm(shift))
     ids = tuple(p.knob_id for p in priors)
     if best < cfg.min_score:
-        return PanelFix(ids, shift, size, best, lead, False, f"no match (score {best:.2f})")
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"no match (score {best:.2f})")
+    if missing:
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs,
+                        why=f"{missing} knob{'s' if missing != 1 else ''} not where the match puts {'them' if missing != 1 else 'it'}")
     if lead < cfg.min_lead:
-        return PanelFix(ids, shift, size, best, lead, False, f"ambiguous (lead {lead:.2f})")
-    if size < cfg.min_shift:
-        return PanelFix(ids, shift, size, best, lead, False, "where the map says")
-    return PanelFix(ids, shift, size, best, lead, True)
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"ambiguous (lead {lead:.2f})")
+    if max([size] + [float(np.linalg.norm(v)) for v in knobs.values()]) < cfg.min_shift:
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why="where the map says")
+    return PanelFix(ids, shift, size, best, lead, True, knobs=knobs)
 
 
 def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T_wc: np.ndarray,
@@ -226,6 +281,6 @@ def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T
         if fix.used:
             for p in group:
                 T = p.T_world_knob.copy()
-                T[:3, 3] = T[:3, 3] + fix.shift_world
+                T[:3, 3] = T[:3, 3] + fix.knobs.get(p.knob_id, fix.shift_world)
                 out[p.knob_id] = replace(p, T_world_knob=T)
     return [out[p.knob_id] for p in priors], fixes
