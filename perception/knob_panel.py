@@ -10,23 +10,25 @@ whatever their colours, so the depth image says where the panel's knobs are as a
 1. the knobs are grouped by their panel plane (``panel_groups``: axes parallel, planes within
    ``plane_tol``);
 2. the depth image is seen through a canvas on that plane (``px_per_m``), covering the knobs
-   and ``max_shift`` around them, as heights above the plane (the same ray geometry as
+   and ``max_shift`` (20 cm) around them, as heights above the plane (the same ray geometry as
    ``perception.knobs.canvas_heights``); what stands out of the surface by less than a
    knob's width is kept (a top-hat: the panel's slope, edges and steps are taken off), so
    that the pose's error across and about the plane does not matter;
 3. a template of the knobs as the map places them, seen from the camera (cylinders of 0.85
-   radii and the knob's face height, the panel flat around them) is slid over it (OpenCV's ``matchTemplate``,
-   normalised correlation): the best shift within ``max_shift``;
-4. the shift is used only when the match is good (``min_score``), every knob in view stands
-   where it puts it (a bump over 0.3 of the knob's height on at least half of its face), and
-   it is unambiguous: no other
-   peak at least ``min_separation`` radii away (a row shifted by one knob pitch) scores within
-   ``min_lead`` of it. A row of equal knobs shifted by one pitch matches everywhere but at its
-   two ends, so its lead is small; then nothing is shifted and each knob is searched where the
-   map says, as before;
-5. each knob is then matched on its own within ``local_reach`` radii of where the panel's
-   match puts it: a turn of the pose moves the knobs at the ends of a long panel apart by a
-   centimetre or two.
+   radii and the knob's face height, the panel flat around them) is slid over it (OpenCV's
+   ``matchTemplate``, normalised correlation), every shift within ``max_shift``; where the
+   panel stands off its believed plane (around the best match), that is matched again on
+   the panel's own plane;
+4. the peaks of the match (at least ``min_separation`` radii apart, the best ``max_peaks``)
+   are candidates only when every knob in view stands where they put it (a bump over 0.3 of
+   the knob's height on at least half of its face, each knob looked for on its own within
+   ``local_reach`` radii: a turn of the pose moves the knobs at the ends of a long panel
+   apart by a centimetre or two): a row matched one pitch off leaves a knob on bare panel at
+   one end;
+5. the best candidate is used when it scores at least ``min_score`` and leads every other
+   candidate by ``min_lead`` (a row shifted by a pitch whose end knob is out of view is
+   still a candidate: then nothing is moved and each knob is searched where the map says,
+   as before).
 
 The knobs are then read where the panel is (``shift_priors``). Only the knobs' image
 positions change, not the map or the robot's pose. Written here because no library matches a
@@ -60,6 +62,7 @@ class PanelConfig:
     min_lead: float = 0.08
     min_separation: float = 0.7
     min_shift: float = 0.004
+    max_peaks: int = 8
     local_reach: float = 0.6
     local_score: float = 0.5
     local_min: float = 0.008
@@ -181,44 +184,59 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     sx, sy = (dx - off) / ppm, -(dy - off) / ppm
     inside = np.hypot(sx, sy) <= cfg.max_shift
     S = np.where(inside, S, -1.0)
-    k = np.unravel_index(int(np.argmax(S)), S.shape)
+    reach = int(round(cfg.local_reach * rmin * ppm))
+
+    def knobs_at(r: int, c: int):
+        """Each knob on its own, within ``local_reach`` radii of where the panel's match at
+        (r, c) puts it (a turn of the pose moves the knobs of a long panel apart, by a
+        centimetre or two at its ends): its own part of the template matched around there;
+        and how many knobs in view have no bump there: every knob of the panel that is in
+        view must stand where the match puts it (a row matched one pitch off leaves a knob
+        on bare panel at one end, a match on a handle or another appliance knobs in the air)."""
+        local, missing = {}, 0
+        for p in priors:
+            top = tops[p.knob_id]
+            ii_, jj_ = np.nonzero(foots[p.knob_id])
+            i0, i1, j0, j1 = ii_.min(), ii_.max() + 1, jj_.min(), jj_.max() + 1
+            r0, c0 = r + i0 - reach, c + j0 - reach
+            region = measured[max(r0, 0):r + i1 + reach, max(c0, 0):c + j1 + reach]
+            u = v = 0
+            if r0 >= 0 and c0 >= 0 and region.shape == (i1 - i0 + 2 * reach, j1 - j0 + 2 * reach):
+                Sk = np.nan_to_num(cv2.matchTemplate(region, tpl[i0:i1, j0:j1], cv2.TM_CCOEFF_NORMED), nan=-1.0)
+                q = np.unravel_index(int(np.argmax(Sk)), Sk.shape)
+                if Sk[q] >= cfg.local_score:
+                    v, u = int(q[0]) - reach, int(q[1]) - reach
+            # (a shift the reader's own search covers is left to it: the match is to a pixel)
+            local[p.knob_id] = (u / ppm, -v / ppm) if math.hypot(u, v) / ppm >= cfg.local_min else (0.0, 0.0)
+            rows, cols = r + v, c + u
+            if rows < 0 or cols < 0 or rows + th > h or cols + tw > w:
+                continue
+            window = measured[rows:rows + th, cols:cols + tw]
+            seen = valid[rows:rows + th, cols:cols + tw]
+            if seen[top].mean() < 0.5:
+                continue                                    # out of view or no reading
+            missing += float((window[top & seen] > 0.3 * p.depth).mean()) < 0.5
+        return local, missing
+
+    # the peaks of the match, best first, at least ``min_separation`` radii apart; a peak that
+    # leaves a knob in view on bare panel is no candidate (nor a rival of the best)
+    sep = max(1, int(round(cfg.min_separation * rmin * ppm)))
+    peak = (S >= cv2.dilate(S, np.ones((2 * sep + 1, 2 * sep + 1), np.uint8)) - 1e-7) & inside & (S > -0.5)
+    order = np.argsort(-S[peak])
+    cand = []
+    for r, c in np.argwhere(peak)[order]:
+        if all(math.hypot(r - a, c - b) > sep for a, b, *_ in cand):
+            cand.append((int(r), int(c)) + knobs_at(int(r), int(c)))
+        if len(cand) >= cfg.max_peaks:
+            break
+    if not cand:
+        return None
+    fit = [q for q in cand if q[3] == 0]
+    r, c, local, missing = fit[0] if fit else cand[0]
+    k = (r, c)
     best = float(S[k])
     bx, by = float(sx[k]), float(sy[k])
-    far = np.hypot(sx - bx, sy - by) > cfg.min_separation * rmin
-    second = float(S[far & inside].max()) if (far & inside).any() else -1.0
-    # every knob of the panel that is in view must stand where the match puts it: a row
-    # matched one pitch off leaves a knob on bare panel at one end (and a match on a handle
-    # or a neighbouring appliance, knobs in the air)
-    # Each knob then on its own, within ``local_reach`` radii of where the panel's match puts
-    # it (a turn of the pose moves the knobs of a long panel apart, by a centimetre or two
-    # at its ends): its own part of the template matched around there.
-    reach = int(round(cfg.local_reach * rmin * ppm))
-    local, missing = {}, 0
-    for p in priors:
-        top = tops[p.knob_id]
-        ii_, jj_ = np.nonzero(foots[p.knob_id])
-        i0, i1, j0, j1 = ii_.min(), ii_.max() + 1, jj_.min(), jj_.max() + 1
-        r0, c0 = dy[k] + i0 - reach, dx[k] + j0 - reach
-        region = measured[max(r0, 0):dy[k] + i1 + reach, max(c0, 0):dx[k] + j1 + reach]
-        u = v = 0
-        if r0 >= 0 and c0 >= 0 and region.shape == (i1 - i0 + 2 * reach, j1 - j0 + 2 * reach):
-            Sk = np.nan_to_num(cv2.matchTemplate(region, tpl[i0:i1, j0:j1], cv2.TM_CCOEFF_NORMED), nan=-1.0)
-            q = np.unravel_index(int(np.argmax(Sk)), Sk.shape)
-            if Sk[q] >= cfg.local_score:
-                v, u = int(q[0]) - reach, int(q[1]) - reach
-        # (a shift the reader's own search covers is left to it: the match is to a pixel)
-        local[p.knob_id] = (u / ppm, -v / ppm) if math.hypot(u, v) / ppm >= cfg.local_min else (0.0, 0.0)
-        # every knob of the panel that is in view must stand where the match puts it: a row
-        # matched one pitch off leaves a knob on bare panel at one end (and a match on a
-        # handle or a neighbouring appliance, knobs in the air)
-        rows, cols = dy[k] + v, dx[k] + u
-        if rows < 0 or cols < 0 or rows + th > h or cols + tw > w:
-            continue
-        window = measured[rows:rows + th, cols:cols + tw]
-        seen = valid[rows:rows + th, cols:cols + tw]
-        if seen[top].mean() < 0.5:
-            continue                                        # out of view or no reading
-        missing += float((window[top & seen] > 0.3 * p.depth).mean()) < 0.5
+    second = max([float(S[a, b]) for a, b, _, m in fit if (a, b) != k] + [-1.0])
     foot = valid[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] & (tpl == 0) & (measured[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] < 0.003)
     lift = float(np.median(hh[dy[k]:dy[k] + th, dx[k]:dx[k] + tw][foot])) if foot.sum() > 20 else 0.0
     return best, best - second, bx, by, lift, missing, local

@@ -55,6 +55,20 @@ def test_a_panel_seen_from_a_pose_centimetres_off_is_found_where_it_is(demo_worl
         assert np.linalg.norm(q.T_world_knob[:3, 3] - p.T_world_knob[:3, 3] - error) < 0.008
 
 
+def test_a_pose_off_by_one_knob_pitch_is_not_taken_for_the_neighbouring_knob(demo_world):
+    """Off by a knob pitch and a centimetre along the row, each knob region would hold its
+    neighbour: the panel is matched with all its knobs, not three of four."""
+    priors = knob_priors(demo_world, "oven")
+    along = priors[0].T_world_knob[:3, 0]
+    pitch = min(abs(float(along @ (p.T_world_knob[:3, 3] - q.T_world_knob[:3, 3])))
+                for p in priors for q in priors if p is not q)
+    error = (pitch + 0.01) * along
+    r, _, T_believed, priors = _view(demo_world, "oven", error)
+    fix = locate_panel(r.depth, K, T_believed, priors)
+    assert fix is not None and fix.used, fix
+    assert np.linalg.norm(fix.shift_world - error) < 0.008, (fix.shift_world, error)
+
+
 def test_where_the_pose_is_right_nothing_moves_and_without_depth_nothing_is_tried(demo_world):
     r, T_true, _, priors = _view(demo_world, "oven", np.zeros(3))
     fix = locate_panel(r.depth, K, T_true, priors)
