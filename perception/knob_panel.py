@@ -202,7 +202,8 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
             region = measured[max(r0, 0):r + i1 + reach, max(c0, 0):c + j1 + reach]
             u = v = 0
             if r0 >= 0 and c0 >= 0 and region.shape == (i1 - i0 + 2 * reach, j1 - j0 + 2 * reach):
-                Sk = np.nan_to_num(cv2.matchTemplate(region, tpl[i0:i1, j0:j1], cv2.TM_CCOEFF_NORMED), nan=-1.0)
+                Sk = np.nan_to_num(cv2.matchTemplate(region, tpl[i0:i1, j0:j1], cv2.TM_CCOEFF_NORMED),
+                                   nan=-1.0)
                 q = np.unravel_index(int(np.argmax(Sk)), Sk.shape)
                 if Sk[q] >= cfg.local_score:
                     v, u = int(q[0]) - reach, int(q[1]) - reach
@@ -237,8 +238,9 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     best = float(S[k])
     bx, by = float(sx[k]), float(sy[k])
     second = max([float(S[a, b]) for a, b, _, m in fit if (a, b) != k] + [-1.0])
-    foot = valid[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] & (tpl == 0) & (measured[dy[k]:dy[k] + th, dx[k]:dx[k] + tw] < 0.003)
-    lift = float(np.median(hh[dy[k]:dy[k] + th, dx[k]:dx[k] + tw][foot])) if foot.sum() > 20 else 0.0
+    at = (slice(r, r + th), slice(c, c + tw))
+    foot = valid[at] & (tpl == 0) & (measured[at] < 0.003)
+    lift = float(np.median(hh[at][foot])) if foot.sum() > 20 else 0.0
     return best, best - second, bx, by, lift, missing, local
 
 
@@ -275,8 +277,10 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
     if best < cfg.min_score:
         return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"no match (score {best:.2f})")
     if missing:
+        many = missing != 1
         return PanelFix(ids, shift, size, best, lead, False, knobs=knobs,
-                        why=f"{missing} knob{'s' if missing != 1 else ''} not where the match puts {'them' if missing != 1 else 'it'}")
+                        why=f"{missing} knob{'s' if many else ''} not where the match puts "
+                            f"{'them' if many else 'it'}")
     if lead < cfg.min_lead:
         return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"ambiguous (lead {lead:.2f})")
     if max([size] + [float(np.linalg.norm(v)) for v in knobs.values()]) < cfg.min_shift:
