@@ -74,7 +74,8 @@ class PanelConfig:
 class PanelFix:
     """The shift (m, world frame) of a group of knobs, its size (m), the match's score and its
     lead over the next other peak; ``used``: whether it passed the gates; ``knobs``: each
-    knob's own shift (the panel's and its own around it, m, world frame)."""
+    knob's own shift (the panel's and its own around it, m, world frame); ``here_ok``: whether
+    every knob in view stands on a bump where the map puts it."""
     knob_ids: tuple[str, ...]
     shift_world: np.ndarray
     shift_m: float
@@ -83,6 +84,7 @@ class PanelFix:
     used: bool
     why: str = ""
     knobs: dict = field(default_factory=dict)
+    here_ok: bool = False
 
 
 def panel_groups(priors: Sequence, tol: float = 0.01) -> list[list]:
@@ -238,10 +240,13 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     best = float(S[k])
     bx, by = float(sx[k]), float(sy[k])
     second = max([float(S[a, b]) for a, b, _, m in fit if (a, b) != k] + [-1.0])
+    # the knobs where the map puts them: do they stand on bumps? (a shift is then weighed
+    # against reading them there: ``read_panel``)
+    here_ok = knobs_at(off, off)[1] == 0 if 0 <= off < S.shape[0] and off < S.shape[1] else False
     at = (slice(r, r + th), slice(c, c + tw))
     foot = valid[at] & (tpl == 0) & (measured[at] < 0.003)
     lift = float(np.median(hh[at][foot])) if foot.sum() > 20 else 0.0
-    return best, best - second, bx, by, lift, missing, local
+    return best, best - second, bx, by, lift, missing, local, here_ok
 
 
 def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Sequence,
@@ -257,7 +262,7 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
     m = _match(depth, K, T_wc, ref, priors, cfg)
     if m is None:
         return None
-    lift = 0.0
+    lift, here_ok = 0.0, m[7]
     if m[0] >= cfg.min_score and abs(m[4]) > 0.003:
         lift = m[4]
         ref2, moved = ref.copy(), []
@@ -269,23 +274,23 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
         m2 = _match(depth, K, T_wc, ref2, moved, cfg)
         if m2 is not None:
             m = m2
-    best, lead, bx, by, _, missing, local = m
+    best, lead, bx, by, _, missing, local, _ = m
     shift = ref[:3, 0] * bx + ref[:3, 1] * by + ref[:3, 2] * lift
     knobs = {kid: shift + ref[:3, 0] * lx + ref[:3, 1] * ly for kid, (lx, ly) in local.items()}
     size = float(np.linalg.norm(shift))
     ids = tuple(p.knob_id for p in priors)
     if best < cfg.min_score:
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"no match (score {best:.2f})")
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why=f"no match (score {best:.2f})")
     if missing:
         many = missing != 1
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs,
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok,
                         why=f"{missing} knob{'s' if many else ''} not where the match puts "
                             f"{'them' if many else 'it'}")
     if lead < cfg.min_lead:
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why=f"ambiguous (lead {lead:.2f})")
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why=f"ambiguous (lead {lead:.2f})")
     if max([size] + [float(np.linalg.norm(v)) for v in knobs.values()]) < cfg.min_shift:
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, why="where the map says")
-    return PanelFix(ids, shift, size, best, lead, True, knobs=knobs)
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why="where the map says")
+    return PanelFix(ids, shift, size, best, lead, True, knobs=knobs, here_ok=here_ok)
 
 
 def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T_wc: np.ndarray,
@@ -306,3 +311,37 @@ def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T
                 T[:3, 3] = T[:3, 3] + fix.knobs.get(p.knob_id, fix.shift_world)
                 out[p.knob_id] = replace(p, T_world_knob=T)
     return [out[p.knob_id] for p in priors], fixes
+
+
+def read_panel(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Sequence,
+               depth: Optional[np.ndarray] = None, only: Optional[set] = None,
+               cfg: PanelConfig = PanelConfig()) -> tuple[list, list[PanelFix]]:
+    """Read the knobs of ``priors`` (``only``: the ids to read; the panel is found with all of
+    them) with ``reader`` (a ``KnobReader``) where the depth image shows their panel, when the
+    reader agrees: a match that moves no knob further than the reader's own search radius is
+    taken; otherwise the knobs are read where the map puts them and where the match puts
+    them, and the match is taken when the reader finds more knobs there, or as many when the
+    map's places are not all on bumps (a row one pitch off: its regions hold the neighbours).
+    A panel whose match is not taken gets ``used`` False and the reason. Returns the
+    readings and what was found per panel (``shift_priors``)."""
+    moved, fixes = shift_priors(priors, depth, K, T_wc, cfg)
+    keep = lambda ps: [p for p in ps if only is None or p.knob_id in only]
+    used = [f for f in fixes if f.used]
+    if not used:
+        return reader.read(rgb, K, T_wc, keep(priors), depth=depth), fixes
+    rc = reader.config
+    reach = {p.knob_id: max(rc.search_m, rc.search_radii * p.radius) for p in priors}
+    near = all(float(np.linalg.norm(v)) <= reach[k] for f in used for k, v in f.knobs.items())
+    if near:
+        # within the reader's own search radius (0.6 radii or 14 mm) of where the map puts
+        # them, a region still cannot reach a neighbour (2 radii away at least), and the
+        # reader starts nearer
+        return reader.read(rgb, K, T_wc, keep(moved), depth=depth), fixes
+    here = reader.read(rgb, K, T_wc, keep(priors), depth=depth)
+    there = reader.read(rgb, K, T_wc, keep(moved), depth=depth)
+    n_here, n_there = sum(r.found for r in here), sum(r.found for r in there)
+    if n_there > n_here or (n_there == n_here > 0 and not all(f.here_ok for f in used)):
+        return there, fixes
+    why = (f"its knobs are found where the map puts them ({n_here} of {len(here)}; "
+           f"{n_there} where the match puts them)")
+    return here, [replace(f, used=False, why=why) if f.used else f for f in fixes]

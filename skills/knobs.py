@@ -57,7 +57,7 @@ class ReadKnobs(Skill):
         return self.reader
 
     def update(self) -> py_trees.common.Status:
-        from perception.knob_panel import shift_priors
+        from perception.knob_panel import read_panel
         from perception.knobs import knob_priors
         try:
             obj, ids = self.input("object"), self.input("knobs")
@@ -69,15 +69,13 @@ class ReadKnobs(Skill):
             depth = getattr(frame, "depth", None)
             T_wc = np.asarray(frame.T_world_camera, dtype=float)
             depth = None if depth is None else np.asarray(depth)
-            # the knobs where the depth image shows their panel (the robot's pose may be a few
-            # centimetres off: perception/knob_panel.py), found with every knob of the panel
-            # though only some are to be read
-            priors, fixes = shift_priors(priors, depth, K, T_wc)
-            if ids:
-                priors = [p for p in priors if p.knob_id in set(ids)]
-                if not priors:
-                    raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
-            readings = self._reader().read(np.asarray(frame.color), K, T_wc, priors, depth=depth)
+            if ids and not any(p.knob_id in set(ids) for p in priors):
+                raise PerceptionError(f"no knobs to read on {obj or 'the map'}")
+            # the knobs where the depth image shows their panel, when the reader finds them
+            # there (the robot's pose may be centimetres off: perception/knob_panel.py); the
+            # panel is found with all its knobs though only some are to be read
+            readings, fixes = read_panel(self._reader(), np.asarray(frame.color), K, T_wc, priors,
+                                         depth=depth, only=set(ids) if ids else None)
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE

@@ -113,3 +113,35 @@ def test_read_knobs_reads_the_knobs_where_the_panel_is(demo_world, reader):
     import re
     found = re.search(r"panel of 4 knobs found ([0-9.]+) cm", s.feedback_message)
     assert found and abs(float(found.group(1)) - 100 * np.linalg.norm(error)) < 0.8, s.feedback_message
+
+
+def test_a_shift_beyond_the_readers_search_is_taken_only_when_the_reader_finds_the_knobs_there(demo_world, reader):
+    """Off by 4.5 cm (beyond the reader's 14 mm search) the reader finds the knobs only where
+    the panel's match puts them: the match is taken. A made-up match to bare panel 6 cm
+    away (the pose right) finds none there: the knobs are read where the map puts them."""
+    from dataclasses import replace as dc_replace
+    from perception import knob_panel
+    from perception.knob_panel import read_panel
+    priors = knob_priors(demo_world, "oven")
+    error = 0.045 * priors[0].T_world_knob[:3, 0]
+    r, T_true, T_believed, priors = _view(demo_world, "oven", error)
+    readings, fixes = read_panel(reader, r.color, K, T_believed, priors, depth=r.depth)
+    assert [f.used for f in fixes] == [True]
+    assert all(x.found for x in readings)
+
+    real = knob_panel.shift_priors
+    up = 0.06 * priors[0].T_world_knob[:3, 1]
+
+    def made_up(ps, depth, K_, T, cfg=knob_panel.PanelConfig()):
+        moved = [dc_replace(p, T_world_knob=p.T_world_knob + np.pad(up[:, None], ((0, 1), (3, 0))))
+                 for p in ps]
+        fix = knob_panel.PanelFix(tuple(p.knob_id for p in ps), up, 0.06, 0.9, 0.5, True,
+                                  knobs={p.knob_id: up for p in ps}, here_ok=True)
+        return moved, [fix]
+    knob_panel.shift_priors = made_up
+    try:
+        readings, fixes = read_panel(reader, r.color, K, T_true, priors, depth=r.depth)
+    finally:
+        knob_panel.shift_priors = real
+    assert [f.used for f in fixes] == [False] and "found where the map puts them" in fixes[0].why
+    assert all(x.found for x in readings)
