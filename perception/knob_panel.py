@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 
 from perception.camera import Intrinsics
+from perception.knobs import plane_heights
 
 
 @dataclass(frozen=True)
@@ -114,14 +115,9 @@ def _canvas_homography(K: Intrinsics, T_wc: np.ndarray, T_wp: np.ndarray, ppm: f
 
 def _heights(depth: np.ndarray, H: np.ndarray, w: int, h: int, cam_height: float):
     """Heights (m) above the plane of what the depth image shows through each canvas pixel,
-    and where there is a reading (``perception.knobs.canvas_heights``' geometry)."""
-    Z = cv2.warpPerspective(np.asarray(depth, np.float32), H, (w, h),
-                            flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    jj, ii = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-    zq = H[2, 0] * jj + H[2, 1] * ii + H[2, 2]
-    hh = cam_height * (1.0 - Z / np.where(zq > 1e-6, zq, 1e-6))
-    valid = (Z > 0) & (zq > 1e-6) & (np.abs(hh) < 0.15)
+    and where there is a reading within 15 cm of the plane (``perception.knobs.plane_heights``)."""
+    hh, seen = plane_heights(depth, H, w, h, cam_height)
+    valid = seen & (np.abs(hh) < 0.15)
     return np.where(valid, hh, 0.0), valid
 
 

@@ -593,14 +593,23 @@ def canvas_heights(depth: np.ndarray, H_img_canvas: np.ndarray, size: int, camer
     the plane. A canvas pixel is a point q of the plane at camera depth z_q (the homography's
     third row); the surface seen through it lies on the same ray at the measured depth Z,
     at height ``camera_height`` * (1 - Z / z_q)."""
-    Z = cv2.warpPerspective(np.asarray(depth, np.float32), H_img_canvas, (size, size),
+    h, seen = plane_heights(depth, H_img_canvas, size, size, camera_height)
+    valid = seen & (h > -face - slack) & (h < slack)
+    return np.where(valid, h, 0.0), valid
+
+
+def plane_heights(depth: np.ndarray, H_img_canvas: np.ndarray, width: int, height: int,
+                  camera_height: float) -> tuple[np.ndarray, np.ndarray]:
+    """The depth image seen through a ``width`` x ``height`` canvas of a plane as heights (m)
+    above it (``canvas_heights``' geometry), and where there is a reading in front of the
+    camera (the heights elsewhere are meaningless)."""
+    Z = cv2.warpPerspective(np.asarray(depth, np.float32), H_img_canvas, (width, height),
                             flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
                             borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    jj, ii = np.meshgrid(np.arange(size, dtype=np.float64), np.arange(size, dtype=np.float64))
+    jj, ii = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
     zq = H_img_canvas[2, 0] * jj + H_img_canvas[2, 1] * ii + H_img_canvas[2, 2]
     h = camera_height * (1.0 - Z / np.where(zq > 1e-6, zq, 1e-6))
-    valid = (Z > 0) & (zq > 1e-6) & (h > -face - slack) & (h < slack)
-    return np.where(valid, h, 0.0), valid
+    return h, (Z > 0) & (zq > 1e-6)
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
