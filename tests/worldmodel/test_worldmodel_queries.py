@@ -221,6 +221,30 @@ def test_cli_map_find_asks_which_one_when_words_name_several():
     assert r.stdout.startswith("which cup do you mean: the blue cup (blue_cup) on the kitchen table or ")
 
 
+def test_knobs_on_top_are_looked_at_from_nearer_on_the_parking_side_clear_of_the_hob():
+    """A hob's knobs face up: the view stands on the side of its parking positions, nearer than
+    the distance asked (a steeper look down), and its base clear of the hob itself."""
+    import math
+    import tempfile
+    import numpy as np
+    from worldmodel.homegen import generate_home
+    from worldmodel.viewing import BASE_CLEARANCE, knob_view_pose
+    w = generate_home(16, mesh_dir=tempfile.mkdtemp())
+    hob = next(o.id for o in w.large_objects()
+               if any(w.T_world(k.id)[2, 2] > 0.9 for k in w.knobs(o.id)))
+    centre = np.mean([w.T_world(k.id)[:3, 3] for k in w.knobs(hob)], axis=0)
+    pose = knob_view_pose(w, hob, distance=1.0)
+    assert pose is not None
+    d = math.hypot(pose.x - centre[0], pose.y - centre[1])
+    assert d < 1.0
+    lo, hi = w.bounds_world(hob)
+    assert math.hypot(max(lo[0] - pose.x, 0, pose.x - hi[0]), max(lo[1] - pose.y, 0, pose.y - hi[1])) >= BASE_CLEARANCE
+    # facing the knobs, from the side its parking positions are on
+    assert abs(math.remainder(pose.yaw - math.atan2(centre[1] - pose.y, centre[0] - pose.x), 2 * math.pi)) < 1e-6
+    _, park = w.parking_positions(hob)[0]
+    assert (pose.x - centre[0]) * (park.x - centre[0]) + (pose.y - centre[1]) * (park.y - centre[1]) > 0
+
+
 def test_knob_view_pose_is_refused_outside_the_rooms_or_against_furniture(demo_world):
     from worldmodel.viewing import knob_view_pose
     near = knob_view_pose(demo_world, "oven", distance=1.0)
