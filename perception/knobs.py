@@ -1765,8 +1765,18 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
         # panel is nearer the depth noise): home 1's centre error 0.60 -> 0.36 mm at the
         # median (p90 1.20 -> 0.89) against both steps weighted by their pixels
         mm, mr = roi & (h > taus[-1]), roi & (hr > taus[-1])
-        used, nr = int(mm.sum()), int(mr.sum())
-        if used < min_pixels or nr < min_pixels:
+        nr = int(mr.sum())
+        if nr < min_pixels:
+            return None
+        # only measured top pixels that could be this knob's: on the top's plane within its
+        # rendered radius and a quarter radius more. A packed neighbour's top (2 radii away,
+        # its edge inside the region of interest) would pull the centroid towards it, and
+        # each step pulls more: home 8's skirt knobs 2.15 radii apart, centres 7-17 mm off
+        # towards the neighbour and dot angles 20-45 degrees off on a quarter of the views.
+        r_top = float(np.hypot(*(q[-1][mr] - c).T).max())
+        mm &= np.hypot(*(q[-1] - c).T) <= r_top + 0.25 * shape.radius
+        used = int(mm.sum())
+        if used < min_pixels:
             return None
         step = q[-1][mm].mean(0) - q[-1][mr].mean(0)
         c = c + step
