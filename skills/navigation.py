@@ -14,8 +14,9 @@ ANOTHER = "another"
 #: ``parking: nearest``: the parking position nearest the robot (it may be already there).
 NEAREST = "nearest"
 #: ``parking: knobs``: straight in front of the node's knob panel, facing it, the robot centre
-#: ``distance`` (default KNOB_VIEW_DISTANCE) from its knobs; another view of knobs the parking
-#: positions left unread (worldmodel.viewing.knob_view_pose).
+#: ``distance`` (default KNOB_VIEW_DISTANCE) from its knobs (knobs on top: on the parking side,
+#: nearer, looking down); another view of knobs the parking positions left unread
+#: (worldmodel.viewing.knob_view_pose).
 KNOBS = "knobs"
 #: The distances (m) ``parking: knobs`` accepts.
 KNOB_DISTANCES = (0.3, 3.0)
