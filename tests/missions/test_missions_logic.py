@@ -352,6 +352,24 @@ def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
     assert not any("it is off now" in x for x in robot.said)
 
 
+def test_a_knob_that_reads_on_again_after_the_others_are_turned_is_named(world):
+    """Knob 1 is turned off and read off; turning knob 2 turns it back on (or a later reading
+    reads it on): the mission does not report the oven off, and names the knob in a sentence."""
+    class SpringBack(FakeRobot):
+        def turn_knob(self, knob_id, angle):
+            done = super().turn_knob(knob_id, angle)
+            if knob_id == "oven_knob_2":
+                self.truth_knobs["oven_knob_1"] = _on(world, "oven_knob_1")
+            return done
+    robot = SpringBack(knobs={"oven_knob_1": _on(world, "oven_knob_1"),
+                              "oven_knob_2": _on(world, "oven_knob_2")})
+    result, _ = _turn_off_oven(world, robot)
+    assert result.outcome == "failed"
+    assert robot.said[-1] == ("I read the oven knob 1 of the oven on again after turning off its "
+                              "knobs; please check it")
+    assert not any("it is off now" in x for x in robot.said)
+
+
 def test_refine_localisation_reports_the_correction(world):
     robot = FakeRobot()
     result, _ = run("refine_localisation.yaml", world, [
