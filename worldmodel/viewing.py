@@ -74,7 +74,7 @@ def knob_view_pose(world, node_id: str, distance: float = KNOB_VIEW_DISTANCE,
         h = away / np.linalg.norm(away)
         for d in np.arange(max(distance - TOP_VIEW_NEARER, 0.2), distance + 1e-9, 0.05):
             x, y = centre[:2] + d * h
-            if _clear_of(world, x, y, clearance, skip=own) and _clear_of_own(world, own, x, y, clearance):
+            if _clear_of(world, x, y, clearance):           # the appliance itself included
                 return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
         return None
     h = axis[:2] / np.linalg.norm(axis[:2])
@@ -82,8 +82,3 @@ def knob_view_pose(world, node_id: str, distance: float = KNOB_VIEW_DISTANCE,
     if not _clear_of(world, x, y, clearance, skip=own):
         return None
     return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
-
-
-def _clear_of_own(world, own: str, x: float, y: float, clearance: float) -> bool:
-    lo, hi = world.bounds_world(own)
-    return math.hypot(max(lo[0] - x, 0.0, x - hi[0]), max(lo[1] - y, 0.0, y - hi[1])) >= clearance
