@@ -71,6 +71,10 @@ class PanelConfig:
     plane_tol: float = 0.01
 
 
+#: ``PanelFix.why`` of a panel found where the map puts it (nothing to move, nothing to say).
+WHERE_THE_MAP_SAYS = "where the map says"
+
+
 @dataclass(frozen=True)
 class PanelFix:
     """The shift (m, world frame) of a group of knobs, its size (m), the match's score and its
@@ -285,7 +289,8 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
     if lead < cfg.min_lead:
         return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why=f"ambiguous (lead {lead:.2f})")
     if max([size] + [float(np.linalg.norm(v)) for v in knobs.values()]) < cfg.min_shift:
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why="where the map says")
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok,
+                        why=WHERE_THE_MAP_SAYS)
     return PanelFix(ids, shift, size, best, lead, True, knobs=knobs, here_ok=here_ok)
 
 

@@ -57,7 +57,7 @@ class ReadKnobs(Skill):
         return self.reader
 
     def update(self) -> py_trees.common.Status:
-        from perception.knob_panel import read_panel
+        from perception.knob_panel import WHERE_THE_MAP_SAYS, read_panel
         from perception.knobs import knob_priors
         try:
             obj, ids = self.input("object"), self.input("knobs")
@@ -99,7 +99,7 @@ class ReadKnobs(Skill):
         moved = [f"panel of {len(f.knob_ids)} knob{'s' if len(f.knob_ids) != 1 else ''} found "
                  f"{f.shift_m * 100:.1f} cm from where the map puts it" if f.used else
                  f"panel of {len(f.knob_ids)} knob{'s' if len(f.knob_ids) != 1 else ''} not "
-                 f"moved: {f.why}" for f in fixes if f.used or f.why != "where the map says"]
+                 f"moved: {f.why}" for f in fixes if f.used or f.why != WHERE_THE_MAP_SAYS]
         self.feedback_message = f"knobs: {said}" + "".join(f"; {m}" for m in moved)
         return S.SUCCESS if states else S.FAILURE
 
