@@ -432,8 +432,10 @@ class Executive:
                 self._open_log(run, ns)
                 run.prepare(build_tree(sub.mission, sub.params, ns, self.make_skill))
                 self._emit(run, EventKind.RUN, None, state=RunState.RUNNING, reason="started")
+            # run_memory: what the run's skills share for the length of the run (e.g.
+            # ReadKnobs' and TurnKnob's "off from two places", skills/knobs.py)
             run.tree.setup(world=self.world, robot=self.robot, clock=self.clock,
-                           executive=self, **self.setup_kwargs)
+                           executive=self, **{"run_memory": {}, **self.setup_kwargs})
         except Exception as err:  # noqa: BLE001 - a skill that cannot set up fails the mission
             with self._lock:
                 if sub.state is RunState.QUEUED:

@@ -121,7 +121,9 @@ class KnobConfig:
     assumes), ``fine_shift_px`` (offsets tried in the exact check), ``min_radius_px`` (a
     knob smaller in the image is not read), ``max_off_axis_deg``, ``max_snap`` (the angle
     must lie within this share of half a state step of its state), ``off_margin_factor``
-    (an "off" reading needs this many times the calibrated margin), ``min_confidence`` (a
+    (an "off" reading needs this many times the calibrated margin; one over the margin but
+    under this passes every other check gets evidence ``off_one_view``: two of them from
+    places apart make the knob off, ``OffViews``), ``min_confidence`` (a
     reading less confident than this is "unknown"), ``threshold`` /
     ``margin_threshold`` (override the calibrated gates; None: the fitted ones).
     A knob whose body is round about its axis (``round_body_levels``) with a marker off the
@@ -823,6 +825,45 @@ class KnobReading:
         return None if self.angle is None else math.degrees(self.angle)
 
 
+#: How far apart (m) two cameras must be for their "off" readings to count as two views.
+OFF_VIEWS_APART_M = 0.25
+
+
+class OffViews:
+    """"Off" from two places: a reading that passes every check but the off factor
+    (``KnobConfig.off_margin_factor``; evidence ``off_one_view``) is remembered per knob, and
+    a second such reading from a camera at least ``apart_m`` from the first makes the knob
+    off. A reading that leans to another state, or one that gives a state, forgets the knob;
+    so does turning it (``forget``). A knob that is on would have to be read off wrongly,
+    each time over the calibrated margin, from two places for this to fail: the factor asks
+    more of one view, this asks the same of two (docs/knobs.md, "Off from two places").
+    Hand-written: a small rule over readings, no library does it."""
+
+    def __init__(self, apart_m: float = OFF_VIEWS_APART_M):
+        self.apart_m = float(apart_m)
+        self._seen: dict[str, list[np.ndarray]] = {}
+
+    def forget(self, knob_id: str) -> None:
+        self._seen.pop(knob_id, None)
+
+    def add(self, reading: "KnobReading", off_state: str, camera: np.ndarray) -> bool:
+        """Take ``reading`` (made from a camera at world position ``camera``); True when it
+        makes its knob off (a second "off from this view alone" from far enough away)."""
+        ev = reading.evidence or {}
+        if reading.state != "unknown" or (reading.found and ev.get("leaning") not in (None, off_state)):
+            self.forget(reading.knob_id)
+            return False
+        if not ev.get("off_one_view"):
+            return False
+        c = np.asarray(camera, dtype=float)[:3]
+        seen = self._seen.setdefault(reading.knob_id, [])
+        if any(np.linalg.norm(c - o) >= self.apart_m for o in seen):
+            self.forget(reading.knob_id)
+            return True
+        seen.append(c)
+        return False
+
+
 def snap_to_state(angle: float, prior: KnobPrior, proba=None, psi: float = 0.0) -> tuple[str, float]:
     """The nearest discrete state to ``angle`` (rad; modulo the shape's period for a
     symmetric knob) and how far inside half a state step of it the angle lies (1 on the
@@ -1154,13 +1195,23 @@ class KnobReader:
         state, c_snap = snap_to_state(r.angle, prior)
         ev["snap"] = round(1.0 - c_snap, 3)
         hard = view_level(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
-        need = gates.margin_threshold_for(hard, bool(ev.get("dot"))) * (cfg.off_margin_factor if state == prior.off_state else 1.0)
+        gate = gates.margin_threshold_for(hard, bool(ev.get("dot")))
+        is_off = state == prior.off_state
+        need = gate * (cfg.off_margin_factor if is_off else 1.0)
+        ev["leaning"] = state
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
         need_turn = gates.half_turn_gate_for(hard)
         if ev["margin"] <= need:
             r.reason = (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
                         f"needs {need:.3f})")
+            if is_off and ev["margin"] > gate and not (
+                    ev.get("half_turn") is not None and ev["half_turn"] <= need_turn) and (
+                    1.0 - c_snap <= cfg.max_snap) and r.confidence >= cfg.min_confidence:
+                # every check an "on" state needs is passed; only the off factor is not: a
+                # second such reading from another place makes it off (``OffViews``)
+                ev["off_one_view"] = True
+                r.reason += " from this view alone"
         elif ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
             r.reason = (f"unsure ({state}: turned by half a turn it fits nearly as well, "
                         f"{ev['half_turn']:.2f}, needs {need_turn:.2f})")

@@ -79,14 +79,20 @@ class ReadKnobs(Skill):
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE
-        states, angles, on, unknown = {}, {}, [], []
+        states, angles, on, unknown, twice = {}, {}, [], [], []
+        off_views = off_views_of(self)
         for r in readings:
+            off = self.world.get(r.knob_id).off
+            if off_views.add(r, off, T_wc[:3, 3]):
+                # off from this place and another (perception.knobs.OffViews)
+                r.state = off
+                twice.append(r.knob_id)
             if r.state == "unknown":
                 unknown.append(r.knob_id)
                 continue
             states[r.knob_id] = r.state
             angles[r.knob_id] = round(math.degrees(r.angle), 1)
-            if r.state != self.world.get(r.knob_id).off:
+            if r.state != off:
                 on.append(r.knob_id)
             if self.input("update_map"):
                 self.world.set_knob_state(r.knob_id, r.state, r.angle, source=self.NAME)
@@ -100,8 +106,20 @@ class ReadKnobs(Skill):
                  f"{f.shift_m * 100:.1f} cm from where the map puts it" if f.used else
                  f"panel of {len(f.knob_ids)} knob{'s' if len(f.knob_ids) != 1 else ''} not "
                  f"moved: {f.why}" for f in fixes if f.used or f.why != WHERE_THE_MAP_SAYS]
+        if twice:
+            moved.append(f"{', '.join(twice)} read off from two places")
         self.feedback_message = f"knobs: {said}" + "".join(f"; {m}" for m in moved)
         return S.SUCCESS if states else S.FAILURE
+
+
+def off_views_of(skill):
+    """The mission run's ``OffViews`` (one per run, in the ``run_memory`` the executive gives
+    every skill of a run at setup; a skill set up without one keeps its own)."""
+    from perception.knobs import OffViews
+    memory = skill.context.get("run_memory")
+    if memory is None:
+        memory = skill.__dict__.setdefault("_own_memory", {})
+    return memory.setdefault("knob_off_views", OffViews())
 
 
 class TurnKnob(RobotActionSkill):
@@ -138,5 +156,6 @@ class TurnKnob(RobotActionSkill):
         return f"turning {getattr(self, '_knob', '')} to {getattr(self, '_state', '')}"
 
     def succeeded(self, action) -> None:
+        off_views_of(self).forget(self._knob)   # what was seen of it before the turn is old
         self.world.set_knob_state(self._knob, self._state, self._angle, source=self.NAME)
         self.set_output("state", self._state)
