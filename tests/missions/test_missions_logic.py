@@ -352,17 +352,39 @@ def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
     assert not any("it is off now" in x for x in robot.said)
 
 
-def test_a_knob_that_reads_on_again_after_the_others_are_turned_is_named(world):
-    """Knob 1 is turned off and read off; turning knob 2 turns it back on (or a later reading
-    reads it on): the mission does not report the oven off, and names the knob in a sentence."""
-    class SpringBack(FakeRobot):
-        def turn_knob(self, knob_id, angle):
-            done = super().turn_knob(knob_id, angle)
-            if knob_id == "oven_knob_2":
-                self.truth_knobs["oven_knob_1"] = _on(world, "oven_knob_1")
-            return done
-    robot = SpringBack(knobs={"oven_knob_1": _on(world, "oven_knob_1"),
-                              "oven_knob_2": _on(world, "oven_knob_2")})
+class _SpringBack(FakeRobot):
+    """Turning knob 2 turns knob 1 back on; from its ``stuck_after``-th turn on, knob 1 no
+    longer moves."""
+    def __init__(self, world, stuck_after=None):
+        super().__init__(knobs={"oven_knob_1": _on(world, "oven_knob_1"),
+                                "oven_knob_2": _on(world, "oven_knob_2")})
+        self.world, self.stuck_after, self.knob_1_turns = world, stuck_after, 0
+
+    def turn_knob(self, knob_id, angle):
+        if knob_id == "oven_knob_1":
+            self.knob_1_turns += 1
+            if self.stuck_after is not None and self.knob_1_turns >= self.stuck_after:
+                self.stuck.add("oven_knob_1")
+        done = super().turn_knob(knob_id, angle)
+        if knob_id == "oven_knob_2":
+            self.truth_knobs["oven_knob_1"] = _on(self.world, "oven_knob_1")
+        return done
+
+
+def test_a_knob_that_reads_on_again_after_the_others_are_turned_is_turned_off_once_more(world):
+    """Knob 1 is turned off and read off; turning knob 2 turns it back on: at the end it reads
+    on, is turned off once more and read back off, and the oven is reported off."""
+    robot = _SpringBack(world)
+    result, _ = _turn_off_oven(world, robot)
+    assert result.outcome == "succeeded", result.reason
+    assert robot.knob_1_turns == 2
+    assert robot.said[-1] == "I turned off 2 knobs of the oven; it is off now."
+
+
+def test_a_knob_that_still_reads_on_after_turning_it_once_more_is_named(world):
+    """The same, but the second turn of knob 1 does not move it: the mission does not report
+    the oven off, and names the knob in a sentence."""
+    robot = _SpringBack(world, stuck_after=2)
     result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
     assert robot.said[-1] == ("I read the oven knob 1 of the oven on again after turning off its "
