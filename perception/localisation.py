@@ -48,7 +48,7 @@ class LocalisationConfig:
     stride: int = 2
     max_range: float = 4.5
     margin: float = 0.25
-    min_weakest: float = 0.004
+    min_weakest: float = 0.005
     use_walls: bool = False
     #: A second basin of the coarse grid scoring at least this share of the best one is
     #: refined too; when it converges elsewhere (``distinct_m``, ``distinct_deg``) and fits
