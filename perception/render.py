@@ -9,6 +9,7 @@ top (hearth/robot/noise.py), drawing it while ``Scene.shade`` runs (``Scene.cast
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import sys
 from dataclasses import dataclass
@@ -82,7 +83,7 @@ class Scene:
         first = {}                       # geometry id -> its first triangle's index
         spans = {}                       # geometry id -> its number of triangles
         count = 0
-        outline = _Outline()             # what the adaptive cast needs (see ``cast``)
+        self._outline_src = []           # what the adaptive cast needs (``_outline``)
         for lm in meshes:
             if len(lm.mesh.triangles) == 0:
                 continue
@@ -101,7 +102,7 @@ class Scene:
             normals.append(n)
             offsets.append(np.einsum("ij,ij->i", n, v[t[:, 0]]))
             labels.append(np.full(len(t), i, dtype=np.int32))
-            outline.add(v, t, n, offsets[-1], count)
+            self._outline_src.append((v, t, n, offsets[-1], count))
             first[gid] = count
             spans[gid] = len(t)
             count += len(t)
@@ -124,10 +125,17 @@ class Scene:
             n_t = spans[gid]
             self._tri_gid[f:f + n_t] = gid
             self._tri_prim[f:f + n_t] = np.arange(n_t, dtype=np.uint32)
-        self._outline = outline.done()
         #: Cast a coarse grid of rays and fill what provably hits one triangle (``cast``);
         #: False: a ray through every pixel (the reference).
         self.adaptive = ADAPTIVE
+
+    @cached_property
+    def _outline(self) -> "_Outline":
+        """The meshes' outline for the adaptive cast, made when first needed."""
+        outline = _Outline()
+        for src in self._outline_src:
+            outline.add(*src)
+        return outline.done()
 
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0) -> Rendering:
         """Render the view of camera ``K`` at ``T_world_camera``."""
@@ -363,81 +371,34 @@ class _Outline:
         self.corners, self.convex, self.n_verts = [], [], 0
         self.middle = []                         # per mesh: its middle extent (m)
         self.outward = []                        # convex, closed, normals pointing out
+        self.keys = []                           # per piece: (its mesh's digest, number)
         self._meshes = []                        # (vertices, edges, edge faces, normals, offsets, triangles)
 
     def add(self, v: np.ndarray, t: np.ndarray, n: np.ndarray, h: np.ndarray, first: int):
         """A mesh (vertices, triangles, their unit normals and plane offsets; its first
         triangle's index in the scene), kept as its connected pieces (a table's legs are
-        one mesh of four boxes: each is a piece)."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
-        def pieces(tri: np.ndarray, n_v: int) -> tuple[int, np.ndarray]:
-            a = np.concatenate([tri[:, 0], tri[:, 1]])
-            b = np.concatenate([tri[:, 1], tri[:, 2]])
-            k, comp = connected_components(coo_matrix((np.ones(len(a)), (a, b)),
-                                                      shape=(n_v, n_v)), directed=False)
-            return k, comp[tri[:, 0]]
-
-        # Pieces by the mesh's own vertex indices (boxes put together into one mesh, such as
-        # a door's panel and frame, touch but are pieces of their own), unless that falls
-        # apart into loose triangles (a mesh file without shared vertices): then by position.
-        k, tri_comp = pieces(t, len(v))
-        if k > max(1, len(t) // 4):
-            _, inv = np.unique(np.round(v, 9), axis=0, return_inverse=True)
-            k, tri_comp = pieces(inv.reshape(-1)[t], len(v))
-        for c in range(k):
-            sel = np.flatnonzero(tri_comp == c)
-            if len(sel) == 0:
-                continue
-            pv, local = np.unique(np.round(v[t[sel]].reshape(-1, 3), 9), axis=0,
-                                  return_inverse=True)
-            self._add_part(pv, local.reshape(-1, 3), n[sel], h[sel], first + sel)
-
-    def _add_part(self, uv: np.ndarray, tu: np.ndarray, n: np.ndarray, h: np.ndarray,
-                  gids: np.ndarray):
-        mesh = len(self.corners)
-        t = tu
-        # Edges (a < b) with the triangles on either side; an edge with one triangle (an
-        # open mesh) or more than two is a silhouette edge from every side (-1).
-        a = np.concatenate([tu[:, 0], tu[:, 1], tu[:, 2]])
-        b = np.concatenate([tu[:, 1], tu[:, 2], tu[:, 0]])
-        f = np.tile(np.arange(len(t)), 3)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        key = lo.astype(np.int64) * (len(uv) + 1) + hi
-        order = np.argsort(key, kind="stable")
-        key, lo, hi, f = key[order], lo[order], hi[order], f[order]
-        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        counts = np.diff(np.r_[starts, len(key)])
-        ef = np.full((len(starts), 2), -1, dtype=np.int64)
-        ef[:, 0] = f[starts]
-        two = counts == 2
-        ef[two, 1] = f[starts[two] + 1]
-        ef[counts > 2, 0] = -1
-        self.edges.append(np.stack([lo[starts], hi[starts]], axis=1) + self.n_verts)
-        self.edge_faces.append(np.where(ef >= 0, gids[np.maximum(ef, 0)], -1))
-        self.verts.append(uv)
-        self.vert_mesh.append(np.full(len(uv), mesh))
-        self.n_verts += len(uv)
-        c = uv.mean(axis=0)
-        _, _, axes = np.linalg.svd(uv - c, full_matrices=False)
-        p = (uv - c) @ axes.T
-        lo3, hi3 = p.min(axis=0), p.max(axis=0)
-        self.middle.append(float(np.sort(hi3 - lo3)[1]))
-        self._meshes.append((uv, np.stack([lo[starts], hi[starts]], axis=1), ef, n, h, tu))
-        box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
-        self.corners.append(c + (lo3 + box * (hi3 - lo3)) @ axes)
-        # Convex (closed, one piece): every triangle's plane has all vertices on one side.
-        ok = np.linalg.norm(n, axis=1) > 0
-        convex = len(uv) * len(t) <= 4_000_000 and bool(np.all(counts == 2))
-        if convex:
-            side = uv @ n[ok].T - h[ok]
-            tol = 1e-7 * max(1.0, float(np.abs(uv).max()))
-            convex = bool(np.all((side.max(axis=0) <= tol) | (side.min(axis=0) >= -tol)))
-            outward = convex and bool(np.all(side.max(axis=0) <= tol))
-        else:
-            outward = False
-        self.convex.append(convex)
-        self.outward.append(outward)
+        one mesh of four boxes: each is a piece). The pieces of a mesh are cached by its
+        vertices and triangles: a scene rebuilt after a door moved redoes only the door's."""
+        key = hashlib.blake2b(v.tobytes() + b"|" + t.tobytes(), digest_size=16).digest()
+        parts = _PARTS_CACHE.get(key)
+        if parts is None:
+            parts = _mesh_parts(v, t, n, h)
+            if len(_PARTS_CACHE) > 8192:
+                _PARTS_CACHE.clear()
+            _PARTS_CACHE[key] = parts
+        for part, (uv, edges, ef, sel, pn, ph, tu, corners, middle, convex, outward) in \
+                enumerate(parts):
+            self.keys.append((key, part))
+            self.edges.append(edges + self.n_verts)
+            self.edge_faces.append(np.where(ef >= 0, first + sel[np.maximum(ef, 0)], -1))
+            self.verts.append(uv)
+            self.vert_mesh.append(np.full(len(uv), len(self.corners)))
+            self.n_verts += len(uv)
+            self.corners.append(corners)
+            self.middle.append(middle)
+            self.convex.append(convex)
+            self.outward.append(outward)
+            self._meshes.append((uv, edges, ef, pn, ph, tu))
 
     def done(self) -> "_Outline":
         self.verts = np.vstack(self.verts) if self.verts else np.zeros((0, 3))
@@ -453,83 +414,192 @@ class _Outline:
         return self
 
     def _pierce(self) -> None:
-        """Where an edge of one mesh passes through a triangle of another (meshes that
-        overlap, such as the boards of a cupboard): the outline of what is in front has a
-        corner there that is no vertex. Kept: the point, the edge's direction and the
-        directions of the lines where the edge's triangles meet the other's plane."""
-        pts, dirs = [], []
-        boxes = [(m[0].min(axis=0), m[0].max(axis=0)) for m in self._meshes]
-        lo = np.array([b[0] for b in boxes]).reshape(-1, 3)
-        hi = np.array([b[1] for b in boxes]).reshape(-1, 3)
+        """Where the pieces overlap (the boards of a cupboard do), the outline of what is in
+        front has corners that are no vertex, and triangles of two pieces can lie in one
+        plane. Kept: ``pierce``, the points where an edge of one piece passes through a
+        triangle of another, with ``pierce_dirs``, the edge's direction and the directions of
+        the lines where the edge's two triangles meet the other's plane; ``shared``, boxes
+        (8 corners) around the overlap of two triangles in one plane, with their plane
+        (``shared_plane``: n, h; n = 0 where either piece is not closed and convex)."""
+        parts = self._meshes
+        nv = np.array([len(p[0]) for p in parts])
+        ne = np.array([len(p[1]) for p in parts])
+        nt = np.array([len(p[3]) for p in parts])
+        v0, e0, t0 = (np.r_[0, np.cumsum(x)[:-1]] for x in (nv, ne, nt))
+        V = np.vstack([p[0] for p in parts]).reshape(-1, 3)
+        E = np.vstack([p[1] + o for p, o in zip(parts, v0)]).reshape(-1, 2)
+        EF = np.vstack([np.where(p[2] >= 0, p[2] + o, -1) for p, o in zip(parts, t0)]).reshape(-1, 2)
+        N = np.vstack([p[3] for p in parts]).reshape(-1, 3)
+        Hh = np.concatenate([p[4] for p in parts])
+        TV = np.vstack([p[5] + o for p, o in zip(parts, v0)]).reshape(-1, 3)
+        outward = np.asarray(self.outward, dtype=bool)
+        lo = np.array([p[0].min(axis=0) for p in parts]).reshape(-1, 3)
+        hi = np.array([p[0].max(axis=0) for p in parts]).reshape(-1, 3)
         eps = 1e-9
         over = np.all((lo[:, None] <= hi[None] + eps) & (lo[None] <= hi[:, None] + eps), axis=2)
         np.fill_diagonal(over, False)
-        shared = []
-        for i, j in zip(*np.nonzero(over)):
-            v, e, ef, n_i, h_i, t_i = self._meshes[i]
-            vj, _, _, n_j, h_j, t_j = self._meshes[j]
-            if i < j:
-                # Triangles of the two in one plane that overlap: which of them a ray there
-                # hits is down to rounding, so where they overlap is cast at every pixel.
-                dots = n_i @ n_j.T
-                # (Facing opposite ways, as a plinth on the floor, two closed meshes whose
-                # normals point out hide each other's triangles there.)
-                closed = self.outward[i] and self.outward[j]
-                same = ((dots > 1 - 1e-9) if closed else (np.abs(dots) > 1 - 1e-9)) & (
-                    np.abs(h_i[:, None] - np.sign(dots) * h_j[None]) < 1e-7)
-                for a, b in zip(*np.nonzero(same)):
-                    pa, pb = v[t_i[a]], vj[t_j[b]]
-                    lo_ab = np.maximum(pa.min(axis=0), pb.min(axis=0)) - 1e-7
-                    hi_ab = np.minimum(pa.max(axis=0), pb.max(axis=0)) + 1e-7
-                    ext = np.sort(hi_ab - lo_ab)
-                    if ext[0] >= 0 and ext[1] > 1e-6:    # an area, not just an edge
-                        # (A plane seen from behind is inside a closed mesh; else
-                        # both sides count: the normal 0.)
-                        shared.append((lo_ab, hi_ab, n_i[a] if closed else np.zeros(3),
-                                       h_i[a] if closed else -1.0))
-            p, q = v[e[:, 0]], v[e[:, 1]]
-            sp = p @ n_j.T - h_j                 # (E, T)
-            sq = q @ n_j.T - h_j
-            cross = (sp * sq <= 0) & ~((sp == 0) & (sq == 0))
-            ei, ti = np.nonzero(cross)
-            if len(ei) == 0:
-                continue
-            a, b = sp[ei, ti], sq[ei, ti]
-            x = p[ei] + (a / (a - b))[:, None] * (q[ei] - p[ei])
-            A, B, C = vj[t_j[ti, 0]], vj[t_j[ti, 1]], vj[t_j[ti, 2]]
-            # Inside the triangle (its edges included, with a margin): barycentric signs.
-            nn = n_j[ti]
-            tol = 1e-7
-            inside = np.ones(len(ei), dtype=bool)
-            for P0, P1 in ((A, B), (B, C), (C, A)):
-                inside &= np.einsum("ij,ij->i", np.cross(P1 - P0, x - P0), nn) >= -tol
-            if not inside.any():
-                continue
-            ei, ti, x = ei[inside], ti[inside], x[inside]
-            d = q[ei] - p[ei]
-            lines = []
-            for k in (0, 1):
-                f = ef[ei, k]
-                g = n_i[np.maximum(f, 0)]
-                ln = np.cross(g, n_j[ti])
-                lines.append(np.where((f >= 0)[:, None], ln, d))
-            pts.append(x)
-            dirs.append(np.stack([d, lines[0], lines[1]], axis=1))
-        box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
-        if shared:
-            key = np.round(np.array([np.r_[lo, hi] for lo, hi, _, _ in shared]), 9)
-            _, keep = np.unique(key, axis=0, return_index=True)
-            shared = [shared[k] for k in np.sort(keep)]
-        self.shared = np.array([lo + box * (hi - lo) for lo, hi, _, _ in shared]).reshape(-1, 8, 3)
-        # The shared plane (n . x = h, n pointing out of both meshes where they are closed).
-        self.shared_plane = np.array([np.r_[n, h] for _, _, n, h in shared]).reshape(-1, 4)
-        self.pierce = np.vstack(pts) if pts else np.zeros((0, 3))
-        self.pierce_dirs = np.vstack(dirs) if dirs else np.zeros((0, 3, 3))
+        I, J = np.nonzero(over)
+        # What a pair of pieces gives is cached by their contents: a scene rebuilt after a
+        # door moved computes only the pairs with the door's pieces.
+        pair_keys = [(self.keys[i], self.keys[j]) for i, j in zip(I, J)]
+        new = np.array([k not in _PAIR_CACHE for k in pair_keys], dtype=bool)
+
+        def pairs(ca, sa, cb, sb):
+            """Every (a of piece I, b of piece J) of the new overlapping pairs, and the
+            pair's index."""
+            keep = np.flatnonzero(new)
+            i, j = I[keep], J[keep]
+            n = ca[i] * cb[j]
+            k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+            rb = np.repeat(cb[j], n)
+            return (np.repeat(sa[i], n) + k // rb, np.repeat(sb[j], n) + k % rb,
+                    np.repeat(i, n), np.repeat(j, n), np.repeat(keep, n))
+
+        # Edges of I through triangles of J.
+        ei, ti, _, _, pair = pairs(ne, e0, nt, t0)
+        p, q = V[E[ei, 0]], V[E[ei, 1]]
+        nj = N[ti]
+        sp = np.einsum("ij,ij->i", p, nj) - Hh[ti]
+        sq = np.einsum("ij,ij->i", q, nj) - Hh[ti]
+        cross = (sp * sq <= 0) & ~((sp == 0) & (sq == 0))
+        ei, ti, p, q, sp, sq, nj, pair = (x[cross] for x in (ei, ti, p, q, sp, sq, nj, pair))
+        x = p + (sp / (sp - sq))[:, None] * (q - p)
+        A, B, C = V[TV[ti, 0]], V[TV[ti, 1]], V[TV[ti, 2]]
+        inside = np.ones(len(ei), dtype=bool)
+        for P0, P1 in ((A, B), (B, C), (C, A)):       # (edges included, with a margin)
+            inside &= np.einsum("ij,ij->i", np.cross(P1 - P0, x - P0), nj) >= -1e-7
+        ei, ti, x, p, q, pair = (v[inside] for v in (ei, ti, x, p, q, pair))
+        d = q - p
+        lines = []
+        for k in (0, 1):
+            f = EF[ei, k]
+            ln = np.cross(N[np.maximum(f, 0)], N[ti])
+            lines.append(np.where((f >= 0)[:, None], ln, d))
+        pierce = x.reshape(-1, 3)
+        pierce_dirs = np.stack([d, lines[0], lines[1]], axis=1).reshape(-1, 3, 3)
+        pierce_pair = pair
+        # Triangles of two pieces in one plane that overlap: which of them a ray there hits
+        # is down to rounding, so where they overlap is cast at every pixel. (Facing opposite
+        # ways, as a plinth on the floor, two closed pieces whose normals point out hide each
+        # other's triangles there.)
+        a, b, i, j, pair = pairs(nt, t0, nt, t0)
+        closed = outward[i] & outward[j]
+        dots = np.einsum("ij,ij->i", N[a], N[b])
+        same = np.where(closed, dots > 1 - 1e-9, np.abs(dots) > 1 - 1e-9)
+        same &= np.abs(Hh[a] - np.sign(dots) * Hh[b]) < 1e-7
+        a, b, closed, pair = a[same], b[same], closed[same], pair[same]
+        pa, pb = V[TV[a]], V[TV[b]]                        # (n, 3, 3)
+        lo_ab = np.maximum(pa.min(axis=1), pb.min(axis=1)) - 1e-7
+        hi_ab = np.minimum(pa.max(axis=1), pb.max(axis=1)) + 1e-7
+        ext = np.sort(hi_ab - lo_ab, axis=1)
+        area = (ext[:, 0] >= 0) & (ext[:, 1] > 1e-6)       # an area, not just an edge
+        lo_ab, hi_ab, a, closed = lo_ab[area], hi_ab[area], a[area], closed[area]
+        plane = np.hstack([N[a] * closed[:, None], np.where(closed, Hh[a], -1.0)[:, None]])
+        shared_pair = pair[area]
+        # Into the cache per pair, then every overlapping pair's from it.
+        if len(_PAIR_CACHE) > 200_000:
+            _PAIR_CACHE.clear()
+        po, so = np.argsort(pierce_pair, kind="stable"), np.argsort(shared_pair, kind="stable")
+        pp, sp_ = pierce_pair[po], shared_pair[so]
+        box_rows = np.hstack([lo_ab, hi_ab, plane])[so]
+        prow = np.hstack([pierce, pierce_dirs.reshape(-1, 9)])[po]
+        for k in np.flatnonzero(new):
+            _PAIR_CACHE[pair_keys[k]] = (
+                prow[np.searchsorted(pp, k):np.searchsorted(pp, k, side="right")],
+                box_rows[np.searchsorted(sp_, k):np.searchsorted(sp_, k, side="right")])
+        got = [_PAIR_CACHE[k] for k in pair_keys]
+        prow = np.vstack([g[0] for g in got] + [np.zeros((0, 12))])
+        box_rows = np.vstack([g[1] for g in got] + [np.zeros((0, 10))])
+        self.pierce, self.pierce_dirs = prow[:, :3], prow[:, 3:].reshape(-1, 3, 3)
         if len(self.pierce):            # (an edge through two triangles' common edge: once)
-            key = np.round(np.hstack([self.pierce, self.pierce_dirs.reshape(-1, 9)]), 9)
-            _, keep = np.unique(key, axis=0, return_index=True)
+            _, keep = np.unique(np.round(prow, 9), axis=0, return_index=True)
             keep = np.sort(keep)
             self.pierce, self.pierce_dirs = self.pierce[keep], self.pierce_dirs[keep]
+        lo_ab, hi_ab, plane = box_rows[:, :3], box_rows[:, 3:6], box_rows[:, 6:]
+        if len(lo_ab):
+            _, keep = np.unique(np.round(np.hstack([lo_ab, hi_ab]), 9), axis=0,
+                                return_index=True)
+            keep = np.sort(keep)
+            lo_ab, hi_ab, plane = lo_ab[keep], hi_ab[keep], plane[keep]
+        box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+        self.shared = (lo_ab[:, None] + box[None] * (hi_ab - lo_ab)[:, None]).reshape(-1, 8, 3)
+        # The shared plane (n . x = h, n pointing out of both pieces where they are closed;
+        # 0 and -1 elsewhere: seen from either side).
+        self.shared_plane = plane.reshape(-1, 4)
+
+
+_PARTS_CACHE: dict = {}
+_PAIR_CACHE: dict = {}
+_BOX = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+
+
+def _mesh_parts(v: np.ndarray, t: np.ndarray, n: np.ndarray, h: np.ndarray) -> list:
+    """A mesh's connected pieces, each: merged vertices, edges (a < b) with the triangles on
+    either side (indices into the piece's triangles; -1 for none: an edge of an open mesh,
+    or of more than two triangles, is a silhouette edge from every side), the piece's
+    triangles in the mesh, their normals and offsets and vertex indices, the corners of its
+    oriented bounding box (principal axes), its middle extent, whether it is convex and
+    closed, and whether its normals then point out."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    def pieces(tri: np.ndarray, n_v: int) -> tuple[int, np.ndarray]:
+        a = np.concatenate([tri[:, 0], tri[:, 1]])
+        b = np.concatenate([tri[:, 1], tri[:, 2]])
+        k, comp = connected_components(coo_matrix((np.ones(len(a)), (a, b)),
+                                                  shape=(n_v, n_v)), directed=False)
+        return k, comp[tri[:, 0]]
+
+    # Pieces by the mesh's own vertex indices (boxes put together into one mesh, such as a
+    # door's panel and frame, touch but are pieces of their own), unless that falls apart
+    # into loose triangles (a mesh file without shared vertices): then by position.
+    k, tri_comp = pieces(t, len(v))
+    if k > max(1, len(t) // 4):
+        _, inv = np.unique(np.round(v, 9), axis=0, return_inverse=True)
+        k, tri_comp = pieces(inv.reshape(-1)[t], len(v))
+    out = []
+    for c in range(k):
+        sel = np.flatnonzero(tri_comp == c)
+        if len(sel) == 0:
+            continue
+        uv, local = np.unique(np.round(v[t[sel]].reshape(-1, 3), 9), axis=0,
+                              return_inverse=True)
+        tu = local.reshape(-1, 3)
+        pn, ph = n[sel], h[sel]
+        a = np.concatenate([tu[:, 0], tu[:, 1], tu[:, 2]])
+        b = np.concatenate([tu[:, 1], tu[:, 2], tu[:, 0]])
+        f = np.tile(np.arange(len(tu)), 3)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        key = lo.astype(np.int64) * (len(uv) + 1) + hi
+        order = np.argsort(key, kind="stable")
+        key, lo, hi, f = key[order], lo[order], hi[order], f[order]
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        counts = np.diff(np.r_[starts, len(key)])
+        ef = np.full((len(starts), 2), -1, dtype=np.int64)
+        ef[:, 0] = f[starts]
+        two = counts == 2
+        ef[two, 1] = f[starts[two] + 1]
+        ef[counts > 2, 0] = -1
+        centre = uv.mean(axis=0)
+        _, _, axes = np.linalg.svd(uv - centre, full_matrices=False)
+        if len(axes) < 3:                                   # (fewer than 3 vertices)
+            axes = np.eye(3)
+        p = (uv - centre) @ axes.T
+        lo3, hi3 = p.min(axis=0), p.max(axis=0)
+        corners = centre + (lo3 + _BOX * (hi3 - lo3)) @ axes
+        # Convex and closed: every edge between two triangles and every triangle's plane
+        # with all vertices on one side.
+        ok = np.linalg.norm(pn, axis=1) > 0
+        convex = len(uv) * len(tu) <= 4_000_000 and bool(np.all(counts == 2))
+        outward = False
+        if convex:
+            side = uv @ pn[ok].T - ph[ok]
+            tol = 1e-7 * max(1.0, float(np.abs(uv).max()))
+            convex = bool(np.all((side.max(axis=0) <= tol) | (side.min(axis=0) >= -tol)))
+            outward = convex and bool(np.all(side.max(axis=0) <= tol))
+        out.append((uv, np.stack([lo[starts], hi[starts]], axis=1), ef, sel, pn, ph, tu,
+                    corners, float(np.sort(hi3 - lo3)[1]), convex, outward))
+    return out
 
 
 def _grid(n: int, s: int) -> np.ndarray:
