@@ -690,16 +690,18 @@ class _AdaptiveCast:
     def _paint(self, mask: np.ndarray, u, v, which) -> None:
         """Mark in ``mask`` (H, W uint8) the convex hull of each chosen point set and every
         pixel within 2 pixels of it."""
+        u, v = u[which], v[which]
+        inside = ((u.max(axis=1) >= -3) & (u.min(axis=1) <= self.W + 2)
+                  & (v.max(axis=1) >= -3) & (v.min(axis=1) <= self.H + 2))
+        if not inside.any():
+            return
         centre = np.array([self.W / 2.0, self.H / 2.0])
-        for m in np.flatnonzero(which):
-            p = np.stack([u[m], v[m]], axis=1) - centre
-            # Far points (clipped at the camera plane) pulled in along their direction.
-            r = np.linalg.norm(p, axis=1, keepdims=True)
-            p = p * np.minimum(1.0, 1e5 / np.maximum(r, 1e-9)) + centre
-            if (p[:, 0].max() < -3 or p[:, 0].min() > self.W + 2
-                    or p[:, 1].max() < -3 or p[:, 1].min() > self.H + 2):
-                continue
-            hull = cv2.convexHull(np.round(p * 16).astype(np.int32))
+        p = np.stack([u[inside], v[inside]], axis=-1) - centre
+        # Far points (clipped at the camera plane) pulled in along their direction.
+        r = np.sqrt(np.einsum("...i,...i->...", p, p))[..., None]
+        p = p * np.minimum(1.0, 1e5 / np.maximum(r, 1e-9)) + centre
+        for q in np.round(p * 16).astype(np.int32):
+            hull = cv2.convexHull(q)
             cv2.fillConvexPoly(mask, hull, 1, shift=4)
             cv2.polylines(mask, [hull], True, 1, thickness=5, shift=4)
 
@@ -774,7 +776,30 @@ class _AdaptiveCast:
         angle = np.concatenate([angle, pa])
         u = K.fx * p[:, 0] / p[:, 2] + K.cx
         v = K.fy * p[:, 1] / p[:, 2] + K.cy
-        return u, v, angle
+        # Only those whose widest wedge radius reaches the image.
+        reach = 8.0 * COARSE_BLOCK + 2
+        near = (u > -reach) & (u < self.W - 1 + reach) & (v > -reach) & (v < self.H - 1 + reach)
+        return u[near], v[near], p[near, 2], angle[near]
+
+    def _unhidden(self, u, v, z, angle, uni, c00, s, coef):
+        """The outline corners not hidden: a corner whose pixel lies in a block of side
+        ``s`` whose four corners see one triangle, behind that triangle's plane there, is
+        inside the outline of what is in front of it, so no corner of anything's outline
+        (where its own pieces cross that triangle, the crossing points are corners too)."""
+        nr, nc = uni.shape
+        bi = np.floor(v / s).astype(np.int64)
+        bj = np.floor(u / s).astype(np.int64)
+        inside = (u >= 0) & (v >= 0) & (bi < nr) & (bj < nc)
+        bi, bj = np.clip(bi, 0, nr - 1), np.clip(bj, 0, nc - 1)
+        t = c00[bi, bj]
+        co = coef[np.minimum(t, np.uint32(self.scene._no_hit))]
+        x = (u - self.K.cx) / self.K.fx
+        y = (v - self.K.cy) / self.K.fy
+        inv = co[:, 0] * x + co[:, 1] * y + co[:, 2]         # 1 / depth of that plane there
+        hidden = (inside & uni[bi, bj] & (t != self.scene._no_hit)
+                  & (inv * (z * (1 - 1e-4) - 1e-4) > 1))
+        keep = ~hidden
+        return u[keep], v[keep], angle[keep]
 
     def _split_near(self, u, v, angle, s: int, nr: int, nc: int) -> np.ndarray:
         """Blocks (nr x nc, side ``s``) within the wedge radius of a silhouette vertex."""
@@ -806,7 +831,16 @@ class _AdaptiveCast:
                 ((ol.shared[facing].reshape(-1, 3) - self.c) @ self.R).reshape(-1, 8, 3))
             self._paint(force, u, v, seen)
         self._cast(np.flatnonzero(force))
-        u, v, angle = self._corners(narrow)
+        u, v, z, angle = self._corners(narrow)
+        # Per triangle, 1 / depth = a x + b y + c on its plane for the ray (x, y, 1): with
+        # n the normal in the camera frame and d = n . c - h, 1/t = -(n . ray)/d.
+        sc = self.scene
+        n_cam = sc._tri_normals @ self.R
+        dist = sc._tri_normals @ self.c - sc._tri_offsets
+        with np.errstate(divide="ignore", invalid="ignore"):
+            coef = np.ascontiguousarray(n_cam / -dist[:, None])
+        coef[sc._no_hit] = 0                                # no hit: 1/t = 0, t = inf
+        coef = np.nan_to_num(coef, copy=False, posinf=0.0, neginf=0.0)
         known2 = self.known.reshape(H, W)
         tri2 = self.tri.reshape(H, W)
         # Per level, per block: the triangle it is filled with (_UNSET: not filled). A grid
@@ -831,6 +865,8 @@ class _AdaptiveCast:
                 C = np.where(G | (inherited == _UNSET), C, inherited)
             c00 = C[:-1, :-1]
             uni = (c00 == C[:-1, 1:]) & (c00 == C[1:, :-1]) & (c00 == C[1:, 1:])
+            if blocks is None:
+                u, v, angle = self._unhidden(u, v, z, angle, uni, c00, s, coef)
             uni &= ~self._split_near(u, v, angle, s, nr, nc)
             here = np.where(uni, c00, _UNSET)
             if blocks is not None:
@@ -846,15 +882,7 @@ class _AdaptiveCast:
                              np.minimum(np.arange(W) // ps, pc - 1))]
         fill[known2] = _UNSET
         self._cast(np.flatnonzero((fill.reshape(-1) == _UNSET) & ~self.known))
-        # Depth of the filled pixels: 1 / depth is affine in the pixel's ray (x, y, 1) on a
-        # plane: with n the normal in the camera frame and d = n . c - h, 1/t = -(n . ray)/d.
-        sc = self.scene
-        n_cam = sc._tri_normals @ self.R
-        dist = sc._tri_normals @ self.c - sc._tri_offsets
-        with np.errstate(divide="ignore", invalid="ignore"):
-            coef = np.ascontiguousarray(np.vstack([n_cam.T / -dist, np.zeros((1, len(dist)))]).T)
-        coef[sc._no_hit] = 0                                # no hit: 1/t = 0, t = inf
-        coef = np.nan_to_num(coef, copy=False, posinf=0.0, neginf=0.0)
+        # Depth of the filled pixels: 1 / depth on their triangle's plane (``coef``).
         xs = self.rays[0, :, 0].astype(np.float64)
         ys = self.rays[:, 0, 1].astype(np.float64)
         depth2 = self.depth.reshape(H, W)

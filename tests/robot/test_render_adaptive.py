@@ -112,14 +112,19 @@ def test_a_speck_between_the_samples_is_cast():
         assert np.count_nonzero(scene._tri_labels[tri] == 1) > 0
 
 
-def test_render_without_the_adaptive_cast_is_the_reference():
+@pytest.mark.parametrize("view", [0, 4])
+def test_render_without_the_adaptive_cast_is_the_reference(view):
     _, scene, views = _kitchen("demo")
-    a = scene.render(K, views[0])
+    a = scene.render(K, views[view])
     scene.adaptive = False
     try:
-        b = scene.render(K, views[0])
+        b = scene.render(K, views[view])
     finally:
         scene.adaptive = True
     np.testing.assert_array_equal(a.labels, b.labels)
-    np.testing.assert_array_equal(a.color, b.color)
     assert float(np.abs(a.depth - b.depth).max()) < 1e-5
+    assert float(np.abs(a.incidence - b.incidence).max()) < 1e-5
+    # The colour's view-dependent term comes from the depth: a depth one float32 step off
+    # can turn a channel's rounding (measured: 0 to 7 pixels of 307,200 a view, by 1).
+    off = np.abs(a.color.astype(int) - b.color.astype(int))
+    assert off.max() <= 1 and np.count_nonzero(off) < 1e-4 * off.size
