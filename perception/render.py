@@ -156,7 +156,7 @@ class Scene:
         R_wc, c_world = T[:3, :3], T[:3, 3]
         if adaptive is None:
             adaptive = self.adaptive and H * W >= ADAPTIVE_MIN_PIXELS
-        if adaptive:
+        if adaptive and min(H, W) >= 2:
             depth, tri = _AdaptiveCast(self, K, R_wc, c_world, max_range).run()
             miss = ~((depth <= max_range) & (depth > 0))
             depth[miss] = 0
@@ -878,29 +878,59 @@ class _AdaptiveCast:
             s //= 2
         # Pixels: the triangle of their finest block where it is filled, else a ray.
         ps, pr, pc = prev
-        fill = blocks[np.ix_(np.minimum(np.arange(H) // ps, pr - 1),
-                             np.minimum(np.arange(W) // ps, pc - 1))]
-        fill[known2] = _UNSET
-        self._cast(np.flatnonzero((fill.reshape(-1) == _UNSET) & ~self.known))
-        # Depth of the filled pixels: 1 / depth on their triangle's plane (``coef``).
+        rmap = np.minimum(np.arange(H) // ps, pr - 1)
+        cmap = np.minimum(np.arange(W) // ps, pc - 1)
+        # The pixels of the blocks not filled (the last row and column of blocks reach to
+        # the image's edge) that no ray went through yet.
+        bi, bj = np.nonzero(blocks == _UNSET)
+        r0, c0 = bi * ps, bj * ps
+        r1 = np.where(bi == pr - 1, H, r0 + ps)
+        c1 = np.where(bj == pc - 1, W, c0 + ps)
+        rr = r0[:, None] + np.repeat(np.arange(ps + 1), ps + 1)[None]
+        cc = c0[:, None] + np.tile(np.arange(ps + 1), ps + 1)[None]
+        ok = (rr < r1[:, None]) & (cc < c1[:, None])
+        idx = (rr * W + cc)[ok]
+        self._cast(idx[~self.known[idx]])
+        # Depth of the filled pixels: 1 / depth on their triangle's plane (``coef``), made
+        # per block and per pixel position in the block (a block's pixels share a triangle).
         xs = self.rays[0, :, 0].astype(np.float64)
         ys = self.rays[:, 0, 1].astype(np.float64)
+        Hr, Wr = pr * ps, pc * ps                   # the image but a last row or column
+        co = np.take(coef, np.minimum(blocks, np.uint32(sc._no_hit)), axis=0, mode="clip")
+        A, B, C = co[..., 0], co[..., 1], co[..., 2]
+        fill_depth = np.empty((pr, ps, pc, ps), dtype=np.float32)
+        fill_tri = np.empty((pr, ps, pc, ps), dtype=np.uint32)
+
+        def at(pos: tuple[int, int]) -> None:
+            dr, dc = pos
+            inv = A * xs[np.arange(pc) * ps + dc]
+            inv += B * ys[np.arange(pr) * ps + dr][:, None]
+            inv += C
+            with np.errstate(divide="ignore"):
+                fill_depth[:, dr, :, dc] = np.divide(1.0, inv)
+            fill_tri[:, dr, :, dc] = blocks
+
+        in_bands([(dr, dc) for dr in range(ps) for dc in range(ps)], at)
+        fill_depth = fill_depth.reshape(Hr, Wr)
+        fill_tri = fill_tri.reshape(Hr, Wr)
         depth2 = self.depth.reshape(H, W)
 
-        def finish(rows: slice) -> None:
-            f = fill[rows]
-            m = f != _UNSET
-            if not m.any():
-                return
-            t = np.minimum(f, np.uint32(sc._no_hit))
-            co = np.take(coef, t, axis=0, mode="clip")          # (rows, W, 4)
-            inv = co[..., 0] * xs
-            inv += co[..., 1] * ys[rows, None]
-            inv += co[..., 2]
-            with np.errstate(divide="ignore"):
-                d = np.divide(1.0, inv).astype(np.float32)
-            np.copyto(depth2[rows], d, where=m)
-            np.copyto(tri2[rows], f, where=m)
+        def put(rows: slice) -> None:
+            m = fill_tri[rows] != _UNSET
+            m &= ~known2[rows, :Wr]
+            np.copyto(depth2[rows, :Wr], fill_depth[rows], where=m)
+            np.copyto(tri2[rows, :Wr], fill_tri[rows], where=m)
 
-        in_bands(row_bands(H), finish)
+        in_bands(row_bands(Hr), put)
+        # The last row and column where they belong to the blocks before them.
+        for rows, cols in ((slice(Hr, H), slice(0, W)), (slice(0, Hr), slice(Wr, W))):
+            if rows.stop <= rows.start or cols.stop <= cols.start:
+                continue
+            f = blocks[np.ix_(rmap[rows], cmap[cols])]
+            m = (f != _UNSET) & ~known2[rows, cols]
+            c_ = np.take(coef, np.minimum(f, np.uint32(sc._no_hit)), axis=0, mode="clip")
+            inv = c_[..., 0] * xs[cols] + c_[..., 1] * ys[rows, None] + c_[..., 2]
+            with np.errstate(divide="ignore"):
+                np.copyto(depth2[rows, cols], np.divide(1.0, inv).astype(np.float32), where=m)
+            np.copyto(tri2[rows, cols], f, where=m)
         return self.depth, self.tri
