@@ -5,6 +5,12 @@ notion of: per-mesh colours and node labels, and simple Lambertian shading. Pure
 arrays out (the one side effect: building the first scene tunes glibc's malloc for
 frame-sized arrays, see ``_keep_freed_memory``). The simulated robot adds sensor noise on
 top (hearth/robot/noise.py), drawing it while ``Scene.shade`` runs (``Scene.cast`` first).
+
+For images of ``ADAPTIVE_MIN_PIXELS`` (150,000) and more, ``Scene.cast`` casts rays on a
+coarse grid and fills the blocks whose corners hit one triangle, and that no outline corner,
+narrow piece or coplanar overlap reaches, from that triangle's plane (``_AdaptiveCast``): the
+same triangle ids and misses as a ray per pixel on every view checked, depth within float
+rounding; ``adaptive=False`` casts every pixel.
 """
 from __future__ import annotations
 
@@ -618,19 +624,25 @@ class _AdaptiveCast:
     the finer grid) down to blocks of 2 pixels, whose remaining pixels are cast. What could
     poke into a block without covering a corner is made to be cast:
 
-    - a corner of something's outline (a silhouette vertex: one with a silhouette edge, an
-      edge between a triangle facing the camera and one facing away, or an edge of an open
-      mesh): the blocks within a radius that grows as the corner gets sharper are split at
-      every level (a wedge of angle a is narrower than a block of side s out to
-      s / (2 tan(a / 2)) from its tip);
-    - anything narrow: a mesh whose projected oriented bounding box is less than
-      ``THIN_BLOCKS`` coarsest blocks wide in some direction (scaled by its nearest over
-      its farthest depth, for the taper of perspective), and every mesh that is not convex,
-      is cast at every pixel of its projected bounding box (knobs, markers, handles, boards
-      seen edge-on, small objects).
+    - a corner of an outline: a silhouette vertex (one with a silhouette edge: an edge
+      between a triangle facing the camera and one facing away, or an edge of an open mesh),
+      or a point where an edge of one piece passes through a triangle of another (pieces
+      that overlap, as a cupboard's boards do). The blocks within a radius that grows as the
+      corner gets sharper are split at every level (a wedge of angle a is narrower than a
+      block of side s out to s / (2 tan(a / 2)) from its tip). A corner behind the triangle
+      that the four corners of its coarsest block see is left out (``_unhidden``);
+    - anything narrow: a piece (connected part of a mesh) whose projected oriented bounding
+      box is less than ``THIN_BLOCKS`` coarsest blocks wide in some direction, or whose
+      middle extent is that little at its farthest depth (the tip of something long pointing
+      away), and every piece that is not convex, is cast at every pixel of its projected box
+      (knob markers, handles, boards seen edge-on, small objects);
+    - where triangles of two pieces lie in one plane and overlap (which of them a ray hits
+      there is down to rounding): cast at every pixel.
 
     Filled pixels get the triangle of their block and the depth where their ray meets that
-    triangle's plane (float64, rounded to float32: within a few float32 ulps of Embree's)."""
+    triangle's plane (float64, rounded to float32: a few float32 steps from Embree's, more
+    at grazing incidence where Embree's own rounding grows). Tested against a ray per pixel
+    in tests/robot/test_render_adaptive.py; see docs/robot-adapter.md, "Speed"."""
 
     def __init__(self, scene: "Scene", K: Intrinsics, R_wc: np.ndarray, c_world: np.ndarray,
                  max_range: float):
@@ -645,7 +657,6 @@ class _AdaptiveCast:
         self.depth = np.empty(H * W, dtype=np.float32)
         self.tri = np.empty(H * W, dtype=np.uint32)
         self.known = np.zeros(H * W, dtype=bool)
-        self.filled = np.zeros(H * W, dtype=bool)
         self.rays_cast = 0
 
     def _cast(self, idx: np.ndarray) -> None:
