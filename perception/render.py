@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import open3d as o3d
 
-from perception.bands import in_bands, row_bands
+from perception.bands import in_bands, pool, row_bands
 from perception.camera import Intrinsics
 
 #: Light direction in the world frame (from above, slightly from the side), for shading.
@@ -823,11 +823,22 @@ class _AdaptiveCast:
         r0, r1 = np.clip(r0[ok], 0, nr - 1), np.clip(r1[ok], 0, nr - 1) + 1
         c0, c1 = np.clip(c0[ok], 0, nc - 1), np.clip(c1[ok], 0, nc - 1) + 1
         w = nc + 1
-        acc = (np.bincount(r0 * w + c0, minlength=(nr + 1) * w)
-               - np.bincount(r0 * w + c1, minlength=(nr + 1) * w)
-               - np.bincount(r1 * w + c0, minlength=(nr + 1) * w)
-               + np.bincount(r1 * w + c1, minlength=(nr + 1) * w)).reshape(nr + 1, w)
-        return np.cumsum(np.cumsum(acc, axis=0), axis=1)[:nr, :nc] > 0
+        # +1 at a box's top left and bottom right, -1 at its other two corners; summed.
+        acc = (np.bincount(np.concatenate([r0 * w + c0, r1 * w + c1]), minlength=(nr + 1) * w)
+               - np.bincount(np.concatenate([r0 * w + c1, r1 * w + c0]), minlength=(nr + 1) * w))
+        acc = acc.astype(np.int32).reshape(nr + 1, w)
+        return np.cumsum(np.cumsum(acc, axis=0, out=acc), axis=1, out=acc)[:nr, :nc] > 0
+
+    def _coef(self) -> np.ndarray:
+        """Per triangle, 1 / depth = a x + b y + c on its plane for the ray (x, y, 1): with
+        n the normal in the camera frame and d = n . c - h, 1/t = -(n . ray)/d."""
+        sc = self.scene
+        n_cam = sc._tri_normals @ self.R
+        dist = sc._tri_normals @ self.c - sc._tri_offsets
+        with np.errstate(divide="ignore", invalid="ignore"):
+            coef = np.ascontiguousarray(n_cam / -dist[:, None])
+        coef[sc._no_hit] = 0                                # no hit: 1/t = 0, t = inf
+        return np.nan_to_num(coef, copy=False, posinf=0.0, neginf=0.0)
 
     def run(self) -> tuple[np.ndarray, np.ndarray]:
         H, W = self.H, self.W
@@ -841,17 +852,14 @@ class _AdaptiveCast:
             u, v, _, seen = self._project_boxes(
                 ((ol.shared[facing].reshape(-1, 3) - self.c) @ self.R).reshape(-1, 8, 3))
             self._paint(force, u, v, seen)
+        # The outline's corners and the planes' depth coefficients on a pool thread while
+        # Embree casts the forced pixels (it releases the GIL): neither needs the other.
+        corners = pool().submit(self._corners, narrow)
+        coef = pool().submit(self._coef)
         self._cast(np.flatnonzero(force))
-        u, v, z, angle = self._corners(narrow)
-        # Per triangle, 1 / depth = a x + b y + c on its plane for the ray (x, y, 1): with
-        # n the normal in the camera frame and d = n . c - h, 1/t = -(n . ray)/d.
+        u, v, z, angle = corners.result()
+        coef = coef.result()
         sc = self.scene
-        n_cam = sc._tri_normals @ self.R
-        dist = sc._tri_normals @ self.c - sc._tri_offsets
-        with np.errstate(divide="ignore", invalid="ignore"):
-            coef = np.ascontiguousarray(n_cam / -dist[:, None])
-        coef[sc._no_hit] = 0                                # no hit: 1/t = 0, t = inf
-        coef = np.nan_to_num(coef, copy=False, posinf=0.0, neginf=0.0)
         known2 = self.known.reshape(H, W)
         tri2 = self.tri.reshape(H, W)
         # Per level, per block: the triangle it is filled with (_UNSET: not filled). A grid
@@ -892,7 +900,9 @@ class _AdaptiveCast:
         rmap = np.minimum(np.arange(H) // ps, pr - 1)
         cmap = np.minimum(np.arange(W) // ps, pc - 1)
         # The pixels of the blocks not filled (the last row and column of blocks reach to
-        # the image's edge) that no ray went through yet.
+        # the image's edge) that no ray went through yet (in this order: the rays of one
+        # cast are not independent of the others in it, Embree's depth can differ by an
+        # ulp with a ray's place in the batch).
         bi, bj = np.nonzero(blocks == _UNSET)
         r0, c0 = bi * ps, bj * ps
         r1 = np.where(bi == pr - 1, H, r0 + ps)
@@ -903,36 +913,37 @@ class _AdaptiveCast:
         idx = (rr * W + cc)[ok]
         self._cast(idx[~self.known[idx]])
         # Depth of the filled pixels: 1 / depth on their triangle's plane (``coef``), made
-        # per block and per pixel position in the block (a block's pixels share a triangle).
+        # per band of block rows and per pixel position in the block (a block's pixels share
+        # a triangle), and put where no ray went.
         xs = self.rays[0, :, 0].astype(np.float64)
         ys = self.rays[:, 0, 1].astype(np.float64)
         Hr, Wr = pr * ps, pc * ps                   # the image but a last row or column
-        co = np.take(coef, np.minimum(blocks, np.uint32(sc._no_hit)), axis=0, mode="clip")
-        A, B, C = co[..., 0], co[..., 1], co[..., 2]
-        fill_depth = np.empty((pr, ps, pc, ps), dtype=np.float32)
-        fill_tri = np.empty((pr, ps, pc, ps), dtype=np.uint32)
-
-        def at(pos: tuple[int, int]) -> None:
-            dr, dc = pos
-            inv = A * xs[np.arange(pc) * ps + dc]
-            inv += B * ys[np.arange(pr) * ps + dr][:, None]
-            inv += C
-            with np.errstate(divide="ignore"):
-                fill_depth[:, dr, :, dc] = np.divide(1.0, inv)
-            fill_tri[:, dr, :, dc] = blocks
-
-        in_bands([(dr, dc) for dr in range(ps) for dc in range(ps)], at)
-        fill_depth = fill_depth.reshape(Hr, Wr)
-        fill_tri = fill_tri.reshape(Hr, Wr)
         depth2 = self.depth.reshape(H, W)
+        xs_at = [xs[np.arange(pc) * ps + dc] for dc in range(ps)]
 
-        def put(rows: slice) -> None:
-            m = fill_tri[rows] != _UNSET
-            m &= ~known2[rows, :Wr]
-            np.copyto(depth2[rows, :Wr], fill_depth[rows], where=m)
-            np.copyto(tri2[rows, :Wr], fill_tri[rows], where=m)
+        def fill(brows: slice) -> None:
+            if brows.stop <= brows.start:
+                return
+            b = blocks[brows]
+            co = np.take(coef, np.minimum(b, np.uint32(sc._no_hit)), axis=0, mode="clip")
+            A, B, C = co[..., 0], co[..., 1], co[..., 2]
+            filled = b != _UNSET
+            for dr in range(ps):
+                y = ys[np.arange(brows.start, brows.stop) * ps + dr][:, None]
+                r = slice(brows.start * ps + dr, brows.stop * ps, ps)
+                for dc in range(ps):
+                    inv = A * xs_at[dc]
+                    inv += B * y
+                    inv += C
+                    with np.errstate(divide="ignore"):
+                        d = np.divide(1.0, inv).astype(np.float32)
+                    c = slice(dc, Wr, ps)
+                    m = ~known2[r, c]
+                    m &= filled
+                    np.copyto(depth2[r, c], d, where=m)
+                    np.copyto(tri2[r, c], b, where=m)
 
-        in_bands(row_bands(Hr), put)
+        in_bands(row_bands(pr), fill)
         # The last row and column where they belong to the blocks before them.
         for rows, cols in ((slice(Hr, H), slice(0, W)), (slice(0, Hr), slice(Wr, W))):
             if rows.stop <= rows.start or cols.stop <= cols.start:
