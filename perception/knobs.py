@@ -834,7 +834,8 @@ class OffViews:
     (``KnobConfig.off_margin_factor``; evidence ``off_one_view``) is remembered per knob, and
     a second such reading from a camera at least ``apart_m`` from the first makes the knob
     off. A reading that leans to another state, or one that gives a state, forgets the knob;
-    so does turning it (``forget``). A knob that is on would have to be read off wrongly,
+    so does turning it or another knob of its appliance (``forget``: a turn can nudge a
+    neighbour). A knob that is on would have to be read off wrongly,
     each time over the calibrated margin, from two places for this to fail: the factor asks
     more of one view, this asks the same of two (docs/knobs.md, "Off from two places").
     Hand-written: a small rule over readings, no library does it."""

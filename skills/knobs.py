@@ -156,6 +156,9 @@ class TurnKnob(RobotActionSkill):
         return f"turning {getattr(self, '_knob', '')} to {getattr(self, '_state', '')}"
 
     def succeeded(self, action) -> None:
-        off_views_of(self).forget(self._knob)   # what was seen of it before the turn is old
+        # what was seen of its knobs before the turn is old (a turn can nudge a neighbour)
+        views = off_views_of(self)
+        for k in self.world.knobs(self.world.large_object_of(self._knob).id):
+            views.forget(k.id)
         self.world.set_knob_state(self._knob, self._state, self._angle, source=self.NAME)
         self.set_output("state", self._state)
