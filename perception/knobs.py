@@ -1203,25 +1203,30 @@ class KnobReader:
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
         need_turn = gates.half_turn_gate_for(hard)
-        if ev["margin"] <= need:
-            r.reason = (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
-                        f"needs {need:.3f})")
-            if is_off and ev["margin"] > gate and not (
-                    ev.get("half_turn") is not None and ev["half_turn"] <= need_turn) and (
-                    1.0 - c_snap <= cfg.max_snap) and r.confidence >= cfg.min_confidence:
-                # every check an "on" state needs is passed; only the off factor is not: a
-                # second such reading from another place makes it off (``OffViews``)
-                ev["off_one_view"] = True
-                r.reason += " from this view alone"
-        elif ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
-            r.reason = (f"unsure ({state}: turned by half a turn it fits nearly as well, "
+
+        def doubt(need_margin: float) -> Optional[str]:
+            """Why the reading may not give its state with a margin gate of ``need_margin``
+            (None: it may)."""
+            if ev["margin"] <= need_margin:
+                return (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
+                        f"needs {need_margin:.3f})")
+            if ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
+                return (f"unsure ({state}: turned by half a turn it fits nearly as well, "
                         f"{ev['half_turn']:.2f}, needs {need_turn:.2f})")
-        elif 1.0 - c_snap > cfg.max_snap:
-            r.reason = f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
-        elif r.confidence < cfg.min_confidence:
-            r.reason = f"unsure ({state}: confidence {r.confidence:.2f} under {cfg.min_confidence:.2f})"
-        else:
+            if 1.0 - c_snap > cfg.max_snap:
+                return f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
+            if r.confidence < cfg.min_confidence:
+                return f"unsure ({state}: confidence {r.confidence:.2f} under {cfg.min_confidence:.2f})"
+            return None
+
+        r.reason = doubt(need) or ""
+        if not r.reason:
             r.state = state
+        elif is_off and need > gate and doubt(gate) is None:
+            # every check an "on" state needs is passed; only the off factor is not: a second
+            # such reading from another place makes it off (``OffViews``)
+            ev["off_one_view"] = True
+            r.reason += " from this view alone"
         return r
 
     def _allowed(self, prior: KnobPrior, angles: np.ndarray) -> np.ndarray:
