@@ -4,7 +4,7 @@ open3d's ``RaycastingScene`` (Embree) does the ray casting; this module adds wha
 notion of: per-mesh colours and node labels, and simple Lambertian shading. Pure: meshes in,
 arrays out (the one side effect: building the first scene tunes glibc's malloc for
 frame-sized arrays, see ``_keep_freed_memory``). The simulated robot adds sensor noise on
-top (hearth/robot/noise.py), drawing it while ``Scene.shade`` runs (``Scene.cast`` first).
+top (hearth/robot/noise.py), drawing it while ``Scene.cast`` and ``Scene.shade`` run.
 
 For images of ``ADAPTIVE_MIN_PIXELS`` (150,000) and more, ``Scene.cast`` casts rays on a
 coarse grid and fills the blocks whose corners hit one triangle, and that no outline corner,

@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.noise import KinectNoise, finish_kinect_noise, start_kinect_noise
+from hearth.robot.noise import KinectNoise, draw_kinect_noise, finish_kinect_noise, start_kinect_noise
 from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
@@ -172,15 +172,23 @@ def render_view(world, K: Intrinsics, T_world_camera, rng: Optional[np.random.Ge
     The frame's ``T_world_camera`` is ``T_world_camera_believed`` when given, else the truth."""
     T_true = np.asarray(T_world_camera, dtype=float)
     scene = scene if scene is not None else world_scene(world, states)
-    hits = scene.cast(K, T_true)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    # The frame-sized random draws of the noise need only the image size: drawn on a pool
+    # thread while the rays are cast.
+    draws = draw_kinect_noise((K.height, K.width), rng, noise) if noise is not None else None
+    try:
+        hits = scene.cast(K, T_true)
+    except BaseException:
+        if draws is not None:
+            draws.exception()       # the generator is the pool thread's until it is done
+        raise
     if noise is None:
         clean = noisy = scene.shade(hits)
     else:
-        # The noise's lateral jitter and random draws need only the depth: they run on a
-        # pool thread while this one (and the other) shades; the same frame as
+        # The lateral jitter needs the depth (and the generator, once the draws above are
+        # done): on a pool thread while this one (and the other) shades; the same frame as
         # add_kinect_noise(scene.render(...)).
-        started = start_kinect_noise(hits.depth, rng if rng is not None else np.random.default_rng(0),
-                                     noise)
+        started = start_kinect_noise(hits.depth, rng, noise, draws)
         clean = scene.shade(hits)
         noisy = finish_kinect_noise(clean, started)
     T_bel = T_true if T_world_camera_believed is None else np.asarray(T_world_camera_believed)

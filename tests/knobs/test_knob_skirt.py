@@ -1,8 +1,14 @@
 """A knob whose body is round about its axis (a skirt, a cap on it, a dot on the cap: the
 "skirt" design of generated homes), in the colour of its panel: only the depth image places
 its centre, and the dot's angle about that centre is its state. Read by a reader made for the
-world (tiny training) against one made the same way reading as before (``round_body_center``
-off: the centre from the canvas depth fit), in the same rendered frames."""
+world (tiny training) in rendered frames.
+
+(These tests once also showed a reader made with ``round_body_center`` off reading the same
+frames "unknown". That came from its tiny calibration's gate, one outlier of a few dozen
+validation views, not from its centre: with the simulated noise drawn in another order it
+read them all, at 0-6 degrees, packed 2.15 radii apart too. The round-body centre is for
+packed neighbours whose tops pull a depth centroid, measured on home 8 by
+``hearth bench knobs``, docs/knobs.md.)"""
 from __future__ import annotations
 
 import math
@@ -12,7 +18,7 @@ import pytest
 
 from perception.camera import Intrinsics, look_at
 from perception.knob_data import KnobScenes
-from perception.knobs import KnobConfig, knob_priors, marker_dot, round_body_levels
+from perception.knobs import knob_priors, marker_dot, round_body_levels
 from worldmodel.nodes import KnobState, Model, Visual
 from worldmodel.pose import Pose
 
@@ -50,14 +56,12 @@ def skirt_world(directory, dot_scale=1.0):
 
 @pytest.fixture(scope="module")
 def skirt(tmp_path_factory):
-    """The world, its reader, the reader made with the centre as before, and its scenes."""
+    """The world, its reader and its scenes."""
     from skills.knob_models import TrainingConfig, load_or_train
     d = tmp_path_factory.mktemp("skirt")
     world = skirt_world(d, dot_scale=0.05)
     reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
-    before, _ = load_or_train(world, TrainingConfig().tiny(), KnobConfig(round_body_center=False),
-                              directory=d / "before")
-    return world, reader, before, KnobScenes(world)
+    return world, reader, KnobScenes(world)
 
 
 def _frame(world, scenes, kid, angle, distance, off_axis_deg, up_deg, seed=3):
@@ -95,13 +99,11 @@ def test_a_pointer_is_not_a_round_body():
 
 
 @pytest.mark.parametrize("state, distance, off_axis", [("5", 0.7, 20.0), ("1", 1.0, 35.0)])
-def test_a_skirt_knob_unknown_before_is_read_at_its_state(skirt, state, distance, off_axis):
-    world, reader, before, scenes = skirt
+def test_a_skirt_knob_is_read_at_its_state_from_its_dot(skirt, state, distance, off_axis):
+    world, reader, scenes = skirt
     a = world.get("oven_knob_1").state_angle(state)
     frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, distance, off_axis, 15.0)
-    old = before.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
     new = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
-    assert old.found and old.state == "unknown", (old.state, old.reason)
     assert new.state == state, new.reason
     assert new.evidence.get("dot")
     assert abs(math.degrees(math.remainder(new.angle - a, 2 * math.pi))) < 6
@@ -109,7 +111,7 @@ def test_a_skirt_knob_unknown_before_is_read_at_its_state(skirt, state, distance
 
 @pytest.mark.parametrize("state", ["1", "3", "5"])
 def test_a_dot_too_small_to_see_stays_unknown(skirt, state):
-    world, reader, _, scenes = skirt
+    world, reader, scenes = skirt
     a = world.get("oven_knob_2").state_angle(state)
     frame, T_wc, pr = _frame(world, scenes, "oven_knob_2", a, 1.0, 20.0, 15.0)
     r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]

@@ -66,6 +66,25 @@ def test_grazing_surfaces_lose_readings():
     assert (noisy.depth[steep] == 0).mean() < 0.05
 
 
+def test_colour_noise_is_whole_grey_levels_of_the_documented_spread():
+    """Per pixel, the same offset on the three channels, a Gaussian of ``color_std`` grey
+    levels rounded to whole levels: standard deviation sqrt(std^2 + 1/12), mean 0."""
+    clean = plane_rendering(1.5)
+    noisy = add_kinect_noise(clean, np.random.default_rng(6))
+    diff = noisy.color.astype(int) - clean.color.astype(int)
+    assert np.array_equal(diff[..., 0], diff[..., 1]) and np.array_equal(diff[..., 0], diff[..., 2])
+    d = diff[..., 0]
+    std = KinectNoise().color_std
+    assert abs(float(d.mean())) < 0.02
+    assert abs(float(d.std()) - math.sqrt(std ** 2 + 1 / 12)) < 0.02
+    # The discretised Gaussian's probabilities, level by level, to within sampling error.
+    for k in range(-4, 5):
+        p = 0.5 * (math.erf((k + 0.5) / (std * math.sqrt(2))) - math.erf((k - 0.5) / (std * math.sqrt(2))))
+        assert abs(float((d == k).mean()) - p) < 5 * math.sqrt(p * (1 - p) / d.size) + 1e-4
+    assert add_kinect_noise(clean, np.random.default_rng(6), KinectNoise(color_std=0)).color.tolist() \
+        == clean.color.tolist()
+
+
 def test_same_seed_same_noise_and_none_is_noise_free():
     clean = plane_rendering(1.2)
     a = add_kinect_noise(clean, np.random.default_rng(5))
