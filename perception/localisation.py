@@ -76,10 +76,6 @@ class LocalisationConfig:
     settle_iterations: int = 30
     settle_m: float = 0.012
     settle_deg: float = 0.3
-    #: A trusted fix is registered again from the corrected pose (the reference rendered
-    #: there): it must be trusted and move at most this much more (0: no recheck).
-    recheck_m: float = 0.02
-    recheck_deg: float = 1.0
 
 
 @dataclass
@@ -119,43 +115,9 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     """The base-pose correction from one depth image taken at the believed ``T_world_camera``
     (the camera as the robot believes it is; ``T_world_base`` likewise, 4x4).
 
-    A trusted fix is checked once more (``cfg.recheck_m``): the same image registered again
-    from the corrected pose, on the same landmarks, must be trusted and ask for at most
-    ``recheck_m`` / ``recheck_deg`` more; ``quality["recheck"]`` says what it found.
-
     Raises PerceptionError when no landmark is in view, RegistrationFailed when the view
     does not overlap the landmarks enough.
     """
-    fix = _refine_once(world, depth, K, T_world_camera, T_world_base, cfg, landmarks)
-    if not fix.ok or cfg.recheck_m <= 0:
-        return fix
-    C = fix.correction
-    try:
-        again = _refine_once(world, depth, K, C @ np.asarray(T_world_camera, dtype=float),
-                             fix.T_world_base, cfg, fix.landmarks)
-        more_m, more_deg = math.hypot(again.dx, again.dy), abs(math.degrees(again.dyaw))
-        doubt = None
-        if not again.ok:
-            doubt = ("from the corrected pose the fix is not trusted ("
-                     + "; ".join(again.quality.get("doubts") or ("too weak",)) + ")")
-        elif more_m > cfg.recheck_m or more_deg > cfg.recheck_deg:
-            doubt = (f"from the corrected pose the view asks for {100 * more_m:.1f} cm and "
-                     f"{more_deg:.1f} deg more")
-        fix.quality["recheck"] = dict(ok=again.ok, more_cm=round(100 * more_m, 2),
-                                      more_deg=round(more_deg, 3))
-    except (RegistrationFailed, PerceptionError) as err:
-        doubt = f"from the corrected pose: {err}"
-        fix.quality["recheck"] = dict(ok=False, error=str(err))
-    if doubt is not None:
-        fix.ok = False
-        fix.quality["doubts"] = list(fix.quality.get("doubts") or []) + [doubt]
-    return fix
-
-
-def _refine_once(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
-                 T_world_base: np.ndarray, cfg: LocalisationConfig,
-                 landmarks: Optional[list[str]]) -> LocalisationFix:
-    """One fix of ``refine_localisation`` (without its recheck)."""
     t0 = time.perf_counter()
     ids = landmarks if landmarks is not None else visible_landmarks(world, K, T_world_camera,
                                                                     cfg.max_range)
