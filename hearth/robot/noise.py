@@ -144,9 +144,9 @@ def _grey_levels(std: float) -> np.ndarray:
     uniform 16-bit integer, are distributed as a Gaussian of ``std`` grey levels rounded to
     the nearest level (inverse-CDF sampling of that discrete distribution, to 1/65536 in
     probability: a tail under 1/65536 on either side, beyond about 4.3 standard deviations,
-    is not drawn). Five times cheaper
-    than drawing a standard normal per pixel, rounding and converting it; numpy has no
-    sampler of a discretised Gaussian, so this table is written here."""
+    is not drawn). Five times cheaper than drawing a standard normal per pixel, rounding and
+    converting it; numpy has no sampler of a discretised Gaussian, so this table is written
+    here."""
     k_max = int(math.ceil(4.5 * std)) + 1
     ks = np.arange(-k_max, k_max + 1)
     upper = np.array([0.5 * (1.0 + math.erf((k + 0.5) / (std * math.sqrt(2.0)))) for k in ks])
