@@ -614,6 +614,27 @@ def _grid(n: int, s: int) -> np.ndarray:
     return g if g[-1] == n - 1 else np.r_[g, n - 1]
 
 
+def _on_grid(a: np.ndarray, s: int) -> np.ndarray:
+    """``a[np.ix_(_grid(H, s), _grid(W, s))]`` by slicing (several times cheaper)."""
+    H, W = a.shape
+    nr, nc = len(range(0, H, s)), len(range(0, W, s))
+    er, ec = (H - 1) % s != 0, (W - 1) % s != 0
+    out = np.empty((nr + er, nc + ec), dtype=a.dtype)
+    out[:nr, :nc] = a[::s, ::s]
+    if er:
+        out[nr, :nc] = a[-1, ::s]
+    if ec:
+        out[:nr, nc] = a[::s, -1]
+    if er and ec:
+        out[nr, nc] = a[-1, -1]
+    return out
+
+
+def _take2(a: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``a[np.ix_(rows, cols)]`` by two np.take (several times cheaper)."""
+    return np.take(np.take(a, rows, axis=0), cols, axis=1)
+
+
 class _AdaptiveCast:
     """One view's adaptive ray cast (``Scene.cast``).
 
@@ -662,9 +683,14 @@ class _AdaptiveCast:
     def _cast(self, idx: np.ndarray) -> None:
         if len(idx) == 0:
             return
-        d = np.ascontiguousarray(self.flat_dirs[idx]).reshape(-1, 1, 3)
-        rays = cv2.merge([cv2.transform(d, self.origin), cv2.transform(d, self.Rf)])
-        ans = self.scene._scene.cast_rays(o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
+        # np.take along an axis gathers the rows several times faster than indexing does.
+        d = np.take(self.flat_dirs, idx, axis=0).reshape(-1, 1, 3)
+        # The origin is the camera centre in float32 (what cv2.transform of the directions by
+        # [0 | c] gave, bit for bit); the directions rotated into the world by OpenCV.
+        rays = np.empty((len(idx), 6), dtype=np.float32)
+        rays[:, :3] = self.origin[:, 3]
+        rays[:, 3:] = cv2.transform(d, self.Rf).reshape(-1, 3)
+        ans = self.scene._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         gid = ans["geometry_ids"].numpy()
         tri = np.take(self.scene._first, gid, mode="clip")
         tri += ans["primitive_ids"].numpy()
@@ -723,8 +749,16 @@ class _AdaptiveCast:
         their farthest (the tip of something long pointing away), and those not convex."""
         ol = self.scene._outline
         u, v, zc, seen = self._project_boxes(Cc)
-        proj = u[..., None] * np.cos(_DIRECTIONS) + v[..., None] * np.sin(_DIRECTIONS)
-        width = (proj.max(axis=1) - proj.min(axis=1)).min(axis=1)
+        # The width across each of _DIRECTIONS. A box wholly in front of the camera plane
+        # has only its 8 corners (the 12 other points repeat one of them): the same widths
+        # from 8 points as from 20, at less than half the cost.
+        width = np.empty(len(u))
+        front = np.all(Cc[..., 2] >= _NEAR, axis=1)
+        cos, sin = np.cos(_DIRECTIONS), np.sin(_DIRECTIONS)
+        for sel, k in ((front, 8), (~front, u.shape[1])):
+            if sel.any():
+                proj = u[sel, :k, None] * cos + v[sel, :k, None] * sin
+                width[sel] = (proj.max(axis=1) - proj.min(axis=1)).min(axis=1)
         far = np.minimum(zc.max(axis=1), self.max_range)
         thin_px = THIN_BLOCKS * COARSE_BLOCK
         narrow = seen & ((width < thin_px) | (self.K.fx * ol.middle / far < thin_px)
@@ -826,8 +860,10 @@ class _AdaptiveCast:
         # +1 at a box's top left and bottom right, -1 at its other two corners; summed.
         acc = (np.bincount(np.concatenate([r0 * w + c0, r1 * w + c1]), minlength=(nr + 1) * w)
                - np.bincount(np.concatenate([r0 * w + c1, r1 * w + c0]), minlength=(nr + 1) * w))
-        acc = acc.astype(np.int32).reshape(nr + 1, w)
-        return np.cumsum(np.cumsum(acc, axis=0, out=acc), axis=1, out=acc)[:nr, :nc] > 0
+        # Summed by OpenCV's integral image (exact: small integers in float64), twice as
+        # fast as numpy's two cumsums.
+        acc = cv2.integral(acc.astype(np.float64).reshape(nr + 1, w))
+        return acc[1:nr + 1, 1:nc + 1] > 0
 
     def _coef(self) -> np.ndarray:
         """Per triangle, 1 / depth = a x + b y + c on its plane for the ray (x, y, 1): with
@@ -870,16 +906,16 @@ class _AdaptiveCast:
         while s >= 2:
             rows, cols = _grid(H, s), _grid(W, s)
             nr, nc = len(rows) - 1, len(cols) - 1
-            G = known2[np.ix_(rows, cols)]
+            G = _on_grid(known2, s)
             if blocks is None:
                 need = ~G
             else:
                 ps, pr, pc = prev
-                inherited = blocks[np.ix_(np.minimum(rows // ps, pr - 1),
-                                          np.minimum(cols // ps, pc - 1))]
+                inherited = _take2(blocks, np.minimum(rows // ps, pr - 1),
+                                   np.minimum(cols // ps, pc - 1))
                 need = ~G & (inherited == _UNSET)
             self._cast((rows[:, None] * W + cols[None, :])[need])
-            C = tri2[np.ix_(rows, cols)]
+            C = _on_grid(tri2, s)
             if blocks is not None:
                 C = np.where(G | (inherited == _UNSET), C, inherited)
             c00 = C[:-1, :-1]
@@ -890,8 +926,8 @@ class _AdaptiveCast:
             here = np.where(uni, c00, _UNSET)
             if blocks is not None:
                 ps, pr, pc = prev
-                parent = blocks[np.ix_(np.minimum(np.arange(nr) * s // ps, pr - 1),
-                                       np.minimum(np.arange(nc) * s // ps, pc - 1))]
+                parent = _take2(blocks, np.minimum(np.arange(nr) * s // ps, pr - 1),
+                                np.minimum(np.arange(nc) * s // ps, pc - 1))
                 here = np.where(parent != _UNSET, parent, here)
             blocks, prev = here, (s, nr, nc)
             s //= 2
@@ -920,23 +956,26 @@ class _AdaptiveCast:
         Hr, Wr = pr * ps, pc * ps                   # the image but a last row or column
         depth2 = self.depth.reshape(H, W)
         xs_at = [xs[np.arange(pc) * ps + dc] for dc in range(ps)]
+        coef_columns = [np.ascontiguousarray(coef[:, k]) for k in range(3)]
 
         def fill(brows: slice) -> None:
             if brows.stop <= brows.start:
                 return
             b = blocks[brows]
-            co = np.take(coef, np.minimum(b, np.uint32(sc._no_hit)), axis=0, mode="clip")
-            A, B, C = co[..., 0], co[..., 1], co[..., 2]
+            t = np.minimum(b, np.uint32(sc._no_hit)).astype(np.intp)
+            A, B, C = (np.take(c, t, mode="clip") for c in coef_columns)    # contiguous
             filled = b != _UNSET
+            inv = np.empty(b.shape)
             for dr in range(ps):
                 y = ys[np.arange(brows.start, brows.stop) * ps + dr][:, None]
                 r = slice(brows.start * ps + dr, brows.stop * ps, ps)
+                By = B * y                              # (the same for every column in it)
                 for dc in range(ps):
-                    inv = A * xs_at[dc]
-                    inv += B * y
+                    np.multiply(A, xs_at[dc], out=inv)
+                    inv += By
                     inv += C
                     with np.errstate(divide="ignore"):
-                        d = np.divide(1.0, inv).astype(np.float32)
+                        d = np.divide(1.0, inv, out=inv).astype(np.float32)
                     c = slice(dc, Wr, ps)
                     m = ~known2[r, c]
                     m &= filled
@@ -948,7 +987,7 @@ class _AdaptiveCast:
         for rows, cols in ((slice(Hr, H), slice(0, W)), (slice(0, Hr), slice(Wr, W))):
             if rows.stop <= rows.start or cols.stop <= cols.start:
                 continue
-            f = blocks[np.ix_(rmap[rows], cmap[cols])]
+            f = _take2(blocks, rmap[rows], cmap[cols])
             m = (f != _UNSET) & ~known2[rows, cols]
             c_ = np.take(coef, np.minimum(f, np.uint32(sc._no_hit)), axis=0, mode="clip")
             inv = c_[..., 0] * xs[cols] + c_[..., 1] * ys[rows, None] + c_[..., 2]
