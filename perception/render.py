@@ -192,8 +192,13 @@ class Scene:
                     triangle=tri, tables=(self._tri_gid, self._tri_prim), _geometry=gid,
                     _primitive=prim)
 
-    def shade(self, hits: Hits) -> Rendering:
-        """Labels, colour, incidence and normals of a ray cast (``cast``) of this scene."""
+    def shade(self, hits: Hits, after=None) -> Rendering:
+        """Labels, colour, incidence and normals of a ray cast (``cast``) of this scene.
+
+        ``after(rows, labels, incidence, color)``, if given, is called in the shading's own
+        thread as soon as each band of image rows is shaded, with the image-shaped arrays
+        (only ``rows`` of them final then): the simulated sensor applies its noise there
+        (hearth.robot.noise.NoiseBands)."""
         K, R_wc, c_world = hits.K, hits.R_wc, hits.c_world
         H, W = K.height, K.width
         _, inv_length = _pixel_rays(K)
@@ -220,6 +225,8 @@ class Scene:
         labels = np.empty(N, dtype=np.int32)
         incidence = np.empty(N, dtype=np.float32)
         color = np.empty((N, 3), dtype=np.uint8)
+        labels2, incidence2 = labels.reshape(H, W), incidence.reshape(H, W)
+        color2 = color.reshape(H, W, 3)
 
         def shade(rows: slice) -> None:
             if rows.stop <= rows.start:                 # (an empty band: OpenCV refuses it)
@@ -248,6 +255,8 @@ class Scene:
                 planes.append(c.astype(np.uint8))
             # Interleaved by OpenCV: numpy's strided stores into one channel cost more.
             color[rows] = cv2.merge(planes).reshape(-1, 3)
+            if after is not None:
+                after(slice(rows.start // W, rows.stop // W), labels2, incidence2, color2)
 
         # Row bands in threads: numpy releases the GIL on these array operations, so the
         # per-pixel shading runs on every core like the ray casting does.

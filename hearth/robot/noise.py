@@ -178,32 +178,45 @@ def start_kinect_noise(depth, rng: np.random.Generator | None = None,
 
 def finish_kinect_noise(rendering, started: NoiseDraws):
     """``add_kinect_noise``'s result for ``rendering`` from the draws started on its depth."""
-    m = started.model
-    z = started.lateral.result()
-    # Per pixel, the Gaussian part's standard deviation and the dropout probability (in row
-    # bands; the draws were started before the rays were cast, and are done by now).
-    std, p_drop = np.empty_like(z), np.empty_like(z)
-    codes = np.array([MATERIAL_CODES.get(x, 0) for x in rendering.materials] + [0], np.int8)
+    bands = NoiseBands(started, rendering.materials, rendering.depth.shape)
+    in_bands(row_bands(rendering.depth.shape[0]),
+             lambda rows: bands.band(rows, rendering.labels, rendering.incidence,
+                                     rendering.color))
+    return bands.result(rendering)
 
-    def spread(rows: slice) -> None:
-        _spread(rendering.incidence[rows], rendering.labels[rows], codes, z[rows], m,
-                std=std[rows], p=p_drop[rows])
 
-    bands = row_bands(z.shape[0])
-    in_bands(bands, spread)
-    gauss, uniform, levels = started.draws.result()
-    depth = np.empty_like(z)
-    color = np.empty_like(rendering.color)
+class NoiseBands:
+    """The noise of one frame applied band by band of rows (``band``), from the draws
+    started on its depth (``start_kinect_noise``): the renderer calls ``band`` for each band
+    as soon as it has shaded it (``perception.render.Scene.shade``'s ``after``), so that the
+    noise's per-pixel work runs in the shading's threads while its inputs are in the cache,
+    with no wait between the two. The same frame as ``finish_kinect_noise``, whatever the
+    bands."""
 
-    def band(rows: slice) -> None:
-        _noisy_depth(z[rows], std[rows], p_drop[rows], gauss[rows], uniform[rows], m,
-                     out=depth[rows])
-        color[rows] = _noisy_color(rendering.color[rows],
-                                   None if levels is None else levels[rows], m)
+    def __init__(self, started: NoiseDraws, materials, shape):
+        self.started = started
+        self.codes = np.array([MATERIAL_CODES.get(x, 0) for x in materials] + [0], np.int8)
+        self.depth = np.empty(shape, dtype=np.float32)
+        self.color = np.empty(tuple(shape) + (3,), dtype=np.uint8)
 
-    # Row bands in threads: numpy and OpenCV release the GIL on these array operations.
-    in_bands(bands, band)
-    return dataclasses.replace(rendering, depth=depth, color=color)
+    def band(self, rows: slice, labels: np.ndarray, incidence: np.ndarray,
+             color: np.ndarray) -> None:
+        """Rows ``rows`` of the noisy depth and colour, given the noise-free labels,
+        incidence and colour there (image-shaped arrays)."""
+        if rows.stop <= rows.start:
+            return
+        m = self.started.model
+        z = self.started.lateral.result()[rows]
+        # Per pixel, the Gaussian part's standard deviation and the dropout probability.
+        std, p_drop = np.empty_like(z), np.empty_like(z)
+        _spread(incidence[rows], labels[rows], self.codes, z, m, std=std, p=p_drop)
+        gauss, uniform, levels = self.started.draws.result()
+        _noisy_depth(z, std, p_drop, gauss[rows], uniform[rows], m, out=self.depth[rows])
+        self.color[rows] = _noisy_color(color[rows], None if levels is None else levels[rows], m)
+
+    def result(self, rendering):
+        """``rendering`` with the noisy depth and colour (once every band is done)."""
+        return dataclasses.replace(rendering, depth=self.depth, color=self.color)
 
 
 def _spread(incidence: np.ndarray, labels: np.ndarray, codes: np.ndarray, z: np.ndarray,
@@ -214,24 +227,44 @@ def _spread(incidence: np.ndarray, labels: np.ndarray, codes: np.ndarray, z: np.
     label -1, the material's code. float32 throughout: this runs on every simulated frame."""
     # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
     cos = np.clip(np.asarray(incidence, dtype=np.float32), 1e-3, 1.0)
-    theta = np.minimum(np.arccos(cos), np.float32(math.radians(89.0)))
+    # (a + b (z - c)^2 + d / sqrt(z) * ang * ang)^2, ang = theta / (pi/2 - theta), with the
+    # operations of that expression in its order but into few buffers (a third fewer
+    # passes over memory; the same float32 results).
+    theta = np.arccos(cos)
+    np.minimum(theta, np.float32(math.radians(89.0)), out=theta)
     zc = np.maximum(z, np.float32(1e-3))
-    ang = theta / (np.float32(math.pi / 2) - theta)
-    var = (np.float32(m.axial_a) + np.float32(m.axial_b) * (z - np.float32(m.axial_c)) ** 2
-           + np.float32(m.axial_angle) / np.sqrt(zc) * ang * ang) ** 2
+    ang = np.subtract(np.float32(math.pi / 2), theta)
+    np.divide(theta, ang, out=ang)
+    var = np.subtract(z, np.float32(m.axial_c))
+    np.square(var, out=var)
+    var *= np.float32(m.axial_b)
+    var += np.float32(m.axial_a)
+    t = np.sqrt(zc)
+    np.divide(np.float32(m.axial_angle), t, out=t)
+    t *= ang
+    t *= ang
+    var += t
+    np.square(var, out=var)
     if m.quantise:
-        q2 = (zc * zc * np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))) ** 2
-        var = np.maximum(var - q2 / np.float32(12.0), np.float32(0.25) * var)
+        q2 = np.multiply(zc, zc, out=zc)
+        q2 *= np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))
+        np.square(q2, out=q2)
+        q2 /= np.float32(12.0)
+        np.subtract(var, q2, out=q2)
+        var *= np.float32(0.25)
+        np.maximum(q2, var, out=var)
     np.sqrt(var, out=std)
     # Dropouts: grazing incidence, materials (per label, and a trailing "matte" for label -1).
     g0, g1 = math.cos(math.radians(m.grazing_start_deg)), math.cos(math.radians(m.grazing_full_deg))
     np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0, out=p)
     if codes.any():
         p_code = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], np.float32)
-        pm = np.take(p_code[codes], labels)            # label -1 picks the trailing "matte"
+        lab = labels.astype(np.intp)                    # (np.take converts on every call)
+        pm = np.take(p_code[codes], lab)                # label -1 picks the trailing "matte"
         # Shiny surfaces reflect the pattern away except when seen nearly head-on.
-        shiny = np.take(codes == 2, labels)
-        if shiny.any():
+        is_shiny = codes == 2
+        shiny = np.take(is_shiny, lab) if is_shiny.any() else None
+        if shiny is not None and shiny.any():
             pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
         np.maximum(p, pm, out=p)
     p[~(z > 0)] = np.inf

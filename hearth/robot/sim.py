@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.noise import KinectNoise, draw_kinect_noise, finish_kinect_noise, start_kinect_noise
+from hearth.robot.noise import KinectNoise, NoiseBands, draw_kinect_noise, start_kinect_noise
 from worldmodel.frames import as_matrix
 from worldmodel.pose import Pose
 
@@ -189,8 +189,9 @@ def render_view(world, K: Intrinsics, T_world_camera, rng: Optional[np.random.Ge
         # done): on a pool thread while this one (and the other) shades; the same frame as
         # add_kinect_noise(scene.render(...)).
         started = start_kinect_noise(hits.depth, rng, noise, draws)
-        clean = scene.shade(hits)
-        noisy = finish_kinect_noise(clean, started)
+        bands = NoiseBands(started, scene.materials, hits.depth.shape)
+        clean = scene.shade(hits, after=bands.band)       # the noise applied band by band
+        noisy = bands.result(clean)
     T_bel = T_true if T_world_camera_believed is None else np.asarray(T_world_camera_believed)
     return Frame(color=noisy.color, depth=noisy.depth, intrinsics=K, T_world_camera=T_bel.copy(),
                  timestamp=timestamp, T_world_camera_true=T_true.copy(), labels=clean.labels,
