@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import math
 
+import py_trees
+
 from skills.actions import RobotActionSkill
-from skills.base import Port
+from skills.base import Port, Skill
 from skills.values import as_pose
 from worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
 
@@ -112,3 +114,28 @@ class NavigateTo(RobotActionSkill):
 
     def succeeded(self, action) -> None:
         self.set_output("pose", self._goal)
+
+
+class OtherParkings(Skill):
+    """The parking positions of a node other than the one the robot is at, nearest first: a
+    mission visits them one after the other (``for_each ... until: success``) to look at
+    the node from every side it can, each once (missions/subtrees/knobs.yaml)."""
+
+    NAME = "OtherParkings"
+    DESCRIPTION = "list a node's parking positions other than the robot's, nearest first"
+    INPUTS = (Port("target", "node_id"),)
+    OUTPUTS = (Port("places", "list", required=False,
+                    description="parking position ids, nearest first"),)
+
+    def update(self) -> py_trees.common.Status:
+        target = self.input("target")
+        here = self.robot.base_pose()
+        found = sorted((math.hypot(pose.x - here.x, pose.y - here.y), p.id)
+                       for p, pose in self.world.parking_positions(target))
+        places = [pid for d, pid in found if d > AT_PARKING_M]
+        self.set_output("places", places)
+        if not places:
+            self.feedback_message = f"{target} has no other parking position"
+            return py_trees.common.Status.FAILURE
+        self.feedback_message = ", ".join(places)
+        return py_trees.common.Status.SUCCESS

@@ -3,6 +3,8 @@
 reason, what was said, what changed in the map)."""
 from __future__ import annotations
 
+import math
+
 import py_trees
 import pytest
 
@@ -282,13 +284,23 @@ def _made(sub, suffix):
     return next(node for path, node in sub.made.items() if path.endswith(suffix))
 
 
+def _other_parkings(world, robot, node="oven"):
+    """The parking positions of ``node`` other than the robot's, nearest first (what
+    OtherParkings lists)."""
+    here = robot.base_pose()
+    found = sorted((math.hypot(pose.x - here.x, pose.y - here.y), p.id)
+                   for p, pose in world.parking_positions(node))
+    return [pid for d, pid in found if d > 0.15]
+
+
 def test_a_knob_unread_from_the_first_place_is_read_from_another_and_turned_off(world):
     # the map says off (stale); the knob is on and the first view cannot read it
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}])
     result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
-    assert _made(sub, "drive_aside").seen_inputs[-1]["parking"] == "another"
+    # the nearest other parking position
+    assert _made(sub, "drive_aside").seen_inputs[-1]["parking"] == _other_parkings(world, robot)[0]
     assert robot.reads[:2] == [None, ["oven_knob_4"]]   # all, then the unread one again
     assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
@@ -304,25 +316,31 @@ def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
 
 
-def test_a_knob_unread_from_both_parking_positions_is_read_from_straight_in_front(world):
+def test_a_knob_unread_from_every_parking_position_is_read_from_straight_in_front(world):
+    others = _other_parkings(world, FakeRobot())
+    assert len(others) >= 2
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
-                      unreadable=[{"oven_knob_4"}, {"oven_knob_4"}])
+                      unreadable=[{"oven_knob_4"}] * (1 + len(others)))
     result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
+    # every other parking position in turn, nearest first, then straight in front
+    assert [i["parking"] for i in _made(sub, "drive_aside").seen_inputs] == others
     assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs"
     assert _made(sub, "drive_straight").seen_inputs[-1]["distance"] == 1.0
-    assert robot.reads[:3] == [None, ["oven_knob_4"], ["oven_knob_4"]]
+    assert robot.reads[:2 + len(others)] == [None] + [["oven_knob_4"]] * (1 + len(others))
     assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
 
 
 def test_a_knob_unread_from_every_place_is_never_taken_for_off(world):
     # unread from the parking position, another one, and every view straight in front
+    others = _other_parkings(world, FakeRobot())
+    views = len(others) + 3                 # every other parking position, three straight
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
-                      unreadable=[{"oven_knob_4"}] * 5)
+                      unreadable=[{"oven_knob_4"}] * (1 + views))
     result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
-    assert robot.reads == [None] + [["oven_knob_4"]] * 4   # all, then four more views
+    assert robot.reads == [None] + [["oven_knob_4"]] * views   # all, then every other view
     assert robot.said[-1] == ("I could not read the oven knob 4 of the oven, so I cannot tell "
                               "whether it is off; please check it")
     assert robot.truth_knobs["oven_knob_4"] != pytest.approx(0.0)   # not touched
@@ -341,13 +359,14 @@ def test_a_turned_knob_unread_from_here_is_read_back_from_the_other_places(world
 
 
 def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
-    # read fine first; after the turn no place can see it: here, another parking position
-    # and the three views straight in front
+    # read fine first; after the turn no place can see it: here, every other parking
+    # position and the three views straight in front
+    views = len(_other_parkings(world, FakeRobot())) + 3
     robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
-                      unreadable=[set()] + [{"oven_knob_2"}] * 5)
+                      unreadable=[set()] + [{"oven_knob_2"}] * (1 + views))
     result, _ = _turn_off_oven(world, robot)
     assert result.outcome == "failed"
-    assert robot.reads == [None, None] + [["oven_knob_2"]] * 4
+    assert robot.reads == [None, None] + [["oven_knob_2"]] * views
     assert "I turned oven knob 2 of the oven but could not read it back; please check it" in result.reason
     assert not any("it is off now" in x for x in robot.said)
 

@@ -9,7 +9,7 @@ import pytest
 from skills.base import Bindings, Key, Literal
 from skills.manipulation import OpenArticulated
 from skills.map import ClosedParts, DescribeLocation, PlanSearch, RecordSearch, ResolveObject, UpdateObjectLocation
-from skills.navigation import NavigateTo
+from skills.navigation import NavigateTo, OtherParkings
 from worldmodel import Pose
 
 S = py_trees.common.Status
@@ -168,6 +168,24 @@ def test_navigate_to_another_parking_position_leaves_the_one_the_robot_is_at(dem
     demo_world.parking_positions = lambda node: only
     robot.base_pose = lambda: only[0][1]
     s = make(NavigateTo, demo_world, robot, inputs={"target": "oven", "parking": "another"})
+    assert tick(s) == S.FAILURE
+    assert "no other parking position" in s.feedback_message
+
+
+def test_other_parkings_lists_the_places_to_look_from_nearest_first(demo_world):
+    parking = {p.id: pose for p, pose in demo_world.parking_positions("oven")}
+    robot = FakeRobot()
+    robot.base_pose = lambda: parking["oven_left"]
+    s = make(OtherParkings, demo_world, robot, inputs={"target": "oven"},
+             outputs={"places": "/places"})
+    assert tick(s) == S.SUCCESS
+    # every one but the one the robot is at, nearest first (the front, then the far side)
+    assert bb("/places") == ["oven_front", "oven_right"]
+    only = demo_world.parking_positions("oven")[:1]
+    demo_world.parking_positions = lambda node: only
+    robot.base_pose = lambda: only[0][1]
+    s = make(OtherParkings, demo_world, robot, inputs={"target": "oven"},
+             outputs={"places": "/places"})
     assert tick(s) == S.FAILURE
     assert "no other parking position" in s.feedback_message
 
