@@ -37,6 +37,15 @@ def _knob_distance(distance) -> float:
     return float(distance)
 
 
+def parkings_by_distance(world, robot, target: str, beyond: float = -1.0) -> list:
+    """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
+    further than ``beyond`` from the robot, nearest first."""
+    here = robot.base_pose()
+    found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
+             for p, pose in world.parking_positions(target))
+    return sorted((f for f in found if f[0] > beyond), key=lambda f: f[:2])
+
+
 class NavigateTo(RobotActionSkill):
     """Drive to a base pose, or to a map node's parking position (its default, or ``parking``).
 
@@ -102,12 +111,7 @@ class NavigateTo(RobotActionSkill):
         return found[0][1], found[0][2]
 
     def _by_distance(self, target: str, beyond: float = -1.0):
-        """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
-        further than ``beyond``, nearest first."""
-        here = self.robot.base_pose()
-        found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
-                 for p, pose in self.world.parking_positions(target))
-        return sorted(f for f in found if f[0] > beyond)
+        return parkings_by_distance(self.world, self.robot, target, beyond)
 
     def describe(self) -> str:
         return f"navigating {getattr(self, '_what', '')}".strip()
@@ -129,10 +133,12 @@ class OtherParkings(Skill):
 
     def update(self) -> py_trees.common.Status:
         target = self.input("target")
-        here = self.robot.base_pose()
-        found = sorted((math.hypot(pose.x - here.x, pose.y - here.y), p.id)
-                       for p, pose in self.world.parking_positions(target))
-        places = [pid for d, pid in found if d > AT_PARKING_M]
+        try:
+            places = [pid for _, pid, _ in parkings_by_distance(self.world, self.robot, target,
+                                                                 beyond=AT_PARKING_M)]
+        except (KeyError, ValueError) as err:      # not a node of the map
+            self.feedback_message = f"{target}: {err}"
+            return py_trees.common.Status.FAILURE
         self.set_output("places", places)
         if not places:
             self.feedback_message = f"{target} has no other parking position"
