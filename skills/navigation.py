@@ -8,6 +8,7 @@ import py_trees
 from skills.actions import RobotActionSkill
 from skills.base import Port, Skill
 from skills.values import as_pose
+from worldmodel.errors import WorldError
 from worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
 
 
@@ -136,8 +137,9 @@ class OtherParkings(Skill):
         try:
             places = [pid for _, pid, _ in parkings_by_distance(self.world, self.robot, target,
                                                                  beyond=AT_PARKING_M)]
-        except (KeyError, ValueError) as err:      # not a node of the map
-            self.feedback_message = f"{target}: {err}"
+        except (WorldError, KeyError, ValueError) as err:   # not a node of the map
+            said = str(err).strip("'\"")
+            self.feedback_message = said if str(target) in said else f"{target}: {said}"
             return py_trees.common.Status.FAILURE
         self.set_output("places", places)
         if not places:

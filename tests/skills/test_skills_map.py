@@ -181,6 +181,11 @@ def test_other_parkings_lists_the_places_to_look_from_nearest_first(demo_world):
     assert tick(s) == S.SUCCESS
     # every one but the one the robot is at, nearest first (the front, then the far side)
     assert bb("/places") == ["oven_front", "oven_right"]
+    # a node the map does not have: fail, naming it
+    s = make(OtherParkings, demo_world, robot, inputs={"target": "no_such_thing"},
+             outputs={"places": "/places"})
+    assert tick(s) == S.FAILURE
+    assert "no_such_thing" in s.feedback_message
     only = demo_world.parking_positions("oven")[:1]
     demo_world.parking_positions = lambda node: only
     robot.base_pose = lambda: only[0][1]
