@@ -67,6 +67,10 @@ class ArticulatedConfig:
     min_base_points: int = 250
     max_base_move: float = 0.06
     max_base_turn_deg: float = 3.0
+    #: A door's hinge may shift by this much (sigma, m) when its object's base could not be
+    #: registered (``register_joint``'s ``slack``): the map's pose of an object moved a
+    #: little is centimetres off, and a door read from a hinge there is degrees off.
+    hinge_slack: float = 0.02
 
 
 @dataclass
@@ -314,7 +318,8 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
                                reason=err.message)
             else:
                 st = _refine_part(part, joint, best, samples, grid, ref, obs, cfg,
-                                  T_world_camera[:3, 3], normal)
+                                  T_world_camera[:3, 3], normal,
+                                  slack=cfg.hinge_slack if note else 0.0)
             out.parts[pid] = st
             if st.value is not None:
                 states[pid] = st.value
@@ -326,7 +331,7 @@ def register_articulated(world, object_id: str, depth: np.ndarray, K,
 
 def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: View, obs: View,
                  cfg: ArticulatedConfig, cam_position: np.ndarray,
-                 face_normal: np.ndarray) -> PartState:
+                 face_normal: np.ndarray, slack: float = 0.0) -> PartState:
     view = ref.select(_part_nodes(part))
     jt = part.joint.type
     # Points seen at less than ~80 degrees from their normal: a door seen edge-on shows only
@@ -357,7 +362,7 @@ def _refine_part(part: Part, joint: JointAxis, best: float, samples, grid, ref: 
         return PartState(part.id, jt, None, None, coarse_value=best,
                          reason="nothing observed where the part can be")
     try:
-        res = register_joint(mp, mn, observed, joint, best, cfg.joint)
+        res = register_joint(mp, mn, observed, joint, best, cfg.joint, slack=slack)
     except RegistrationFailed as err:
         return PartState(part.id, jt, None, None, coarse_value=best, reason=err.message)
     n_in = len(res.inliers)

@@ -436,14 +436,21 @@ def joint_jacobian(joint: "JointAxis", p: np.ndarray, n: np.ndarray) -> np.ndarr
 @single_threaded_blas
 def register_joint(model_points: np.ndarray, model_normals: np.ndarray, observed: np.ndarray,
                    joint: JointAxis, value_init: float, cfg: ICPConfig = ICPConfig(),
-                   tree: Optional[cKDTree] = None) -> ICPResult:
+                   tree: Optional[cKDTree] = None, slack: float = 0.0) -> ICPResult:
     """One-coordinate registration: find the joint value at which the part's model points
     (``model_points`` / ``model_normals`` in the part frame, what the camera sees of the part)
     lie on the ``observed`` world points. The model moves, the observation stays (a KD-tree
     on it is built once); point-to-plane on the model's normals.
 
-    Returns ``value`` (clamped to the limits) and ``T`` = ``T_world_part`` at that value.
-    ``inliers`` index model points.
+    ``slack`` (metres, revolute joints only): the joint's axis may also shift across the
+    floor, with a Gaussian prior of that sigma on the shift. For a part whose parent could
+    not be registered (its base kept where the map has it, centimetres off): a door hung
+    from a hinge that is not where the map says turns to a wrong angle to put its face on
+    the observed one, while with the hinge free the angle comes from the face's direction,
+    which no shift changes (only the base's yaw error remains).
+
+    Returns ``value`` (clamped to the limits) and ``T`` = ``T_world_part`` at that value (and
+    the shift, when there is slack). ``inliers`` index model points.
     """
     mp = np.asarray(model_points, dtype=float)
     mn = np.asarray(model_normals, dtype=float)
@@ -452,28 +459,52 @@ def register_joint(model_points: np.ndarray, model_normals: np.ndarray, observed
     _require(obs, cfg.min_points, "joint ICP observation")
     tree = tree or cKDTree(obs)
     s = float(np.clip(value_init, joint.lower, joint.upper))
+    free = slack > 0 and joint.type == "revolute"
+    shift = np.zeros(3)
+
+    def at(value):
+        T = joint.T_world_part(value)
+        T[:2, 3] += shift[:2]
+        return T
+
     total, done, info = 0, False, np.zeros((1, 1))
     for stage, (gate, iterations, robust) in enumerate(stages(cfg)):
         for _ in range(iterations):
             total += 1
-            T = joint.T_world_part(s)
+            T = at(s)
             p, n = transform(T, mp), mn @ T[:3, :3].T
             i_m, i_o, _ = associate(tree, p, gate)
             if len(i_m) < 3:
                 break
             r = point_to_plane(p[i_m], obs[i_o], n[i_m])
             w = kernel_weights(r, robust, cfg.robust_scale)
-            H, g = normal_equations(joint_jacobian(joint, p[i_m], n[i_m]), r, w)
-            info = H / max(w.sum(), 1e-9)
+            # the turn about the (shifted) axis: the points as they would be unshifted
+            J = joint_jacobian(joint, p[i_m] - shift, n[i_m])
+            if free:
+                J = np.hstack([J, n[i_m][:, :2]])
+            H, g = normal_equations(J, r, w)
+            info = H[:1, :1] / max(w.sum(), 1e-9)
+            if free:
+                # the prior on the shift, on the residuals' scale: sum w r^2 + |t|^2 s_r^2 / slack^2
+                prior = (cfg.robust_scale or 0.005) ** 2 / slack ** 2 * max(w.sum(), 1.0) / len(r)
+                H = H + np.diag([0.0, prior, prior])
+                g = g + np.array([0.0, prior * shift[0], prior * shift[1]])
             x = solve(H, g)
             if x is None:
                 break
             new = float(np.clip(s + x[0], joint.lower, joint.upper))
             step, s = np.array([new - s]), new
+            if free:
+                before = shift[:2].copy()
+                shift[:2] += x[1:]
+                far = np.linalg.norm(shift[:2]) / (3 * slack)
+                if far > 1:      # no further than three sigmas
+                    shift[:2] /= far
+                step = np.array([step[0], *(shift[:2] - before)])
             if converged(step, cfg.tolerance):
                 done = stage == len(cfg.gates) - 1
                 break
-    T = joint.T_world_part(s)
+    T = at(s)
     # Residuals and inliers with the observation as the reference: normals of the model.
     p, n = transform(T, mp), mn @ T[:3, :3].T
     i_m, i_o, _ = associate(tree, p, cfg.gates[-1])
