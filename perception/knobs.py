@@ -96,6 +96,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
 from perception.camera import Intrinsics
+from perception.registration import single_threaded_blas
 from perception.trained import read_time, trained_fields
 
 #: Face classes of a label: front (normal along the knob's axis), or a side facing canvas
@@ -981,6 +982,10 @@ class KnobReader:
         g = getattr(self, "half_turn_gates", None)
         return float(g[min(int(level), len(g) - 1)]) if g else -math.inf
 
+    # OpenBLAS on one thread while reading: the products here are small (windows of a few
+    # thousand pixels, 3- and 4-column Gram matrices) and its threads spin on them, which
+    # doubled the CPU of a reading for the same wall time (home 5: 115 against 62 ms per knob).
+    @single_threaded_blas
     def read(self, image: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
              priors: Sequence[KnobPrior], depth: Optional[np.ndarray] = None) -> list[KnobReading]:
         """One reading per prior. ``depth``: the depth image registered to ``image`` (m along
@@ -995,6 +1000,7 @@ class KnobReader:
         return [self.read_one(rgb, K, T_wc, p, depth) for p in priors]
 
     # one knob ------------------------------------------------------------------------------
+    @single_threaded_blas
     def evidence(self, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, prior: KnobPrior,
                  depth: Optional[np.ndarray] = None):
         """The knob's fit: a KnobReading with ``found`` and ``angle`` (no gates applied, no
