@@ -57,6 +57,15 @@ class DetectionConfig:
     yaw_steps: int = 8              #: initial yaws for models that are not rotationally symmetric
     occlusion_margin: float = 0.02  #: a model point is hidden when measured this much nearer
     accept_confidence: float = 0.45  #: ``Detection.accepted`` threshold
+    #: ``Detection.accepted`` also needs this share of the model's facing surface in sight
+    #: (not hidden behind nearer measurements) when the supporting furniture is what hides
+    #: most of the rest: the few points of a model mostly hidden behind a cupboard's side can
+    #: be that side's own edge, unexplained by its model when the believed camera is a few
+    #: centimetres off, in a colour that agrees (a blue bottle "found" at 0.46 confidence on a
+    #: slate-blue cupboard, 12 % of it in sight). A model hidden by something else (an object
+    #: the map does not know) is accepted as before.
+    min_visible_fraction: float = 0.25
+    furniture_hiding_distance: float = 0.04  #: a hiding point this near the furniture is its own
     model_spacing: float = 0.005    #: model surface sample spacing
     furniture_distance: float = 0.012  #: points this near the supporting furniture's model are its own
 
@@ -178,6 +187,9 @@ class Hypothesis:
     visible_fraction: float    #: expected model surface not hidden by nearer measurements
     cluster: int
     inliers: np.ndarray = field(repr=False, default=None)  #: indices into Detection.points_world
+    #: of the model surface hidden by nearer measurements, the share hidden by the supporting
+    #: furniture itself (measured only for hypotheses the visibility gate would refuse)
+    hidden_by_furniture: float = 0.0
 
     @property
     def position(self) -> np.ndarray:
@@ -198,12 +210,16 @@ class Detection:
     clusters: list[np.ndarray]             #: indices into points_world
     hypotheses: list[Hypothesis]           #: best first
     accept_confidence: float = 0.5
+    min_visible_fraction: float = 0.0
 
     @property
     def accepted(self) -> list[Hypothesis]:
-        """Hypotheses at or above the acceptance confidence that no stronger one contradicts."""
+        """Hypotheses at or above the acceptance confidence that no stronger one contradicts
+        and that are not mostly hidden by the furniture they stand on
+        (``DetectionConfig.min_visible_fraction``)."""
         return [h for h in self.hypotheses if h.confidence >= self.accept_confidence
-                and h.conflict < 0.5]
+                and (h.visible_fraction >= self.min_visible_fraction
+                     or h.hidden_by_furniture < 0.5) and h.conflict < 0.5]
 
     def best(self, object_id: str) -> Optional[Hypothesis]:
         hs = [h for h in self.hypotheses if h.object_id == object_id]
@@ -493,7 +509,50 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
                     hyps.append(_verify(model, T, ci, pts, hsv, normals, tree_xy, tree_xyz, d,
                                         K, T_cw, color is not None, config))
     hyps = _resolve(hyps)
-    return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence)
+    for h in hyps:
+        if h.confidence >= config.accept_confidence and h.visible_fraction < config.min_visible_fraction:
+            h.hidden_by_furniture = _hidden_by_furniture(world, name.split("/")[0],
+                                                         models[h.object_id], h.T_world_object,
+                                                         d, K, T_cw, config)
+    return Detection(plane, name, pts, hsv, clusters, hyps, config.accept_confidence,
+                     config.min_visible_fraction)
+
+
+def _model_in_view(model: ObjectModel, T: np.ndarray, depth, K, T_cw, config: DetectionConfig):
+    """The model at ``T`` seen by the camera: its points and normals in the world, its
+    points in the camera frame, their pixels (u, v), the depth measured there (0 outside the
+    image), and which facing points are expected and which of those are hidden by a
+    measurement nearer than ``occlusion_margin``."""
+    R = T[:3, :3]
+    mp_w = model.points @ R.T + T[:3, 3]
+    mn_w = model.normals @ R.T
+    pc = mp_w @ T_cw[:3, :3].T + T_cw[:3, 3]
+    nc = mn_w @ T_cw[:3, :3].T
+    facing = np.einsum("ij,ij->i", nc, pc) < 0
+    uv, front = project(pc, K)
+    u = np.round(uv[:, 0]).astype(int)
+    v = np.round(uv[:, 1]).astype(int)
+    inimg = front & (u >= 0) & (u < K.width) & (v >= 0) & (v < K.height)
+    measured = np.zeros(len(pc))
+    measured[inimg] = depth[v[inimg], u[inimg]]
+    expected = facing & inimg
+    hidden = expected & (measured > 0) & (measured < pc[:, 2] - config.occlusion_margin)
+    return mp_w, mn_w, pc, u, v, measured, expected, hidden
+
+
+def _hidden_by_furniture(world, furniture: str, model: ObjectModel, T: np.ndarray, depth, K,
+                         T_cw, config: DetectionConfig) -> float:
+    """Of the model's facing surface hidden by nearer measurements, the share whose hiding
+    measurement lies on the furniture's own model (within ``furniture_hiding_distance``)."""
+    _, _, _, u, v, measured, _, hidden = _model_in_view(model, T, depth, K, T_cw, config)
+    if not hidden.any():
+        return 0.0
+    z = measured[hidden]
+    p_cam = np.stack([(u[hidden] - K.cx) / K.fx * z, (v[hidden] - K.cy) / K.fy * z, z], axis=1)
+    T_wc = np.linalg.inv(T_cw)
+    p_world = p_cam @ T_wc[:3, :3].T + T_wc[:3, 3]
+    return float(_explained_by_furniture(world, furniture, p_world,
+                                         config.furniture_hiding_distance).mean())
 
 
 def _headroom(world, surface: str, T_ws: np.ndarray, sx: float, sy: float) -> float:
@@ -639,19 +698,8 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
             depth, K, T_cw, use_color: bool, config: DetectionConfig) -> Hypothesis:
     """Score one hypothesis against the view (see the module docstring)."""
     R = T[:3, :3]
-    mp_w = model.points @ R.T + T[:3, 3]
-    mn_w = model.normals @ R.T
-    pc = mp_w @ T_cw[:3, :3].T + T_cw[:3, 3]
-    nc = mn_w @ T_cw[:3, :3].T
-    facing = np.einsum("ij,ij->i", nc, pc) < 0
-    uv, front = project(pc, K)
-    u = np.round(uv[:, 0]).astype(int)
-    v = np.round(uv[:, 1]).astype(int)
-    inimg = front & (u >= 0) & (u < K.width) & (v >= 0) & (v < K.height)
-    measured = np.zeros(len(pc))
-    measured[inimg] = depth[v[inimg], u[inimg]]
-    expected = facing & inimg
-    hidden = expected & (measured > 0) & (measured < pc[:, 2] - config.occlusion_margin)
+    mp_w, mn_w, _, _, _, measured, expected, hidden = _model_in_view(model, T, depth, K, T_cw,
+                                                                      config)
     visible = expected & ~hidden
     n_exp, n_vis = int(expected.sum()), int(visible.sum())
     visible_fraction = n_vis / n_exp if n_exp else 0.0

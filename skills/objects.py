@@ -131,7 +131,7 @@ class VerifyObject(_PerceptionSkill):
                Port("pose", "pose", required=False))
 
     def perceive(self):
-        from perception.objects import verify_object
+        from perception.objects import DetectionConfig, verify_object
         oid = resolve_object(self.world, self.input("object"))
         pose = self.input("pose")
         T = self.world.T_world(oid) if pose is None else _T(pose)
@@ -142,6 +142,9 @@ class VerifyObject(_PerceptionSkill):
         self.set_output("confidence", conf)
         if h is None or conf < float(self.input("min_confidence")):
             return False, f"{oid} not verified (confidence {conf:.2f})"
+        if h.visible_fraction < DetectionConfig().min_visible_fraction:
+            return False, (f"{oid} not verified: only {h.visible_fraction:.0%} of it in sight "
+                           f"(confidence {conf:.2f})")
         self.set_output("pose", Pose.from_matrix(h.T_world_object))
         return True, f"{oid} verified (confidence {conf:.2f})"
 

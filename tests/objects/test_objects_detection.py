@@ -166,3 +166,54 @@ def test_bench_counts_an_object_of_the_room_found_where_it_stands_as_no_false_po
     assert score(found, demo_world, {})[:3] == (0, 1, 0)
     off = SimpleNamespace(accepted=[SimpleNamespace(object_id=oid, position=where + [0.2, 0, 0])])
     assert score(off, demo_world, {}, bystanders=frozenset({oid}))[:3] == (0, 1, 0)
+
+
+def test_a_model_mostly_hidden_behind_furniture_of_its_colour_is_not_accepted():
+    """Generated home 5: a blue bottle that the map puts in a slate-blue cupboard (hue within
+    the colour test's 25 degrees, saturation just over its 0.25) has been moved elsewhere. Seen
+    with the door open and the believed camera 3 cm or 2 degrees off, the cupboard's own side
+    and door edges, unexplained by its model, fit the bottle's model placed mostly behind them:
+    hypotheses of 0.45-0.52 confidence with 9-22 % of the model in sight, the rest hidden by
+    the cupboard. None may be accepted."""
+    import math
+    from executive.scenarios import resolve_world
+    from perception.objects import DetectionConfig
+    belief = resolve_world("home:5")
+    truth = belief.copy()
+    truth.move_object("blue_bottle", "bedside_1", Pose(0.13, 0.1, 0.551 - truth.T_world(
+        "bedside_1")[2, 3]), "on")
+    for m in (belief, truth):
+        m.set_joint_state("cupboard_1_door", math.pi / 2, source="test")
+    surface = next(s for s in belief.get("cupboard_1").surfaces if s.id == "inside_bottom")
+    target = (belief.T_world("cupboard_1") @ surface.pose.matrix())[:3, 3]
+    ungated = DetectionConfig(min_visible_fraction=0.0)
+    wrong, would_pass = [], 0
+    for pid, pose in belief.parking_positions("cupboard_1"):
+        if not pid.id.endswith(("_left", "_right")):
+            continue
+        T_true = look_at(np.array([pose.x, pose.y, 1.3]), target)
+        for seed in (0, 1):
+            depth, color, _ = observe(truth, T_true, np.random.default_rng(seed), K)
+            for dx, dy, deg in ((0, 0.03, 0), (0, -0.03, 0), (0, 0, 2), (0, 0, -2)):
+                a = math.radians(deg)           # turned about the camera's own position
+                T_believed = T_true.copy()
+                T_believed[:3, :3] = np.array([[math.cos(a), -math.sin(a), 0],
+                                               [math.sin(a), math.cos(a), 0],
+                                               [0, 0, 1]]) @ T_true[:3, :3]
+                T_believed[:2, 3] += dx, dy
+                det = detect_objects(belief, depth, color, K, T_believed,
+                                     surface="cupboard_1/inside_bottom")
+                for h in det.accepted:
+                    # an object reported in the cupboard that is not in it (the believed
+                    # camera's error moves those that are by a few centimetres)
+                    there = truth.T_world(h.object_id)[:3, 3]
+                    if np.linalg.norm(h.position - there) > 0.15:
+                        wrong.append((pid.id, seed, (dx, dy, deg), h.object_id, h.visible_fraction))
+                # The same hypotheses without the visibility gate: some pass the confidence gate.
+                would_pass += sum(1 for h in det.hypotheses
+                                  if h.confidence >= ungated.accept_confidence and h.conflict < 0.5
+                                  and h.visible_fraction < det.min_visible_fraction
+                                  and h.hidden_by_furniture >= 0.5
+                                  and h.object_id in ("blue_bottle", "navy_bottle"))
+    assert not wrong, wrong
+    assert would_pass >= 1      # what the gate is for, seen in this home
