@@ -191,6 +191,12 @@ class Hypothesis:
     #: furniture itself (measured only for hypotheses the visibility gate would refuse)
     hidden_by_furniture: float = 0.0
 
+    def mostly_hidden_by_furniture(self, min_visible_fraction: float) -> bool:
+        """Whether less than ``min_visible_fraction`` of the model is in sight and the
+        supporting furniture hides most of the rest (``DetectionConfig.min_visible_fraction``):
+        such a hypothesis is not accepted, nor verified."""
+        return self.visible_fraction < min_visible_fraction and self.hidden_by_furniture >= 0.5
+
     @property
     def position(self) -> np.ndarray:
         return self.T_world_object[:3, 3].copy()
@@ -218,8 +224,8 @@ class Detection:
         and that are not mostly hidden by the furniture they stand on
         (``DetectionConfig.min_visible_fraction``)."""
         return [h for h in self.hypotheses if h.confidence >= self.accept_confidence
-                and (h.visible_fraction >= self.min_visible_fraction
-                     or h.hidden_by_furniture < 0.5) and h.conflict < 0.5]
+                and not h.mostly_hidden_by_furniture(self.min_visible_fraction)
+                and h.conflict < 0.5]
 
     def best(self, object_id: str) -> Optional[Hypothesis]:
         hs = [h for h in self.hypotheses if h.object_id == object_id]

@@ -142,7 +142,7 @@ class VerifyObject(_PerceptionSkill):
         self.set_output("confidence", conf)
         if h is None or conf < float(self.input("min_confidence")):
             return False, f"{oid} not verified (confidence {conf:.2f})"
-        if h.visible_fraction < DetectionConfig().min_visible_fraction and h.hidden_by_furniture >= 0.5:
+        if h.mostly_hidden_by_furniture(DetectionConfig().min_visible_fraction):
             return False, (f"{oid} not verified: only {h.visible_fraction:.0%} of it in sight, "
                            f"the rest hidden by the furniture (confidence {conf:.2f})")
         self.set_output("pose", Pose.from_matrix(h.T_world_object))
