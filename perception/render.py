@@ -694,11 +694,10 @@ class _AdaptiveCast:
             return
         # np.take along an axis gathers the rows several times faster than indexing does.
         d = np.take(self.flat_dirs, idx, axis=0).reshape(-1, 1, 3)
-        # The origin is the camera centre in float32 (what cv2.transform of the directions by
-        # [0 | c] gave, bit for bit); the directions rotated into the world by OpenCV.
-        rays = np.empty((len(idx), 6), dtype=np.float32)
-        rays[:, :3] = self.origin[:, 3]
-        rays[:, 3:] = cv2.transform(d, self.Rf).reshape(-1, 3)
+        # As a ray per pixel (``Scene.cast``): the origin by cv2.transform of the directions by
+        # [0 | c] (the camera centre in float32), the directions rotated into the world by
+        # OpenCV, the two interleaved by cv2.merge (twice as fast as numpy's strided writes).
+        rays = cv2.merge([cv2.transform(d, self.origin), cv2.transform(d, self.Rf)]).reshape(-1, 6)
         ans = self.scene._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         gid = ans["geometry_ids"].numpy()
         tri = np.take(self.scene._first, gid, mode="clip")
