@@ -275,7 +275,9 @@ class _Caster:
         same_rays = np.ndim(dirs) == 2 and np.ndim(origins) <= 2
         dirs = np.broadcast_to(dirs, (B,) + np.shape(dirs)[-2:])
         N = dirs.shape[1]
-        origins = np.broadcast_to(origins, (B, N, 3))
+        # one origin for every ray (the camera centre): turned once per turn, not per ray
+        origins = (np.broadcast_to(origins, (B, 1, 3)) if np.ndim(origins) == 1
+                   else np.broadcast_to(origins, (B, N, 3)))
         best_t = np.full((B, N), np.inf)
         label = np.zeros((B, N), dtype=np.uint16)
         classes = N_FACE_FINE if fine else N_FACE
@@ -294,7 +296,7 @@ class _Caster:
                 rays[..., off + 2] = v[..., 2]
             ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
             t = np.broadcast_to(ans["t_hit"].numpy().reshape(Bc, N), (B, N))
-            hit = np.isfinite(t) & (t < best_t)
+            hit = t < best_t                         # (a miss is inf, never below)
             if not hit.any():
                 continue
             gid = np.broadcast_to(ans["geometry_ids"].numpy().reshape(Bc, N).astype(np.int64), (B, N))
@@ -310,7 +312,9 @@ class _Caster:
             else:
                 face = np.where(nz > 0.7, 0, 1 + np.round(az / (math.pi / 2)).astype(np.int64) % 4)
             table = (1 + self.part[k][None, :] * classes + face).astype(np.uint16)
-            lab = np.take_along_axis(table, tri, axis=1)
+            # each turn's row of the table, as one flat gather (take_along_axis builds an index
+            # per element)
+            lab = np.take(table, tri + (np.arange(B) * table.shape[1])[:, None])
             label = np.where(hit, lab, label)
             best_t = np.where(hit, t, best_t)
         return (label, best_t) if with_t else label
