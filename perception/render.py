@@ -148,7 +148,7 @@ class Scene:
         return self.shade(self.cast(K, T_world_camera, max_range))
 
     def cast(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0,
-             adaptive: bool | None = None) -> Hits:
+             adaptive: bool | None = None, when_coarse=None) -> Hits:
         """The ray cast of a view (depth final: 0 where nothing was hit within ``max_range``),
         before shading: ``shade`` makes it a ``Rendering``. Split so that work that needs only
         the depth (the simulated sensor's noise draws) can run while the shading does.
@@ -156,18 +156,25 @@ class Scene:
         ``adaptive`` (default: the scene's ``adaptive``, module constant ``ADAPTIVE``): cast a
         coarse grid of rays and fill the pixels of a block whose corners hit one triangle by
         intersecting their rays with that triangle's plane (see ``_AdaptiveCast``): the same
-        triangle ids as a ray per pixel, depth within float rounding. False: a ray per pixel."""
+        triangle ids as a ray per pixel, depth within float rounding. False: a ray per pixel.
+
+        ``when_coarse``, if given, is called (no arguments, on this thread) once the adaptive
+        cast has cast its coarsest rays, from where on it leaves a core idle for a while; the
+        simulated robot starts its noise's random draws there. A cast of a ray per pixel
+        calls it first."""
         H, W = K.height, K.width
         T = np.asarray(T_world_camera, dtype=np.float64)
         R_wc, c_world = T[:3, :3], T[:3, 3]
         if adaptive is None:
             adaptive = self.adaptive and H * W >= ADAPTIVE_MIN_PIXELS
         if adaptive and min(H, W) >= 2:
-            depth, tri = _AdaptiveCast(self, K, R_wc, c_world, max_range).run()
+            depth, tri = _AdaptiveCast(self, K, R_wc, c_world, max_range, when_coarse).run()
             miss = ~((depth <= max_range) & (depth > 0))
             depth[miss] = 0
             return Hits(K=K, R_wc=R_wc, c_world=c_world, depth=depth.reshape(H, W), miss=miss,
                         triangle=tri, tables=(self._tri_gid, self._tri_prim))
+        if when_coarse is not None:
+            when_coarse()
         rays_camera, _ = _pixel_rays(K)
         # Rays in float32 (what Embree uses anyway): pixel directions cached per camera,
         # rotated into the world and interleaved with the origin by OpenCV (several times
@@ -675,8 +682,9 @@ class _AdaptiveCast:
     in tests/robot/test_render_adaptive.py; see docs/robot-adapter.md, "Speed"."""
 
     def __init__(self, scene: "Scene", K: Intrinsics, R_wc: np.ndarray, c_world: np.ndarray,
-                 max_range: float):
+                 max_range: float, when_coarse=None):
         self.scene, self.K, self.R, self.c, self.max_range = scene, K, R_wc, c_world, max_range
+        self.when_coarse = when_coarse
         H, W = K.height, K.width
         self.H, self.W = H, W
         self.rays, _ = _pixel_rays(K)
@@ -940,6 +948,8 @@ class _AdaptiveCast:
             if blocks is None:
                 u, v, z, angle = corners.result()
                 coef = coef.result()
+                if self.when_coarse is not None:
+                    self.when_coarse()
                 u, v, angle = self._unhidden(u, v, z, angle, uni, c00, s, coef)
             uni &= ~self._split_near(u, v, angle, s, nr, nc)
             here = np.where(uni, c00, _UNSET)
