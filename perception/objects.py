@@ -32,7 +32,8 @@ from scipy.spatial import cKDTree
 
 from perception.camera import Intrinsics, depth_to_points, project
 from perception.errors import PerceptionError
-from perception.registration import associate, converged, planar_delta, planar_point_step
+from perception.registration import (associate, converged, planar_delta, planar_point_step,
+                                     transform)
 
 
 #: Materials on which Kinect-class sensors often return no depth (see hearth.robot.noise).
@@ -555,8 +556,7 @@ def _hidden_by_furniture(world, furniture: str, model: ObjectModel, T: np.ndarra
         return 0.0
     z = measured[hidden]
     p_cam = np.stack([(u[hidden] - K.cx) / K.fx * z, (v[hidden] - K.cy) / K.fy * z, z], axis=1)
-    T_wc = np.linalg.inv(T_cw)
-    p_world = p_cam @ T_wc[:3, :3].T + T_wc[:3, 3]
+    p_world = transform(np.linalg.inv(T_cw), p_cam)
     return float(_explained_by_furniture(world, furniture, p_world,
                                          config.furniture_hiding_distance).mean())
 
