@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 import open3d as o3d
 
+from perception import kernels
 from perception.bands import in_bands, pool, row_bands
 from perception.camera import Intrinsics
 
@@ -236,32 +237,13 @@ class Scene:
         color2 = color.reshape(H, W, 3)
 
         def shade(rows: slice) -> None:
-            if rows.stop <= rows.start:                 # (an empty band: OpenCV refuses it)
+            if rows.stop <= rows.start:
                 return
-            d, m = depth[rows], miss[rows]
-            t = tri[rows]
-            np.copyto(t, triangle[rows])
-            np.copyto(t, self._no_hit, where=m)         # hits beyond the range too
-            # As numpy's index type once: np.take converts any other on every call.
-            t = t.astype(np.intp)
-            # mode="clip" (the indices are all in range): with the default, take buffers
-            # whatever it writes into ``out``.
-            np.take(self._tri_labels, t, out=labels[rows], mode="clip")
-            inc = np.take(abs_dist, t, out=incidence[rows], mode="clip")
-            inv_t = np.divide(inv_length[rows], d, where=~m, out=np.zeros(len(d), np.float32))
-            inc *= inv_t
-            np.minimum(inc, 1, out=inc)
-            # A little view-dependent light (0.15 incidence) so faces parallel to the light differ.
-            rgbs = np.take(colour_shade, t, axis=0)     # label -1: the trailing black
-            s = np.float32(0.15) * inc
-            s += rgbs[:, 3]
-            planes = []
-            for ch in range(3):
-                c = np.multiply(rgbs[:, ch], s)
-                np.minimum(c, 255, out=c)
-                planes.append(c.astype(np.uint8))
-            # Interleaved by OpenCV: numpy's strided stores into one channel cost more.
-            color[rows] = cv2.merge(planes).reshape(-1, 3)
+            # One compiled pass per pixel (perception.kernels.shade; the numpy passes it
+            # replaced, operation for operation, are in tests/robot/test_noise_kernels.py).
+            kernels.shade(depth[rows], miss[rows], triangle[rows], inv_length[rows],
+                          np.uint32(self._no_hit), self._tri_labels, abs_dist, colour_shade,
+                          np.float32(0.15), tri[rows], labels[rows], incidence[rows], color[rows])
             if after is not None:
                 after(slice(rows.start // W, rows.stop // W), labels2, incidence2, color2)
 
@@ -707,13 +689,9 @@ class _AdaptiveCast:
         # OpenCV, the two interleaved by cv2.merge (twice as fast as numpy's strided writes).
         rays = cv2.merge([cv2.transform(d, self.origin), cv2.transform(d, self.Rf)]).reshape(-1, 6)
         ans = self.scene._scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
-        gid = ans["geometry_ids"].numpy()
-        tri = np.take(self.scene._first, gid, mode="clip")
-        tri += ans["primitive_ids"].numpy()
-        np.copyto(tri, np.uint32(self.scene._no_hit), where=gid == _NO_HIT)
-        self.depth[idx] = ans["t_hit"].numpy()
-        self.tri[idx] = tri
-        self.known[idx] = True
+        kernels.put_hits(idx, ans["geometry_ids"].numpy(), ans["primitive_ids"].numpy(),
+                         ans["t_hit"].numpy(), self.scene._first, np.uint32(self.scene._no_hit),
+                         np.uint32(_NO_HIT), self.depth, self.tri, self.known)
         self.rays_cast += len(idx)
 
     def _project_boxes(self, Cc: np.ndarray):
@@ -968,15 +946,7 @@ class _AdaptiveCast:
         # the image's edge) that no ray went through yet (in this order: the rays of one
         # cast are not independent of the others in it, Embree's depth can differ by an
         # ulp with a ray's place in the batch).
-        bi, bj = np.nonzero(blocks == _UNSET)
-        r0, c0 = bi * ps, bj * ps
-        r1 = np.where(bi == pr - 1, H, r0 + ps)
-        c1 = np.where(bj == pc - 1, W, c0 + ps)
-        rr = r0[:, None] + np.repeat(np.arange(ps + 1), ps + 1)[None]
-        cc = c0[:, None] + np.tile(np.arange(ps + 1), ps + 1)[None]
-        ok = (rr < r1[:, None]) & (cc < c1[:, None])
-        idx = (rr * W + cc)[ok]
-        self._cast(idx[~self.known[idx]])
+        self._cast(kernels.unset_block_pixels(blocks, _UNSET, ps, H, W, self.known))
         # Depth of the filled pixels: 1 / depth on their triangle's plane (``coef``), made
         # per band of block rows and per pixel position in the block (a block's pixels share
         # a triangle), and put where no ray went.
@@ -984,34 +954,13 @@ class _AdaptiveCast:
         ys = self.rays[:, 0, 1].astype(np.float64)
         Hr, Wr = pr * ps, pc * ps                   # the image but a last row or column
         depth2 = self.depth.reshape(H, W)
-        xs_at = [xs[np.arange(pc) * ps + dc] for dc in range(ps)]
-        coef_columns = [np.ascontiguousarray(coef[:, k]) for k in range(3)]
-
-        def fill(brows: slice) -> None:
-            if brows.stop <= brows.start:
-                return
-            b = blocks[brows]
-            t = np.minimum(b, np.uint32(sc._no_hit)).astype(np.intp)
-            A, B, C = (np.take(c, t, mode="clip") for c in coef_columns)    # contiguous
-            filled = b != _UNSET
-            inv = np.empty(b.shape)
-            for dr in range(ps):
-                y = ys[np.arange(brows.start, brows.stop) * ps + dr][:, None]
-                r = slice(brows.start * ps + dr, brows.stop * ps, ps)
-                By = B * y                              # (the same for every column in it)
-                for dc in range(ps):
-                    np.multiply(A, xs_at[dc], out=inv)
-                    inv += By
-                    inv += C
-                    with np.errstate(divide="ignore"):
-                        d = np.divide(1.0, inv, out=inv).astype(np.float32)
-                    c = slice(dc, Wr, ps)
-                    m = ~known2[r, c]
-                    m &= filled
-                    np.copyto(depth2[r, c], d, where=m)
-                    np.copyto(tri2[r, c], b, where=m)
-
-        in_bands(row_bands(pr), fill)
+        coef_c = np.ascontiguousarray(coef)
+        # One compiled pass over the blocks (perception.kernels.fill_blocks: the same float64
+        # operations in the same order as the numpy passes it replaced, in
+        # tests/robot/test_noise_kernels.py), in bands of block rows on the pool's threads.
+        in_bands(row_bands(pr), lambda brows: kernels.fill_blocks(
+            blocks, brows.start, brows.stop, ps, xs, ys, coef_c, np.uint32(sc._no_hit), _UNSET,
+            known2, depth2, tri2))
         # The last row and column where they belong to the blocks before them.
         for rows, cols in ((slice(Hr, H), slice(0, W)), (slice(0, Hr), slice(Wr, W))):
             if rows.stop <= rows.start or cols.stop <= cols.start:

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from perception import kernels
 from perception.bands import in_bands, pool, row_bands
 
 MATERIAL_CODES = {"matte": 0, "dark": 1, "shiny": 2, "glass": 3}
@@ -224,90 +225,60 @@ def _spread(incidence: np.ndarray, labels: np.ndarray, codes: np.ndarray, z: np.
     """Per pixel of the (laterally jittered) depth ``z``, into ``std`` and ``p``: the standard
     deviation of the Gaussian part of the axial noise, and the dropout probability (inf
     where nothing was seen: always dropped); ``codes``: per label, and a trailing one for
-    label -1, the material's code. float32 throughout: this runs on every simulated frame."""
-    # Axial noise; the Gaussian part leaves room for the quantisation's own variance.
-    cos = np.clip(np.asarray(incidence, dtype=np.float32), 1e-3, 1.0)
-    # (a + b (z - c)^2 + d / sqrt(z) * ang * ang)^2, ang = theta / (pi/2 - theta), with the
-    # operations of that expression in its order but into few buffers (a third fewer
-    # passes over memory; the same float32 results).
-    theta = _arccos(cos)
-    np.minimum(theta, np.float32(math.radians(89.0)), out=theta)
-    zc = np.maximum(z, np.float32(1e-3))
-    ang = np.subtract(np.float32(math.pi / 2), theta)
-    np.divide(theta, ang, out=ang)
-    var = np.subtract(z, np.float32(m.axial_c))
-    np.square(var, out=var)
-    var *= np.float32(m.axial_b)
-    var += np.float32(m.axial_a)
-    t = np.sqrt(zc)
-    np.divide(np.float32(m.axial_angle), t, out=t)
-    t *= ang
-    t *= ang
-    var += t
-    np.square(var, out=var)
-    if m.quantise:
-        q2 = np.multiply(zc, zc, out=zc)
-        q2 *= np.float32(m.disparity_step_px / (m.focal_ir_px * m.baseline_m))
-        np.square(q2, out=q2)
-        q2 /= np.float32(12.0)
-        np.subtract(var, q2, out=q2)
-        var *= np.float32(0.25)
-        np.maximum(q2, var, out=var)
-    np.sqrt(var, out=std)
-    # Dropouts: grazing incidence, materials (per label, and a trailing "matte" for label -1).
+    label -1, the material's code. float32 throughout, in one compiled pass per pixel
+    (perception.kernels; the numpy expressions it replaced, operation for operation, are in
+    tests/robot/test_noise_kernels.py): this runs on every simulated frame. The arrays are
+    C-contiguous image rows (a band of them)."""
+    f = np.float32
+    inc, zf = _flat_in(incidence), _flat_in(z)
     g0, g1 = math.cos(math.radians(m.grazing_start_deg)), math.cos(math.radians(m.grazing_full_deg))
-    np.clip((np.float32(g0) - cos) * np.float32(1.0 / max(g0 - g1, 1e-6)), 0.0, 1.0, out=p)
+    # (a + b (z - c)^2 + d / sqrt(z) * ang * ang)^2, ang = theta / (pi/2 - theta), the
+    # Gaussian part leaving room for the quantisation's own variance; then the grazing
+    # dropouts.
+    kernels.noise_spread(inc, zf, _flat_out(std), _flat_out(p), f(1e-3), f(math.radians(89.0)),
+                         f(math.pi / 2), f(m.axial_c), f(m.axial_b), f(m.axial_a),
+                         f(m.axial_angle), f(m.disparity_step_px / (m.focal_ir_px * m.baseline_m)),
+                         f(g0), f(1.0 / max(g0 - g1, 1e-6)), *_ACOS, bool(m.quantise))
     if codes.any():
+        # Materials (per label, and a trailing "matte" for label -1); shiny surfaces reflect
+        # the pattern away except when seen nearly head-on.
         p_code = np.array([0.0, m.dark_dropout, m.shiny_dropout, m.glass_dropout], np.float32)
-        lab = labels.astype(np.intp)                    # (np.take converts on every call)
-        pm = np.take(p_code[codes], lab)                # label -1 picks the trailing "matte"
-        # Shiny surfaces reflect the pattern away except when seen nearly head-on.
-        is_shiny = codes == 2
-        shiny = np.take(is_shiny, lab) if is_shiny.any() else None
-        if shiny is not None and shiny.any():
-            pm[shiny] *= np.clip((1.0 - cos[shiny]) / np.float32(0.1), 0.3, 1.0)
-        np.maximum(p, pm, out=p)
-    p[~(z > 0)] = np.inf
+        kernels.noise_materials(inc, _flat_in(labels, np.int32), _flat_out(p), p_code[codes],
+                                codes == 2, f(1e-3), f(0.3), f(0.1))
+
+
+def _flat_in(a: np.ndarray, dtype=np.float32) -> np.ndarray:
+    """``a`` as a flat C-contiguous array of ``dtype`` for a compiled loop (a view when it
+    is one already)."""
+    return np.ascontiguousarray(a, dtype=dtype).reshape(-1)
+
+
+def _flat_out(a: np.ndarray) -> np.ndarray:
+    """A flat view of ``a`` for a compiled loop to write into (a copy would lose what it
+    writes, so anything but C-contiguous float32 is refused)."""
+    if a.dtype != np.float32 or not a.flags.c_contiguous:
+        raise ValueError("a compiled noise loop writes into C-contiguous float32 arrays only")
+    return a.reshape(-1)
 
 
 #: Abramowitz and Stegun 4.4.46: arccos(x) = sqrt(1 - x) (a0 + a1 x + ... + a7 x^7) on
-#: [0, 1], error at most 2e-8 rad.
+#: [0, 1], error at most 2e-8 rad (numpy's float32 arccos is not vectorised: 3.7 ms a frame,
+#: this 0.85 ms in numpy, less in the compiled pass).
 _ACOS = tuple(np.float32(a) for a in (1.5707963050, -0.2145988016, 0.0889789874, -0.0501743046,
                                       0.0308918810, -0.0170881256, 0.0066700901, -0.0012624911))
-
-
-def _arccos(x: np.ndarray) -> np.ndarray:
-    """arccos of float32 ``x`` in [0, 1] to float32 rounding (A&S 4.4.46 by Horner's rule).
-    Written here because numpy's float32 arccos is not vectorised: on a 640x480 frame it took
-    3.7 ms, this 0.85 ms; the frame's noise differs only where a depth lies within a
-    rounding error of a quantisation step's edge (identical on every view checked)."""
-    acc = np.multiply(x, _ACOS[7])
-    for a in _ACOS[6:0:-1]:
-        acc += a
-        acc *= x
-    acc += _ACOS[0]
-    root = np.subtract(np.float32(1.0), x)
-    np.sqrt(root, out=root)
-    acc *= root
-    return acc
 
 
 def _noisy_depth(z: np.ndarray, std: np.ndarray, p_drop: np.ndarray, gauss: np.ndarray,
                  uniform: np.ndarray, m: KinectNoise, out: np.ndarray) -> np.ndarray:
     """Axial noise, quantisation and dropouts of the depth ``z`` into ``out``, given the
-    per-pixel spread (``_spread``) and draws."""
-    noisy = np.multiply(std, gauss, out=out)
-    noisy += z
-    if m.quantise:
-        fb = np.float32(m.focal_ir_px * m.baseline_m / m.disparity_step_px)
-        steps = np.maximum(noisy, np.float32(1e-3))
-        np.rint(np.divide(fb, steps, out=steps), out=steps)
-        np.divide(fb, np.maximum(steps, np.float32(1), out=steps), out=noisy)
-    drop = noisy < m.min_range
-    drop |= noisy > m.max_range
-    drop |= uniform < p_drop
-    noisy[drop] = 0
-    return noisy
+    per-pixel spread (``_spread``) and draws (C-contiguous image rows), in one compiled pass
+    (perception.kernels)."""
+    f = np.float32
+    kernels.noise_depth(_flat_in(z), _flat_in(std), _flat_in(p_drop), _flat_in(gauss),
+                        _flat_in(uniform), _flat_out(out), f(1e-3),
+                        f(m.focal_ir_px * m.baseline_m / m.disparity_step_px), f(m.min_range),
+                        f(m.max_range), bool(m.quantise))
+    return out
 
 
 def _lateral(z: np.ndarray, rng: np.random.Generator, m: KinectNoise) -> np.ndarray:
