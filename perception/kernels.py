@@ -235,3 +235,41 @@ def unset_block_pixels(blocks, unset, s, H, W, known):
                         out[n] = i
                         n += 1
     return out[:n]
+
+
+@numba.njit(**_JIT)
+def paint_boxes(r0, r1, c0, c1, out):
+    """``out[r0[k]:r1[k], c0[k]:c1[k]] = True`` for every box k (the adaptive cast's blocks
+    near an outline's corner, perception.render._AdaptiveCast._split_near)."""
+    for k in range(r0.shape[0]):
+        for r in range(r0[k], r1[k]):
+            for c in range(c0[k], c1[k]):
+                out[r, c] = True
+
+
+@numba.njit(**_JIT)
+def narrowest_widths(u, v, k, cos, sin, out):
+    """For each row i of the image points ``u``, ``v`` (boxes, points), over its first ``k``
+    points: the smallest over the directions (``cos``, ``sin``) of the extent of u cos + v sin
+    (each product in float64, then their sum, as numpy's), into ``out``; NaN where a point
+    is NaN, as numpy's max and min give it."""
+    for i in range(u.shape[0]):
+        best = np.inf
+        for j in range(cos.shape[0]):
+            cj = cos[j]
+            sj = sin[j]
+            lo = np.inf
+            hi = -np.inf
+            for p in range(k):
+                x = u[i, p] * cj + v[i, p] * sj
+                if x != x:
+                    lo = hi = x
+                    break
+                lo = x if x < lo else lo
+                hi = x if x > hi else hi
+            w = hi - lo
+            if w != w:
+                best = w
+                break
+            best = w if w < best else best
+        out[i] = best

@@ -751,8 +751,9 @@ class _AdaptiveCast:
         cos, sin = np.cos(_DIRECTIONS), np.sin(_DIRECTIONS)
         for sel, k in ((front, 8), (~front, u.shape[1])):
             if sel.any():
-                proj = u[sel, :k, None] * cos + v[sel, :k, None] * sin
-                width[sel] = (proj.max(axis=1) - proj.min(axis=1)).min(axis=1)
+                w = np.empty(int(sel.sum()))
+                kernels.narrowest_widths(u[sel], v[sel], k, cos, sin, w)
+                width[sel] = w
         far = np.minimum(zc.max(axis=1), self.max_range)
         thin_px = THIN_BLOCKS * COARSE_BLOCK
         narrow = seen & ((width < thin_px) | (self.K.fx * ol.middle / far < thin_px)
@@ -860,14 +861,9 @@ class _AdaptiveCast:
         ok = (r1 >= 0) & (r0 < nr) & (c1 >= 0) & (c0 < nc)
         r0, r1 = np.clip(r0[ok], 0, nr - 1), np.clip(r1[ok], 0, nr - 1) + 1
         c0, c1 = np.clip(c0[ok], 0, nc - 1), np.clip(c1[ok], 0, nc - 1) + 1
-        w = nc + 1
-        # +1 at a box's top left and bottom right, -1 at its other two corners; summed.
-        acc = (np.bincount(np.concatenate([r0 * w + c0, r1 * w + c1]), minlength=(nr + 1) * w)
-               - np.bincount(np.concatenate([r0 * w + c1, r1 * w + c0]), minlength=(nr + 1) * w))
-        # Summed by OpenCV's integral image (exact: small integers in float64), twice as
-        # fast as numpy's two cumsums.
-        acc = cv2.integral(acc.astype(np.float64).reshape(nr + 1, w))
-        return acc[1:nr + 1, 1:nc + 1] > 0
+        out = np.zeros((nr, nc), dtype=bool)
+        kernels.paint_boxes(r0, r1, c0, c1, out)
+        return out
 
     def _coef(self) -> np.ndarray:
         """Per triangle, 1 / depth = a x + b y + c on its plane for the ray (x, y, 1): with

@@ -259,3 +259,36 @@ def test_filled_depth_and_pixels_to_cast_are_the_numpy_passes(shape, s):
     flat = known.reshape(-1)
     np.testing.assert_array_equal(kernels.unset_block_pixels(blocks, unset, s, H, W, flat),
                                   unset_pixels_ref(blocks, unset, s, H, W, flat))
+
+
+def split_near_ref(r0, r1, c0, c1, nr, nc):
+    import cv2
+    w = nc + 1
+    acc = (np.bincount(np.concatenate([r0 * w + c0, r1 * w + c1]), minlength=(nr + 1) * w)
+           - np.bincount(np.concatenate([r0 * w + c1, r1 * w + c0]), minlength=(nr + 1) * w))
+    acc = cv2.integral(acc.astype(np.float64).reshape(nr + 1, w))
+    return acc[1:nr + 1, 1:nc + 1] > 0
+
+
+def test_wedge_boxes_and_narrowest_widths_are_the_numpy_passes():
+    rng = np.random.default_rng(3)
+    nr, nc = 120, 160
+    r0 = rng.integers(0, nr, 500)
+    c0 = rng.integers(0, nc, 500)
+    r1 = np.minimum(r0 + rng.integers(1, 18, 500), nr)
+    c1 = np.minimum(c0 + rng.integers(1, 18, 500), nc)
+    got = np.zeros((nr, nc), bool)
+    kernels.paint_boxes(r0, r1, c0, c1, got)
+    np.testing.assert_array_equal(got, split_near_ref(r0, r1, c0, c1, nr, nc))
+    assert 0 < got.mean() < 1
+    from perception.render import _DIRECTIONS
+    cos, sin = np.cos(_DIRECTIONS), np.sin(_DIRECTIONS)
+    u = rng.normal(300, 200, (400, 20))
+    v = rng.normal(200, 150, (400, 20))
+    u[7, 3] = np.nan                                   # numpy's max and min give NaN
+    for k in (8, 20):
+        proj = u[:, :k, None] * cos + v[:, :k, None] * sin
+        want = (proj.max(axis=1) - proj.min(axis=1)).min(axis=1)
+        w = np.empty(len(u))
+        kernels.narrowest_widths(u, v, k, cos, sin, w)
+        np.testing.assert_array_equal(w, want)
