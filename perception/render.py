@@ -422,9 +422,10 @@ class _Outline:
         front has corners that are no vertex, and triangles of two pieces can lie in one
         plane. Kept: ``pierce``, the points where an edge of one piece passes through a
         triangle of another, with ``pierce_dirs``, the edge's direction and the directions of
-        the lines where the edge's two triangles meet the other's plane; ``shared``, boxes
-        (8 corners) around the overlap of two triangles in one plane, with their plane
-        (``shared_plane``: n, h; n = 0 where either piece is not closed and convex)."""
+        the lines where the edge's two triangles meet the other's plane; ``shared``, the
+        overlaps of two triangles in one plane (convex polygons, each as 8 points: see
+        ``_overlaps``), with their plane (``shared_plane``: n, h; n = 0 where either piece
+        is not closed and convex)."""
         parts = self._meshes
         nv = np.array([len(p[0]) for p in parts])
         ne = np.array([len(p[1]) for p in parts])
@@ -447,6 +448,7 @@ class _Outline:
         # door moved computes only the pairs with the door's pieces.
         pair_keys = [(self.keys[i], self.keys[j]) for i, j in zip(I, J)]
         new = np.array([k not in _PAIR_CACHE for k in pair_keys], dtype=bool)
+        first = np.array([ka <= kb for ka, kb in pair_keys], dtype=bool)
 
         def pairs(ca, sa, cb, sb):
             """Every (a of piece I, b of piece J) of the new overlapping pairs, and the
@@ -491,21 +493,24 @@ class _Outline:
         dots = np.einsum("ij,ij->i", N[a], N[b])
         same = np.where(closed, dots > 1 - 1e-9, np.abs(dots) > 1 - 1e-9)
         same &= np.abs(Hh[a] - np.sign(dots) * Hh[b]) < 1e-7
+        # (Each overlap once: from the pair whose first piece comes first by content, as the
+        # cache's keys are, not by place in this scene.)
+        same &= first[pair]
         a, b, closed, pair = a[same], b[same], closed[same], pair[same]
-        pa, pb = V[TV[a]], V[TV[b]]                        # (n, 3, 3)
-        lo_ab = np.maximum(pa.min(axis=1), pb.min(axis=1)) - 1e-7
-        hi_ab = np.minimum(pa.max(axis=1), pb.max(axis=1)) + 1e-7
-        ext = np.sort(hi_ab - lo_ab, axis=1)
-        area = (ext[:, 0] >= 0) & (ext[:, 1] > 1e-6)       # an area, not just an edge
-        lo_ab, hi_ab, a, closed = lo_ab[area], hi_ab[area], a[area], closed[area]
+        # Where the two triangles overlap: their intersection, a convex polygon in their
+        # plane. (Its world-axis box, used before, covers much more than the overlap when
+        # the plane is turned: on a cooker standing at 45 degrees the box of its hob's
+        # overlap with the body's top spread over half the view, every pixel cast.)
+        poly, keep = _overlaps(V[TV[a]], V[TV[b]], N[a])
+        a, closed, pair = a[keep], closed[keep], pair[keep]
         plane = np.hstack([N[a] * closed[:, None], np.where(closed, Hh[a], -1.0)[:, None]])
-        shared_pair = pair[area]
+        shared_pair = pair
         # Into the cache per pair, then every overlapping pair's from it.
         if len(_PAIR_CACHE) > 200_000:
             _PAIR_CACHE.clear()
         po, so = np.argsort(pierce_pair, kind="stable"), np.argsort(shared_pair, kind="stable")
         pp, sp_ = pierce_pair[po], shared_pair[so]
-        box_rows = np.hstack([lo_ab, hi_ab, plane])[so]
+        box_rows = np.hstack([poly.reshape(-1, 24), plane])[so]
         prow = np.hstack([pierce, pierce_dirs.reshape(-1, 9)])[po]
         for k in np.flatnonzero(new):
             _PAIR_CACHE[pair_keys[k]] = (
@@ -513,23 +518,60 @@ class _Outline:
                 box_rows[np.searchsorted(sp_, k):np.searchsorted(sp_, k, side="right")])
         got = [_PAIR_CACHE[k] for k in pair_keys]
         prow = np.vstack([g[0] for g in got] + [np.zeros((0, 12))])
-        box_rows = np.vstack([g[1] for g in got] + [np.zeros((0, 10))])
+        box_rows = np.vstack([g[1] for g in got] + [np.zeros((0, 28))])
         self.pierce, self.pierce_dirs = prow[:, :3], prow[:, 3:].reshape(-1, 3, 3)
         if len(self.pierce):            # (an edge through two triangles' common edge: once)
             _, keep = np.unique(np.round(prow, 9), axis=0, return_index=True)
             keep = np.sort(keep)
             self.pierce, self.pierce_dirs = self.pierce[keep], self.pierce_dirs[keep]
-        lo_ab, hi_ab, plane = box_rows[:, :3], box_rows[:, 3:6], box_rows[:, 6:]
-        if len(lo_ab):
-            _, keep = np.unique(np.round(np.hstack([lo_ab, hi_ab]), 9), axis=0,
-                                return_index=True)
-            keep = np.sort(keep)
-            lo_ab, hi_ab, plane = lo_ab[keep], hi_ab[keep], plane[keep]
-        box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
-        self.shared = (lo_ab[:, None] + box[None] * (hi_ab - lo_ab)[:, None]).reshape(-1, 8, 3)
-        # The shared plane (n . x = h, n pointing out of both pieces where they are closed;
-        # 0 and -1 elsewhere: seen from either side).
-        self.shared_plane = plane.reshape(-1, 4)
+        if len(box_rows):               # (the same overlap found from both pieces: once)
+            _, keep = np.unique(np.round(box_rows[:, :24], 9), axis=0, return_index=True)
+            box_rows = box_rows[np.sort(keep)]
+        # The overlaps' polygons, each as 8 points for ``_AdaptiveCast._project_boxes`` (see
+        # ``_overlaps``), and their plane (n . x = h, n pointing out of both pieces where
+        # they are closed; 0 and -1 elsewhere: seen from either side).
+        self.shared = box_rows[:, :24].reshape(-1, 8, 3)
+        self.shared_plane = box_rows[:, 24:].reshape(-1, 4)
+
+
+# Box corners in the order of a cycle along the box's edges (a Gray code: 000, 001, 011,
+# 010, 110, 111, 101, 100): a polygon's vertices put there in turn (the last repeated) have
+# every polygon edge among the box's 12 edges, as ``_AdaptiveCast._project_boxes`` clips them.
+_CYCLE = np.array([0, 1, 3, 2, 6, 7, 5, 4])
+
+
+def _overlaps(ta: np.ndarray, tb: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where triangles ``ta`` and ``tb`` (each (m, 3, 3)) that lie in one plane (normal
+    ``n``) overlap: the convex polygon of their intersection, as 8 points (``_CYCLE``), and
+    which pairs overlap in an area (not only along an edge or at a point). OpenCV's
+    ``intersectConvexConvex`` clips in float32, in plane coordinates about the first
+    triangle's first vertex (metres: a few 1e-7 m of error, far below the 2 pixels
+    ``_AdaptiveCast._paint`` adds); an overlap thinner than 1e-6 m is taken as an edge."""
+    out = np.zeros((len(ta), 8, 3))
+    keep = np.zeros(len(ta), dtype=bool)
+    if not len(ta):
+        return out, keep
+    o = ta[:, 0]
+    e1 = ta[:, 1] - o
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(n, e1)
+    basis = np.stack([e1, e2], axis=2)                               # (m, 3, 2)
+    pa = np.einsum("mkj,mjd->mkd", ta - o[:, None], basis).astype(np.float32)
+    pb = np.einsum("mkj,mjd->mkd", tb - o[:, None], basis).astype(np.float32)
+    for i in range(len(ta)):
+        area, poly = cv2.intersectConvexConvex(pa[i], pb[i])
+        if poly is None or area <= 0:
+            continue
+        q = poly.reshape(-1, 2).astype(np.float64)
+        if not np.all(np.abs(q) < 1e6):              # (a degenerate answer: a huge sentinel)
+            continue
+        ext = np.ptp(q, axis=0)
+        if area / max(float(np.hypot(*ext)), 1e-12) <= 1e-6 or len(q) > 8:
+            continue
+        pts = o[i] + q @ basis[i].T
+        out[i, _CYCLE] = pts[np.minimum(np.arange(8), len(q) - 1)]
+        keep[i] = True
+    return out[keep], keep
 
 
 _PARTS_CACHE: dict = {}

@@ -112,6 +112,37 @@ def test_a_speck_between_the_samples_is_cast():
         assert np.count_nonzero(scene._tri_labels[tri] == 1) > 0
 
 
+def test_faces_in_one_plane_on_a_turned_cooker_cast_only_where_they_overlap():
+    """A cooker turned 45 degrees whose hob's top lies in the plane of the body's top: which
+    of the two a ray there hits is rounding, so the overlap is cast at every pixel, but only
+    the overlap (its box in world axes covered the body's front below it: home 1's cooker
+    cast two thirds of the view)."""
+    from perception.render import _AdaptiveCast
+    turn = o3d.geometry.get_rotation_matrix_from_xyz((0.0, 0.0, np.pi / 4))
+    scene = Scene([_box((6.0, 6.0, 0.1), np.eye(3), (0.0, 0.0, -0.05), "floor"),
+                   _box((0.6, 0.6, 0.9), turn, (0.0, 0.0, 0.45), "body"),
+                   _box((0.5, 0.5, 0.02), turn, (0.0, 0.0, 0.89), "hob")])
+    # From 0.9 m in front of the cooker's corner, 1.3 m up, looking down at it (camera z
+    # forward, y down).
+    c = np.array([-0.9, 0.0, 1.3])
+    z = np.array([0.0, 0.0, 0.75]) - c
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.stack([x, np.cross(z, x), z], axis=1)
+    T[:3, 3] = c
+    tri = assert_same_cast(scene, K, T).reshape(K.height, K.width)
+    run = _AdaptiveCast(scene, K, T[:3, :3], c, 8.0)
+    run.run()
+    cast = run.known.reshape(K.height, K.width)
+    normal_z = scene._tri_normals[tri, 2]
+    front = (scene._tri_labels[tri] == 1) & (np.abs(normal_z) < 0.5)     # the body's sides
+    assert front.mean() > 0.2
+    # Rays through the body's sides: the grid and the outline's corners, not a cast of all.
+    assert cast[front].mean() < 0.2
+
+
 @pytest.mark.parametrize("view", [0, 4])
 def test_render_without_the_adaptive_cast_is_the_reference(view):
     _, scene, views = _kitchen("demo")
