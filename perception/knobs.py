@@ -95,6 +95,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
+from perception import knob_kernels
 from perception.camera import Intrinsics
 from perception.registration import single_threaded_blas
 from perception.trained import read_time, trained_fields
@@ -273,11 +274,12 @@ class _Caster:
         # rays the same for every turn: the fixed visuals' hits are the same for all of them
         # (cast once)
         same_rays = np.ndim(dirs) == 2 and np.ndim(origins) <= 2
-        dirs = np.broadcast_to(dirs, (B,) + np.shape(dirs)[-2:])
-        N = dirs.shape[1]
-        # one origin for every ray (the camera centre): turned once per turn, not per ray
-        origins = (np.broadcast_to(origins, (B, 1, 3)) if np.ndim(origins) == 1
-                   else np.broadcast_to(origins, (B, N, 3)))
+        d3 = np.asarray(dirs, dtype=np.float64)
+        d3 = d3.reshape((1,) + d3.shape) if d3.ndim == 2 else d3
+        N = d3.shape[1]
+        # one origin for every ray (the camera centre): (1, 1, 3), else (B, N, 3)
+        o3 = np.asarray(origins, dtype=np.float64)
+        o3 = o3.reshape(1, 1, 3) if o3.ndim == 1 else o3.reshape((-1,) + o3.shape[-2:])
         best_t = np.full((B, N), np.inf)
         label = np.zeros((B, N), dtype=np.uint16)
         classes = N_FACE_FINE if fine else N_FACE
@@ -287,36 +289,17 @@ class _Caster:
             a = turns if k == 0 else np.full(B, float(fixed_turn))
             once = k == 1 and same_rays
             Bc = 1 if once else B
-            c, s = np.cos(a[:Bc])[:, None], np.sin(a[:Bc])[:, None]
+            # into the visuals' frame: turn the rays back by a (compiled, numpy's operations:
+            # perception/knob_kernels.py)
             rays = np.empty((Bc, N, 6), np.float32)
-            # into the visuals' frame: turn the rays back by a
-            for off, v in ((0, origins[:Bc]), (3, dirs[:Bc])):
-                rays[..., off] = c * v[..., 0] + s * v[..., 1]
-                rays[..., off + 1] = -s * v[..., 0] + c * v[..., 1]
-                rays[..., off + 2] = v[..., 2]
+            knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
             ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
-            t = np.broadcast_to(ans["t_hit"].numpy().reshape(Bc, N), (B, N))
-            hit = t < best_t                         # (a miss is inf, never below)
-            if not hit.any():
-                continue
-            gid = np.broadcast_to(ans["geometry_ids"].numpy().reshape(Bc, N).astype(np.int64), (B, N))
-            prim = np.broadcast_to(ans["primitive_ids"].numpy().reshape(Bc, N).astype(np.int64), (B, N))
-            no_hit = len(self.az[k]) - 1
-            tri = np.where(hit, self.first[k][np.minimum(gid, len(self.first[k]) - 1)] + prim, no_hit)
-            # each triangle's label for each turn (far fewer triangles than rays)
-            az = self.az[k][None, :] + a[:, None]        # the normal's azimuth in the canvas
-            nz = self.nz[k][None, :]
-            if fine:
-                sector = np.round(az / (2 * math.pi / FINE_AZIMUTHS)).astype(np.int64) % FINE_AZIMUTHS
-                face = np.where(nz > 0.97, 0, 1 + (nz > 0.5) * FINE_AZIMUTHS + sector)
-            else:
-                face = np.where(nz > 0.7, 0, 1 + np.round(az / (math.pi / 2)).astype(np.int64) % 4)
-            table = (1 + self.part[k][None, :] * classes + face).astype(np.uint16)
-            # each turn's row of the table, as one flat gather (take_along_axis builds an index
-            # per element)
-            lab = np.take(table, tri + (np.arange(B) * table.shape[1])[:, None])
-            label = np.where(hit, lab, label)
-            best_t = np.where(hit, t, best_t)
+            # the nearer hits' labels: each triangle's face class for each turn, per hit
+            knob_kernels.nearest_labels(
+                ans["t_hit"].numpy().reshape(Bc, N), ans["geometry_ids"].numpy().reshape(Bc, N),
+                ans["primitive_ids"].numpy().reshape(Bc, N), self.first[k], self.az[k],
+                self.nz[k], self.part[k], a, fine, classes, FINE_AZIMUTHS,
+                2 * math.pi / FINE_AZIMUTHS, math.pi / 2, label, best_t)
         return (label, best_t) if with_t else label
 
 
@@ -1602,9 +1585,9 @@ class _Window:
         present = np.flatnonzero(np.bincount(labels))
         lut = np.zeros(int(present[-1]) + 1, np.int64)
         lut[present] = np.arange(len(present))
-        N = self.n * self.n
-        rows = lut[labels[idx]] * N + np.arange(N)
-        return np.bincount(rows.ravel(), wts.ravel(), minlength=len(present) * N).reshape(len(present), N)
+        W = np.zeros((len(present), self.n * self.n))
+        knob_kernels.label_maps(labels, lut, idx, wts, W)     # (np.bincount's sums, compiled)
+        return W
 
     def _solve(self, W: np.ndarray):
         """Each label's colour (least squares, centred on the window's mean): a ridge of
@@ -1640,15 +1623,11 @@ class _Window:
         lut[present] = np.arange(len(present))
         L = len(present)
         # each window pixel mixes four box pixels' labels: the Gram matrix W W^T and W X are
-        # sums over pixels of those four labels' weight products (sparse, no dense W)
-        lab = lut[labels[:, idx]] + (np.arange(B) * L)[:, None, None]        # (B, 4, N)
-        w = np.broadcast_to(wts, lab.shape)
-        pair_keys = (lab[:, :, None, :] * L + (lab[:, None, :, :] % L)).ravel()
-        pair_w = (w[:, :, None, :] * w[:, None, :, :]).ravel()
-        G = np.bincount(pair_keys, pair_w, minlength=B * L * L).reshape(B, L, L)
-        keys = lab.ravel()
-        b = np.stack([np.bincount(keys, (w * self.Xc[:, c]).ravel(), minlength=B * L)
-                      for c in range(3)], -1).reshape(B, L, 3)
+        # sums over pixels of those four labels' weight products (sparse, no dense W; the
+        # sums np.bincount made, compiled: perception/knob_kernels.py)
+        G = np.zeros((B, L, L))
+        b = np.zeros((B, L, 3))
+        knob_kernels.label_gram(labels, lut, idx, wts, self.Xc, G, b)
         G[:, np.arange(L), np.arange(L)] += 1e-6 + self.ridge
         mu = np.linalg.solve(G, b)
         return np.einsum("blc,blc->b", b, mu) / self.tv
@@ -1666,18 +1645,18 @@ class _Window:
         lut = np.zeros(int(present[-1]) + 1, np.int64)
         lut[present] = np.arange(len(present))
         N, L = self.n * self.n, len(present)
-        maps = [np.bincount((lut[lab[idx]] * N + np.arange(N)).ravel(), wts.ravel(),
-                            minlength=L * N).reshape(L, N) for lab in labels]
+        maps = [np.zeros((L, N)) for _ in labels]
+        for lab, W in zip(labels, maps):
+            knob_kernels.label_maps(lab, lut, idx, wts, W)
         differ = 0.5 * np.abs(maps[0] - maps[1]).sum(0)
         out, everywhere = [], 0.0
-        for lab in labels:
+        for one in labels:
             # the Gram matrix and W X as sums over the four labels each pixel mixes (as
             # ``fits``: a dense W W^T of a shape with many labels cost 30 ms)
-            lab = lut[lab[idx]]                                           # (4, N)
-            G = np.bincount((lab[:, None, :] * L + lab[None, :, :]).ravel(),
-                            (wts[:, None, :] * wts[None, :, :]).ravel(), minlength=L * L).reshape(L, L)
-            b = np.stack([np.bincount(lab.ravel(), (wts * self.Xc[:, c]).ravel(), minlength=L)
-                          for c in range(3)], -1)
+            G, b = np.zeros((1, L, L)), np.zeros((1, L, 3))
+            knob_kernels.label_gram(one[None], lut, idx, wts, self.Xc, G, b)
+            G, b = G[0], b[0]
+            lab = lut[one[idx]]                                           # (4, N)
             G.flat[::L + 1] += 1e-6 + self.ridge
             mu = np.linalg.solve(G, b)
             r2 = ((self.Xc - np.einsum("kn,knc->nc", wts, mu[lab])) ** 2).sum(1)

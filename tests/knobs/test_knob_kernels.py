@@ -1,0 +1,139 @@
+"""The knob reader's compiled label sums (perception/knob_kernels.py) against the numpy sums
+they replaced (np.bincount over index and weight arrays, kept here as the reference): the
+same float64 values bit for bit, so every reading is the same."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from perception import knob_kernels
+
+
+def _bincount_gram(labels, lut, idx, wts, xc):
+    """``_Window.fits``'s normal equations as numpy made them."""
+    B = len(labels)
+    L = int(lut.max()) + 1
+    lab = lut[labels[:, idx]] + (np.arange(B) * L)[:, None, None]        # (B, 4, N)
+    w = np.broadcast_to(wts, lab.shape)
+    pair_keys = (lab[:, :, None, :] * L + (lab[:, None, :, :] % L)).ravel()
+    pair_w = (w[:, :, None, :] * w[:, None, :, :]).ravel()
+    G = np.bincount(pair_keys, pair_w, minlength=B * L * L).reshape(B, L, L)
+    keys = lab.ravel()
+    b = np.stack([np.bincount(keys, (w * xc[:, c]).ravel(), minlength=B * L)
+                  for c in range(3)], -1).reshape(B, L, 3)
+    return G, b
+
+
+def _bincount_maps(labels, lut, idx, wts, N):
+    """``_Window.maps`` as numpy made it."""
+    L = int(lut.max()) + 1
+    rows = lut[labels[idx]] * N + np.arange(N)
+    return np.bincount(rows.ravel(), wts.ravel(), minlength=L * N).reshape(L, N)
+
+
+def _window(rng, n_box: int, N: int, n_labels: int, B: int):
+    labels = rng.integers(0, n_labels, (B, n_box)).astype(np.uint16)
+    labels[:, : n_box // 3] = 0                                  # most pixels miss the knob
+    present = np.flatnonzero(np.bincount(labels.ravel()))
+    lut = np.zeros(int(present[-1]) + 1, np.int64)
+    lut[present] = np.arange(len(present))
+    base = rng.integers(0, n_box - 41, N)
+    idx = np.stack([base, base + 1, base + 40, base + 41])       # a box 40 pixels wide
+    fx, fy = rng.random(N), rng.random(N)
+    wts = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy])
+    xc = rng.normal(0.0, 40.0, (N, 3))
+    return labels, lut, idx, wts, xc
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_label_gram_is_bincounts_sums_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    labels, lut, idx, wts, xc = _window(rng, 1600, 961, 30 + 10 * seed, 1 + 4 * seed)
+    G0, b0 = _bincount_gram(labels, lut, idx, wts, xc)
+    L = len(np.unique(lut))
+    G, b = np.zeros((len(labels), L, L)), np.zeros((len(labels), L, 3))
+    knob_kernels.label_gram(labels, lut, idx, wts, xc, G, b)
+    assert G.tobytes() == G0.tobytes() and b.tobytes() == b0.tobytes()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_label_maps_are_bincounts_sums_bit_for_bit(seed):
+    rng = np.random.default_rng(100 + seed)
+    labels, lut, idx, wts, _ = _window(rng, 1600, 961, 20, 1)
+    W0 = _bincount_maps(labels[0], lut, idx, wts, 961)
+    W = np.zeros_like(W0)
+    knob_kernels.label_maps(labels[0], lut, idx, wts, W)
+    assert W.tobytes() == W0.tobytes()
+
+
+def _numpy_labels(caster, origins, dirs, turns, fixed_turn, fine):
+    """``_Caster.labels`` as numpy made it (per-turn label tables, broadcast rays)."""
+    import math
+    from perception.knobs import FINE_AZIMUTHS, N_FACE, N_FACE_FINE
+    turns = np.atleast_1d(np.asarray(turns, dtype=float))
+    B = len(turns)
+    same_rays = np.ndim(dirs) == 2 and np.ndim(origins) <= 2
+    dirs = np.broadcast_to(dirs, (B,) + np.shape(dirs)[-2:])
+    N = dirs.shape[1]
+    origins = (np.broadcast_to(origins, (B, 1, 3)) if np.ndim(origins) == 1
+               else np.broadcast_to(origins, (B, N, 3)))
+    best_t = np.full((B, N), np.inf)
+    label = np.zeros((B, N), dtype=np.uint16)
+    classes = N_FACE_FINE if fine else N_FACE
+    for k, scene in enumerate(caster.scenes):
+        if scene is None:
+            continue
+        a = turns if k == 0 else np.full(B, float(fixed_turn))
+        Bc = 1 if (k == 1 and same_rays) else B
+        c, s = np.cos(a[:Bc])[:, None], np.sin(a[:Bc])[:, None]
+        rays = np.empty((Bc, N, 6), np.float32)
+        for off, v in ((0, origins[:Bc]), (3, dirs[:Bc])):
+            rays[..., off] = c * v[..., 0] + s * v[..., 1]
+            rays[..., off + 1] = -s * v[..., 0] + c * v[..., 1]
+            rays[..., off + 2] = v[..., 2]
+        ans = scene.cast_rays(caster.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
+        t = np.broadcast_to(ans["t_hit"].numpy().reshape(Bc, N), (B, N))
+        hit = t < best_t
+        gid = np.broadcast_to(ans["geometry_ids"].numpy().reshape(Bc, N).astype(np.int64), (B, N))
+        prim = np.broadcast_to(ans["primitive_ids"].numpy().reshape(Bc, N).astype(np.int64), (B, N))
+        no_hit = len(caster.az[k]) - 1
+        tri = np.where(hit, caster.first[k][np.minimum(gid, len(caster.first[k]) - 1)] + prim, no_hit)
+        az = caster.az[k][None, :] + a[:, None]
+        nz = caster.nz[k][None, :]
+        if fine:
+            sector = np.round(az / (2 * math.pi / FINE_AZIMUTHS)).astype(np.int64) % FINE_AZIMUTHS
+            face = np.where(nz > 0.97, 0, 1 + (nz > 0.5) * FINE_AZIMUTHS + sector)
+        else:
+            face = np.where(nz > 0.7, 0, 1 + np.round(az / (math.pi / 2)).astype(np.int64) % 4)
+        table = (1 + caster.part[k][None, :] * classes + face).astype(np.uint16)
+        lab = np.take(table, tri + (np.arange(B) * table.shape[1])[:, None])
+        label = np.where(hit, lab, label)
+        best_t = np.where(hit, t, best_t)
+    return label, best_t
+
+
+@pytest.mark.parametrize("home", [1, 4])
+def test_the_exact_renderings_labels_are_numpys_bit_for_bit(home):
+    """A skirt knob (home 1) and a pointer with a fixed base (home 4), seen from cameras
+    around the axis, every turn and both face-class sets; one camera centre for all rays
+    and one origin per ray."""
+    from perception.knobs import _Caster, knob_shape
+    from worldmodel.homegen import generate_home
+    w = generate_home(home)
+    k = w.knobs()[0]
+    caster = _Caster(knob_shape(k, w.apartment.library, w.base_dir))
+    rng = np.random.default_rng(home)
+    r = k.radius
+    for _ in range(3):
+        C = np.array([rng.uniform(-3, 3) * r, rng.uniform(-3, 3) * r, rng.uniform(4, 40) * r])
+        target = rng.uniform(-1.3 * r, 1.3 * r, (1500, 3))
+        target[:, 2] = rng.uniform(-0.5 * r, 0.5 * r, 1500)
+        dirs = target - C
+        turns = rng.uniform(-np.pi, np.pi, 5)
+        per_ray = np.broadcast_to(C, (5, 1500, 3)) + rng.normal(0, 1e-4, (5, 1500, 3))
+        for origins, d in ((C, dirs), (per_ray, dirs), (per_ray, np.broadcast_to(dirs, (5, 1500, 3)))):
+            for fine in (False, True):
+                lab0, t0 = _numpy_labels(caster, origins, d, turns, 0.3, fine)
+                lab, t = caster.labels(origins, d, turns, 0.3, fine=fine, with_t=True)
+                assert np.count_nonzero(lab0) > 100
+                assert lab.tobytes() == lab0.tobytes() and t.tobytes() == t0.tobytes()
