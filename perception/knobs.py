@@ -703,15 +703,40 @@ def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
     return np.where(ok, cov * cov / np.maximum(vm * vt, 1e-12), 0.0)
 
 
-def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_labels: int) -> np.ndarray:
-    """R^2 of piecewise-constant fits: ``patches`` (P, N, 3) pixel colours, ``labels`` (A, N)
-    label maps, ``counts`` (A, L) pixels per label. Returns (P, A)."""
+def _onehot(labels: np.ndarray, n_labels: int):
+    """The (A * L, N) sparse one-hot matrix of label maps ``labels`` (A, N) (``label_scores``)."""
     from scipy.sparse import csr_matrix
-    P, N, _ = patches.shape
-    A = labels.shape[0]
+    A, N = labels.shape
     rows = (np.arange(A)[:, None] * n_labels + labels.astype(np.int64)).ravel()
     cols = np.tile(np.arange(N), A)
-    onehot = csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(A * n_labels, N))
+    return csr_matrix((np.ones(len(rows), np.float32), (rows, cols)), shape=(A * n_labels, N))
+
+
+_ONEHOT: dict = {}
+
+
+def template_onehot(tpl: "ShapeTemplates", ti: int):
+    """``_onehot`` of a shape's templates in off-axis bin ``ti``, made once (the same matrix
+    every time a knob of that shape is read; the cache holds the templates it was made of)."""
+    key = (id(tpl.labels), ti)
+    got = _ONEHOT.get(key)
+    if got is None or got[0] is not tpl.labels:
+        if len(_ONEHOT) > 512:
+            _ONEHOT.clear()
+        got = _ONEHOT[key] = (tpl.labels, _onehot(tpl.labels[ti].reshape(len(tpl.alphas), -1),
+                                                  tpl.n_labels))
+    return got[1]
+
+
+def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_labels: int,
+                 onehot=None) -> np.ndarray:
+    """R^2 of piecewise-constant fits: ``patches`` (P, N, 3) pixel colours, ``labels`` (A, N)
+    label maps, ``counts`` (A, L) pixels per label. Returns (P, A). ``onehot``: the labels'
+    ``_onehot`` when made already (``template_onehot``)."""
+    P, N, _ = patches.shape
+    A = labels.shape[0]
+    if onehot is None:
+        onehot = _onehot(labels, n_labels)
     X = np.ascontiguousarray(np.moveaxis(patches, 0, 1).reshape(N, P * 3), dtype=np.float32)
     sums = np.asarray(onehot @ X).reshape(A, n_labels, P, 3)
     inv_n = np.where(counts > 0, 1.0 / np.maximum(counts, 1), 0.0)            # (A, L)
@@ -1047,7 +1072,8 @@ class KnobReader:
                  if 0 <= i <= 2 * S and 0 <= j <= 2 * S]
         patches = np.stack([canvas[i:i + n, j:j + n].reshape(-1, 3) for i, j in cells])
         flat = tpl.labels[ti].reshape(len(tpl.alphas), -1)
-        coarse = label_scores(patches, flat, tpl.counts[ti], tpl.n_labels)          # (P, A)
+        coarse = label_scores(patches, flat, tpl.counts[ti], tpl.n_labels,
+                              template_onehot(tpl, ti))                        # (P, A)
         if use_depth:
             hp = np.stack([hc[i:i + n, j:j + n].ravel() for i, j in cells])
             vp = np.stack([hv[i:i + n, j:j + n].ravel() for i, j in cells])
@@ -1233,7 +1259,7 @@ class KnobReader:
         Hd = plane_homography(K, T_wc, T_c, rho, n, center)
         patch = rectify(rgb, Hd, n).astype(np.float32).reshape(1, -1, 3)
         hd, vd = canvas_heights(depth, Hd, n, float(C[2]), shape.face)
-        return (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels)[0]
+        return (label_scores(patch, flat, tpl.counts[ti], tpl.n_labels, template_onehot(tpl, ti))[0]
                 + self.config.depth_weight * depth_scores(
                     hd.reshape(1, -1), vd.reshape(1, -1),
                     tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
