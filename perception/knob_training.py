@@ -64,8 +64,12 @@ class TrainingConfig:
     without the knob), drawn with ``seed``; ``margin_safety`` / ``margin_floor``: the state
     gate's threshold is the largest margin of a wrong validation reading times the safety,
     and at least the floor (one threshold for views that are not hard, ``hard_view``, when
-    there are at least ``min_easy_readings`` of them, and one, never lower, for hard ones); ``data``: how views are drawn (perception/knob_data.py). Every
-    field is part of the stored model's configuration."""
+    there are at least ``min_easy_readings`` of them, and one, never lower, for hard ones);
+    ``pool_nearest_levels``: a view level with fewer than ``min_easy_readings`` readings is
+    calibrated together with the nearest levels, one at a time, the next harder first, until
+    there are enough (False: with every harder level and the easier one, as before);
+    ``data``: how views are drawn (perception/knob_data.py). Every field is part of the
+    stored model's configuration."""
     validation_views: int = 400
     validation_missing: float = 0.25
     seed: int = 4
@@ -74,6 +78,7 @@ class TrainingConfig:
     dot_margin_floor: float = 1.0
     dot_margin_safety: float = 2.0
     min_easy_readings: int = 40
+    pool_nearest_levels: bool = True
     data: KnobDataConfig = field(default_factory=lambda: KnobDataConfig(at_states=True))
 
     def tiny(self) -> "TrainingConfig":
@@ -246,7 +251,12 @@ def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float]
     # and the hard views split again: the very hard ones (view_level 2: under 8 px, more than
     # 55 degrees off) get their own, so that one confident wrong reading at 59 degrees does
     # not make every view at 46 unknown. A level with too few readings takes the gate of
-    # itself and every harder level together; no level's gate is below an easier one's.
+    # itself and its nearest levels together, one level at a time (the next harder first)
+    # until there are enough (``pool_nearest_levels``): taken with every harder level, the
+    # near, clear views of a hob seen from above (home 12: 16 validation readings at level 0)
+    # got the gates of its very hard views (knobs 5-7 px across, wrong readings with
+    # ``half_turn`` up to 0.72), and so did level 1, whose gate may not be below level 0's;
+    # no level's gate is below an easier one's.
     # A reading of a knob without symmetry also needs to explain the pixels where it and
     # itself turned by half a turn differ better than the turned knob does (``half_turn``,
     # KnobReader._half_turn): most confident wrong readings were such half turns. Each level
@@ -260,7 +270,13 @@ def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float]
     level_of = lambda r: r.get("level", int(bool(r.get("hard"))))
     for level in range(3):
         rs = [r for r in passed if level_of(r) == level]
-        if len(rs) < cfg.min_easy_readings:
+        if len(rs) < cfg.min_easy_readings and cfg.pool_nearest_levels:
+            # the next harder level first, then the easier one, one level at a time
+            lo, hi = level, level
+            while len(rs) < cfg.min_easy_readings and (lo > 0 or hi < 2):
+                lo, hi = (lo, hi + 1) if hi < 2 else (lo - 1, hi)
+                rs = [r for r in passed if lo <= level_of(r) <= hi]
+        elif len(rs) < cfg.min_easy_readings:
             rs = [r for r in passed if level_of(r) >= max(level - 1, 0)]
         harder = [] if any(level_of(r) == level + 1 for r in rs) else [
             r for r in passed if level_of(r) == level + 1]
