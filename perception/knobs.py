@@ -799,6 +799,20 @@ def _states_of(prior: "KnobPrior", angles: np.ndarray) -> np.ndarray:
     return np.argmin(d, 1)
 
 
+def _next_state(prior: "KnobPrior", angle: float, state: str) -> tuple[Optional[str], float]:
+    """The state other than ``state`` whose angle (modulo the period) lies nearest to
+    ``angle`` (rad), and that angle taken to the side of ``angle`` (None: no other state)."""
+    period = 2 * math.pi / max(1, prior.symmetry)
+    best, best_d, best_a = None, math.inf, 0.0
+    for name, a in zip(prior.state_names, prior.state_angles):
+        if name == state:
+            continue
+        d = (a - angle + period / 2) % period - period / 2
+        if abs(d) < best_d:
+            best, best_d, best_a = name, abs(d), angle + d
+    return best, best_a
+
+
 def _wrap(a):
     return np.remainder(np.asarray(a) + np.pi, 2 * np.pi) - np.pi
 
@@ -1144,9 +1158,30 @@ class KnobReader:
                                 [tpl.alphas[c] for c in picks], psi, r_px, None, theta)
         fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
         fine.sort(key=lambda f: -f[0])
-        checked = list(fine)
         best = fine[0]
         s_best = snap_to_state(best[1], prior)[0]
+        if not from_dot:
+            # the state next to the reading's angle, fitted exactly at its own angle at the
+            # reading's centre when no exact check ended in it; where it fits better than the
+            # reading, it is the reading (the exact checks' search can stop on the slope
+            # between two states: home 787, a reading 10 degrees off between states 17
+            # degrees apart, margin 0.35 over a state 35 degrees away, set its level's gate
+            # to 0.43; the true state fitted at its own angle gave 1.91 against 1.81). Where
+            # it fits worse it is left out: measuring every margin against it shrank right
+            # readings' margins, and the recalibrated gates let a packed pointer through 90
+            # degrees off (home 4; docs/knobs.md).
+            s_next, a_next = _next_state(prior, best[1], s_best)
+            if s_next is not None and not any(snap_to_state(f[1], prior)[0] == s_next
+                                              for f in fine[1:]):
+                probe = self._refine(rgb, K, T_wc, prior, shape, T_c, C, best[2],
+                                     [a_next - psi], psi, r_px,
+                                     depth if use_depth else None, theta, hold=True,
+                                     exact_only=True)[0]
+                if probe[0] > best[0]:
+                    fine.insert(0, probe)
+                    best = probe
+                    s_best = s_next
+        checked = list(fine)
         rivals = [f for f in fine[1:] if snap_to_state(f[1], prior)[0] != s_best]
         score_best, angle, center_c = best
         if rivals:
@@ -1421,7 +1456,7 @@ class KnobReader:
         return {k: round(float(v), 4) for k, v in out.items()}
 
     def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px,
-                depth=None, theta=0.0, hold=False):
+                depth=None, theta=0.0, hold=False, exact_only=False):
         """The exact check (module docstring, step 4): the knob rendered as the camera sees
         it, a ray through every image pixel around it from the real camera centre, at
         relative angles around each of ``alphas0`` (rad; the best coarse angle first), with
@@ -1440,7 +1475,9 @@ class KnobReader:
         colour R^2 plus ``depth_weight`` times that squared correlation; the offset then stays
         within ``depth_settle_radii`` of where the depth put the knob (the colour alone of a
         knob without contrast can fit a marker flipped by 180 degrees a radius away).
-        Returns [(fit, knob angle, centre in the canvas frame)] per candidate."""
+        ``exact_only``: the fits at ``alphas0`` themselves, at ``center`` (no offset settled,
+        no angle searched). Returns [(fit, knob angle, centre in the canvas frame)] per
+        candidate."""
         cfg, tm = self.config, self.templates
         if r_px > cfg.decimate_above_px:
             rgb = rgb[::2, ::2]
@@ -1493,9 +1530,13 @@ class KnobReader:
             return look((win.c[0] + t[0] / rho, win.c[1] + t[1] / rho))
 
         win = look(center)
-        win = settle(win, alphas0[0]) if win is not None else None
+        win = settle(win, alphas0[0]) if win is not None and not exact_only else win
         if win is None:
             return [(0.0, float(_wrap(a + psi)), center) for a in alphas0]
+        if exact_only:
+            labs, ts = win.render([float(a) for a in alphas0])
+            return [(float(sc), float(_wrap(a + psi)), win.c)
+                    for sc, a in zip(scores(win, labs, ts), alphas0)]
         step = math.radians(tm.alpha_step_deg) / 2
 
         def search(win, starts, st, span=1):

@@ -322,3 +322,20 @@ def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, 
         assert easy >= 110                          # of 115
     else:
         assert easy <= 20
+
+
+def test_the_state_next_to_a_reading_is_the_nearest_other_state_on_its_side():
+    import math
+    from perception.knobs import _next_state
+
+    class Prior:
+        symmetry = 1
+        state_names = ("off", "1", "2", "3")
+        state_angles = (0.0, math.radians(-20), math.radians(-40), math.radians(170))
+    name, a = _next_state(Prior, math.radians(-12), "1")
+    assert name == "off" and abs(a) < 1e-12
+    name, a = _next_state(Prior, math.radians(-175), "3")       # across the wrap
+    assert name == "2"
+    Prior.symmetry = 2                                            # a bar: modulo half a turn
+    name, a = _next_state(Prior, math.radians(-8), "3")          # 170 deg is -10 deg
+    assert name == "off" and abs(a) < 1e-12
