@@ -62,14 +62,14 @@ def check_misbehaving(results: dict, cases: list[Case]) -> dict:
     rep = suite.report(list(results.values()), cases)
     assert rep["problem_counts"] == {"exception": 1, "crashed": 1, "timeout": 1}
     text = suite.render_text(rep)
-    assert "forced crash of a stand-in scenario" in text and "timed out after 8 s" in text
+    assert "forced crash of a stand-in scenario" in text and "timed out after 15 s" in text
     return by
 
 
 def test_local_engine_reports_a_crash_an_exit_and_hangs_and_finishes_the_others():
     cases = misbehaving_cases()
     cases.append(Case("refine_localisation", 99, world="demo", params={"standin": "stubborn"}))
-    results = suite.run_cases(cases, suite.LocalEngine(jobs=2, timeout=8.0,
+    results = suite.run_cases(cases, suite.LocalEngine(jobs=2, timeout=15.0,
                                                        runner=standins.run))
     stubborn = results[suite.case_key(cases[-1])]
     assert stubborn["error"] == "timeout" and "was killed" in stubborn["reason"]
@@ -80,7 +80,7 @@ def test_local_engine_reports_a_crash_an_exit_and_hangs_and_finishes_the_others(
 
 def test_ray_engine_reports_a_crash_an_exit_and_a_hang_and_finishes_the_others(ray_instance):
     cases = misbehaving_cases()
-    results = suite.run_cases(cases, suite.RayEngine(timeout=8.0, runner=standins.run))
+    results = suite.run_cases(cases, suite.RayEngine(timeout=15.0, runner=standins.run))
     by = check_misbehaving(results, cases)
     assert "Ray worker died" in by["exit"]["reason"]
 
