@@ -24,7 +24,10 @@ other than the benchmark's):
   what a reading's comparison with itself turned by half a turn (``KnobReader._half_turn``)
   needs, chosen with the state gate of its level (the pair that lets the most right readings
   through while no wrong one passes both); with a half-turn gate, the state gate is
-  calibrated on the level's readings and the next harder level's.
+  calibrated on the level's readings and the next harder level's;
+- ``dot_rival_gates``: the same for a round body's marker reading, of its comparison with
+  the nearest other state where the two renderings differ (evidence ``rival``), chosen
+  with the level's dot gate.
 
 The gates are fitted on readings with the views' depth images, and again on readings of
 colour alone (``KnobReader.colour_gates``, for a caller without depth).
@@ -53,7 +56,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 22   # 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
+CODE_VERSION = 23   # 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
 
 _canon = canon   # the name earlier code imported
 
@@ -178,7 +181,8 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
         out.append(dict(present=bool(v.present), found=bool(r.found), near=near,
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
-                        half_turn=r.evidence.get("half_turn"), angle=r.angle,
+                        half_turn=r.evidence.get("half_turn"), rival=r.evidence.get("rival"),
+                        angle=r.angle,
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         shape=v.believed.shape, dot=bool(r.evidence.get("dot", False)),
                         radius_px=float(r.evidence.get("radius_px", 0.0)),
@@ -207,8 +211,13 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])
     out.state_gate_very_hard = gates[2]
     out.half_turn_gates = [float(t) for t in turns]
-    # (dot readings carry no half-turn comparison: their turns are all none)
-    out.dot_gates = _level_gates(dots, cfg, cfg.dot_margin_floor, cfg.dot_margin_safety)[0] if dots else None
+    # dot readings carry no half-turn comparison but one with the nearest other state
+    # (``rival``), which takes its place in their gates: each level's pair of dot gate and
+    # rival gate lets the most right readings through while no wrong one passes both
+    if dots:
+        out.dot_gates, rival = _level_gates([dict(r, half_turn=r.get("rival")) for r in dots], cfg,
+                                            cfg.dot_margin_floor, cfg.dot_margin_safety)
+        out.dot_rival_gates = [float(t) for t in rival]
     return out
 
 

@@ -957,6 +957,10 @@ class KnobReader:
         #: the least ``half_turn`` (``_half_turn``) a reading of a knob without symmetry needs
         #: per ``view_level`` (0, 1, 2), calibrated with the state gates; None: no such gate
         self.half_turn_gates: Optional[list] = None
+        #: the least ``rival`` (``_half_turn`` of the dot reading against the nearest other
+        #: state) a round body's marker reading needs per ``view_level``, calibrated with the
+        #: ``dot_gates``; None: no such gate
+        self.dot_rival_gates: Optional[list] = None
         self._casters: dict = {}
 
     def __getstate__(self):
@@ -1003,9 +1007,11 @@ class KnobReader:
             g = self.state_gate_very_hard
         return g.threshold_
 
-    def half_turn_gate_for(self, level) -> float:
-        """The half-turn gate of a view (``view_level``); -inf when there is none."""
-        g = getattr(self, "half_turn_gates", None)
+    def half_turn_gate_for(self, level, dot: bool = False) -> float:
+        """The half-turn gate of a view (``view_level``); of a round body's marker reading
+        (``dot``), its level's ``dot_rival_gates`` (the gate of its ``rival``); -inf when
+        there is none."""
+        g = getattr(self, "dot_rival_gates" if dot else "half_turn_gates", None)
         return float(g[min(int(level), len(g) - 1)]) if g else -math.inf
 
     # OpenBLAS on one thread while reading: the products here are small (windows of a few
@@ -1231,6 +1237,18 @@ class KnobReader:
                   depth=bool(use_depth))
         if from_dot:
             ev["dot"] = True
+            # the marker's reading against the nearest other state (``fine[1]``, at the same
+            # centre), compared only where their renderings differ (``_half_turn``: the
+            # marker at the one angle against the marker at the other): the dot's margin is
+            # an expected error of the angle, blind to a dot read from a speck or a glint
+            # beside it; on generated homes 0-19 the wrong validation readings of the marker
+            # with the widest margins explained the rival's pixels no better than the rival
+            # (docs/knobs.md, "The marker against the next state")
+            versus = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
+                                     (float(fine[1][1]) - psi, fine[1][2]), psi, r_px,
+                                     depth if use_depth else None, theta) if len(fine) > 1 else None
+            if versus is not None:
+                ev["rival"] = versus["half_turn"]
         if half_turn is not None:
             ev.update(half_turn)
         return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
@@ -1256,7 +1274,7 @@ class KnobReader:
         ev["leaning"] = state
         c_margin = ev["margin"] / max(need, 1e-6)
         r.confidence = float(min(1.0, 0.5 * min(c_margin, 2.0)) * c_snap)
-        need_turn = gates.half_turn_gate_for(hard)
+        need_turn = gates.half_turn_gate_for(hard, bool(ev.get("dot")))
 
         def doubt(need_margin: float) -> Optional[str]:
             """Why the reading may not give its state with a margin gate of ``need_margin``
@@ -1267,6 +1285,9 @@ class KnobReader:
             if ev.get("half_turn") is not None and ev["half_turn"] <= need_turn:
                 return (f"unsure ({state}: turned by half a turn it fits nearly as well, "
                         f"{ev['half_turn']:.2f}, needs {need_turn:.2f})")
+            if ev.get("dot") and ev.get("rival") is not None and ev["rival"] <= need_turn:
+                return (f"unsure ({state}: its marker fits nearly as well at {ev['runner_up']}, "
+                        f"{ev['rival']:.2f}, needs {need_turn:.2f})")
             if 1.0 - c_snap > cfg.max_snap:
                 return f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
             if r.confidence < cfg.min_confidence:

@@ -116,3 +116,22 @@ def test_a_dot_too_small_to_see_stays_unknown(skirt, state):
     frame, T_wc, pr = _frame(world, scenes, "oven_knob_2", a, 1.0, 20.0, 15.0)
     r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
     assert r.found and r.state == "unknown" and r.reason.startswith("unsure"), (r.state, r.reason)
+
+
+def test_a_dot_reading_is_compared_with_the_next_state_where_the_two_differ(skirt):
+    """A skirt knob read from its dot carries ``rival``: how much better the dot at the read
+    angle explains the pixels where it and the dot at the nearest other state differ. On a
+    clear view the reading explains them (positive); a reader whose rival gate asks more
+    than that says so, naming the state the marker nearly fits."""
+    import copy
+    world, reader, scenes = skirt
+    a = world.get("oven_knob_1").state_angle("3")
+    frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 20.0, 15.0)
+    r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
+    assert r.state == "3", r.reason
+    assert r.evidence["dot"] and r.evidence["rival"] > 0.2, r.evidence
+    strict = copy.copy(reader)
+    strict.dot_rival_gates = [1.9, 1.9, 1.9]
+    s = strict.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
+    assert s.state == "unknown"
+    assert s.reason.startswith("unsure (3: its marker fits nearly as well at "), s.reason

@@ -292,6 +292,34 @@ def test_half_turns_get_a_gate_of_their_own_so_the_state_gate_need_not_cover_the
     assert sum(p for p, r in zip(passes, rows) if r["right"] and r["level"] == 0) > 150
 
 
+def test_dot_readings_get_a_rival_gate_so_their_dot_gate_need_not_cover_its_mistakes(reader):
+    """Validation readings of a round body's marker (``dot``) where the confident wrong ones
+    are a dot read from a speck beside it (their comparison with the nearest other state,
+    ``rival``, negative): the calibrated rival gate keeps them out, so the dot gate is set
+    by the others and lets most right readings through; no wrong reading passes both, and
+    the knobs without a marker reading keep gates of their own."""
+    from perception.knob_training import calibrate
+    rng = np.random.default_rng(1)
+
+    def reading(right, margin, rival, dot=True):
+        return dict(present=True, found=True, near=True, score=1.0, margin=margin, right=right,
+                    off=False, half_turn=None, rival=rival, dot=dot, level=0, hard=False)
+    rows = ([reading(True, m, v) for m, v in zip(rng.uniform(1.0, 8.0, 200), rng.uniform(0.1, 0.9, 200))]
+            + [reading(False, m, v) for m, v in ((5.5, -0.4), (4.1, -0.1), (3.0, -0.3))]
+            + [reading(False, m, v) for m, v in ((1.2, 0.4), (0.9, 0.2))]
+            + [reading(True, 0.1, None, dot=False) for _ in range(50)])
+    cal = calibrate(reader, rows, TrainingConfig())
+    assert cal.half_turn_gate_for(0, dot=True) >= 0.0
+    gate = cal.margin_threshold_for(0, dot=True)
+    assert gate < 3.0                                   # not 2 x 5.5
+    passes = [r["margin"] > gate and r["rival"] > cal.half_turn_gate_for(0, dot=True)
+              for r in rows if r["dot"]]
+    dots = [r for r in rows if r["dot"]]
+    assert not any(p for p, r in zip(passes, dots) if not r["right"])
+    assert sum(p for p, r in zip(passes, dots) if r["right"]) > 150
+    assert cal.half_turn_gate_for(0) == -math.inf       # the other readings: no such gate
+
+
 @pytest.mark.parametrize("nearest", [True, False])
 def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, nearest):
     """Few validation readings of the near, clear views (level 0), many of level 1 (right
