@@ -27,7 +27,12 @@ lower is better). The models are the default ones (trained on first use, see doc
 
 Figures are pooled over the worlds at the top level, with ``per_world`` (the same figures per
 world), ``generated`` (the generated homes alone) and ``per_home`` (each world's reader:
-time to make it, its gates, headline figures).
+time to make it, its gates, headline figures). ``per_level``: the same figures by how hard
+the view is for the state gates (``perception.knobs.view_level`` of the knob's true radius
+in the image and its angle off-axis): ``near`` (12 px radius or more and at most 45 degrees
+off-axis), ``hard`` (under 12 px or beyond 45 degrees), ``very_hard`` (under 8 px or beyond
+55 degrees), so that where the reader reads and where a view is too small or oblique to
+read can be told apart.
 ``on_read_as_off``: knobs that were on (not at their off state) read as off (must be 0).
 Angle errors of a symmetric knob are taken modulo its symmetry. ``per_design``: the same
 figures for each knob design (``design_of``: the roles and primitive kinds of its shape and
@@ -43,6 +48,8 @@ import time
 import numpy as np
 #: Knobs whose nearest neighbour stands at most this many radii away count as ``packed``.
 PACKED_RADII = 2.25
+#: ``per_level`` keys, by ``perception.knobs.view_level``.
+LEVELS = ("near", "hard", "very_hard")
 REFERENCE = dict(detection=0.96, angle_err_deg=10.0, ms_per_knob=1250.0)
 
 
@@ -80,6 +87,7 @@ def design_of(knob) -> str:
 def _measure(world, reader, n: int, seed: int, noise, label: str) -> list[dict]:
     """One record per held-out view of ``world``'s knobs."""
     from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
+    from perception.knobs import view_level
     data = KnobDataConfig(at_states=True, missing_rate=0.2)
     scenes = KnobScenes(world)
     views = render_views(world, n, seed, data, reader.config, noise=noise, scenes=scenes)
@@ -105,6 +113,7 @@ def _measure(world, reader, n: int, seed: int, noise, label: str) -> list[dict]:
                         hit=hit, state=r.state, truth=v.state, off=knob.off,
                         err=_wrap_deg(r.angle - v.angle, period) if hit else None,
                         distance=v.distance, off_axis=v.off_axis_deg, ms=ms, cpu_ms=cpu,
+                        level=LEVELS[view_level(v.K.fx * v.truth.radius / v.distance, v.off_axis_deg)],
                         radius_m=v.truth.radius, pitch_radii=pitch[v.truth.knob_id]))
     return out
 
@@ -222,6 +231,8 @@ def run(args) -> dict:
         per_design={d: _figures([r for r in recs if r["design"] == d])
                     for d in sorted({r["design"] for r in recs})},
         packed=_figures([r for r in recs if r["pitch_radii"] <= PACKED_RADII]),
+        per_level={lv: _figures([r for r in recs if r["level"] == lv])
+                   for lv in LEVELS if any(r["level"] == lv for r in recs)},
         angle_err_deg_median_beyond_1_2m=_summary(far_err)["median"],
         angle_err_deg_median_beyond_45deg=_summary(oblique_err)["median"],
         hard_corner=dict(knobs_present=len(hard),

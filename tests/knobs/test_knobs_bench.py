@@ -19,6 +19,10 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
     assert out["angle_err_deg_median"] < 30 and out["ms_per_knob"] > 0
     assert out["on_read_as_off"] == 0
     assert out["per_design"]["plain"]["views"] == 40
+    # by how hard the view is: every view in one of the levels, none left out
+    assert set(out["per_level"]) <= {"near", "hard", "very_hard"}
+    assert sum(f["views"] for f in out["per_level"].values()) == 40
+    assert sum(f["knobs_present"] for f in out["per_level"].values()) == out["knobs_present"]
     assert out["detector_threshold"] == round(reader.detect_gate.threshold_, 4)
     assert out["detector_calibration"]["positives"] > 0
 
