@@ -121,3 +121,113 @@ def nearest_labels(t, gid, prim, first, az, nz, part, turns, fine, classes, n_fi
                     face = 1 + np.int64(np.rint(azv / quarter)) % 4
             label[b, n] = np.uint16(1 + part[tri] * classes + face)
             best_t[b, n] = tt
+
+
+@numba.njit(**_JIT)
+def settle_shift(labels, lut, L, H, jj, ii, box, xc, n, ridge, iterations, max_shift):
+    """``perception.knobs._Window.settle`` compiled: the shift t (window px, canvas x right,
+    y up) of one rendering's labels (``labels``, the box's pixels; ``lut`` label -> 0..L-1)
+    that fits the window's centred colours ``xc`` (N, 3) best, by Gauss-Newton
+    (Lucas-Kanade): at each step the soft label maps sampled at t (the four box pixels
+    each window pixel ``(jj, ii)`` maps to through ``H`` shifted by -t, bilinear weights),
+    each label's colour by least squares (a ridge of ``ridge`` + 1e-6), the model image,
+    its gradient (``np.gradient``'s differences: central inside, one-sided at the edges),
+    and the step that fits the residual, clipped to 1.5 px, t kept within ``max_shift``;
+    stopping when both components of a step are under 0.02 px, after ``iterations`` steps,
+    or when the step's normal matrix is singular (condition number over 1e10). The same
+    operations as the numpy loop, summed in another order (the sparse maps' four corners
+    instead of dense products), so a shift may differ in its last bits."""
+    u0, v0, u1, v1 = box[0], box[1], box[2], box[3]
+    w, h = u1 - u0, v1 - v0
+    N = n * n
+    t0, t1 = 0.0, 0.0
+    lab = np.empty((4, N), np.int64)
+    wts = np.empty((4, N))
+    model = np.empty((N, 3))
+    for _ in range(iterations):
+        # the sampling at t
+        for q in range(N):
+            a = jj[q] - t0
+            b = ii[q] + t1
+            pz = H[2, 0] * a + H[2, 1] * b + H[2, 2]
+            if pz <= 0:
+                return t0, t1
+            x = (H[0, 0] * a + H[0, 1] * b + H[0, 2]) / pz - u0
+            y = (H[1, 0] * a + H[1, 1] * b + H[1, 2]) / pz - v0
+            x = min(max(x, 0.0), w - 1.0)
+            y = min(max(y, 0.0), h - 1.0)
+            x0 = min(np.int64(np.floor(x)), w - 2)
+            y0 = min(np.int64(np.floor(y)), h - 2)
+            fx, fy = x - x0, y - y0
+            base = y0 * w + x0
+            lab[0, q] = lut[labels[base]]
+            lab[1, q] = lut[labels[base + 1]]
+            lab[2, q] = lut[labels[base + w]]
+            lab[3, q] = lut[labels[base + w + 1]]
+            wts[0, q] = (1 - fx) * (1 - fy)
+            wts[1, q] = fx * (1 - fy)
+            wts[2, q] = (1 - fx) * fy
+            wts[3, q] = fx * fy
+        # each label's colour: the normal equations of the soft maps
+        G = np.zeros((L, L))
+        bv = np.zeros((L, 3))
+        for q in range(N):
+            for k1 in range(4):
+                l1, w1 = lab[k1, q], wts[k1, q]
+                for k2 in range(4):
+                    G[l1, lab[k2, q]] += w1 * wts[k2, q]
+                for c in range(3):
+                    bv[l1, c] += w1 * xc[q, c]
+        for l in range(L):
+            G[l, l] += 1e-6 + ridge
+        mu = np.linalg.solve(G, bv)
+        for q in range(N):
+            for c in range(3):
+                s = 0.0
+                for k in range(4):
+                    s += wts[k, q] * mu[lab[k, q], c]
+                model[q, c] = s
+        # the Gauss-Newton step: J = (-d model / dx, d model / dy) (canvas y up: rows down)
+        a00, a01, a11, g0, g1 = 0.0, 0.0, 0.0, 0.0, 0.0
+        for i in range(n):
+            for j in range(n):
+                q = i * n + j
+                for c in range(3):
+                    if j == 0:
+                        gx = model[q + 1, c] - model[q, c]
+                    elif j == n - 1:
+                        gx = model[q, c] - model[q - 1, c]
+                    else:
+                        gx = (model[q + 1, c] - model[q - 1, c]) / 2.0
+                    if i == 0:
+                        gy = model[q + n, c] - model[q, c]
+                    elif i == n - 1:
+                        gy = model[q, c] - model[q - n, c]
+                    else:
+                        gy = (model[q + n, c] - model[q - n, c]) / 2.0
+                    j0, j1 = -gx, gy
+                    r = xc[q, c] - model[q, c]
+                    a00 += j0 * j0
+                    a01 += j0 * j1
+                    a11 += j1 * j1
+                    g0 += j0 * r
+                    g1 += j1 * r
+        # the condition number of the symmetric 2 x 2 normal matrix: its eigenvalues' ratio
+        half_tr = 0.5 * (a00 + a11)
+        disc = np.sqrt((0.5 * (a00 - a11)) ** 2 + a01 * a01)
+        big = half_tr + disc
+        det = a00 * a11 - a01 * a01
+        small = det / big if big > 0 else 0.0
+        if not (small > 0) or big / small > 1e10:
+            break
+        s0 = min(max((a11 * g0 - a01 * g1) / det, -1.5), 1.5)
+        s1 = min(max((a00 * g1 - a01 * g0) / det, -1.5), 1.5)
+        t0 += s0
+        t1 += s1
+        d = np.hypot(t0, t1)
+        if d > max_shift:
+            t0 *= max_shift / d
+            t1 *= max_shift / d
+        if abs(s0) < 0.02 and abs(s1) < 0.02:
+            break
+    return t0, t1
