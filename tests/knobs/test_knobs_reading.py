@@ -320,6 +320,33 @@ def test_dot_readings_get_a_rival_gate_so_their_dot_gate_need_not_cover_its_mist
     assert cal.half_turn_gate_for(0) == -math.inf       # the other readings: no such gate
 
 
+def test_readings_the_snap_check_refuses_do_not_set_the_gates_of_easier_views(reader):
+    """Wrong validation readings whose angle lies between two states (the snap check refuses
+    them whatever the gates) do not raise the state gate of the near and hard views, so the
+    right readings there pass; at the very hard level they still count; and no wrong
+    reading the snap check lets through passes the gates."""
+    from perception.knob_training import calibrate
+    rng = np.random.default_rng(2)
+    max_snap = reader.config.max_snap
+
+    def reading(right, margin, snap, level):
+        return dict(present=True, found=True, near=True, score=1.0, margin=margin, right=right,
+                    off=False, half_turn=None, level=level, hard=bool(level), snap=snap)
+    rows = []
+    for level in (0, 1, 2):
+        rows += [reading(True, m, sn, level) for m, sn in zip(rng.uniform(0.01, 0.2, 60), rng.uniform(0, 0.6, 60))]
+        rows += [reading(False, 0.15, 0.85, level), reading(False, 0.012, 0.3, level)]
+    cal = calibrate(reader, rows, TrainingConfig())
+    assert cal.margin_threshold_for(0) < 0.02 and cal.margin_threshold_for(1) < 0.02
+    assert cal.margin_threshold_for(2) > 0.15                 # the very hard level: it counts
+    for r in rows:
+        passes = r["margin"] > cal.margin_threshold_for(r["level"]) and r["snap"] <= max_snap
+        assert r["right"] or not passes
+    # as before (the field at 0): the refused readings set every level's gate
+    old = calibrate(reader, rows, TrainingConfig(snap_free_levels=0))
+    assert old.margin_threshold_for(0) > 0.15
+
+
 @pytest.mark.parametrize("nearest", [True, False])
 def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, nearest):
     """Few validation readings of the near, clear views (level 0), many of level 1 (right
