@@ -260,7 +260,7 @@ class _Caster:
             self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
 
     def labels(self, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray, fixed_turn: float,
-               fine: bool = False, with_t: bool = False):
+               fine: bool = False, with_t: bool = False, cache: Optional[dict] = None):
         """Labels (uint16, 0 = nothing) of rays given in the canvas frame with the knob's
         origin at the canvas origin, for each of ``turns`` (B,): the turning visuals turned
         by it (rad, counter-clockwise about +z), the fixed ones by ``fixed_turn``.
@@ -268,7 +268,10 @@ class _Caster:
         1 + visual * classes + face class, the face class from the normal turned into the
         canvas: front (along the axis), else which way it faces (4 sides, or with ``fine``
         ``FINE_AZIMUTHS`` directions in two bands of steepness). With ``with_t``: also the
-        ray parameter of each hit (B, N) (inf where nothing is hit)."""
+        ray parameter of each hit (B, N) (inf where nothing is hit). ``cache``: a dict kept
+        by a caller that casts the same rays (one window's) at the same ``fixed_turn`` again
+        and again: the fixed visuals' hits are cast once into it and reused (the same hits,
+        so the same labels)."""
         turns = np.atleast_1d(np.asarray(turns, dtype=float))
         B = len(turns)
         # rays the same for every turn: the fixed visuals' hits are the same for all of them
@@ -291,13 +294,18 @@ class _Caster:
             Bc = 1 if once else B
             # into the visuals' frame: turn the rays back by a (compiled, numpy's operations:
             # perception/knob_kernels.py)
-            rays = np.empty((Bc, N, 6), np.float32)
-            knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
-            ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
+            hits = cache.get("fixed") if (once and cache is not None) else None
+            if hits is None:
+                rays = np.empty((Bc, N, 6), np.float32)
+                knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
+                ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
+                hits = (ans["t_hit"].numpy().reshape(Bc, N), ans["geometry_ids"].numpy().reshape(Bc, N),
+                        ans["primitive_ids"].numpy().reshape(Bc, N))
+                if once and cache is not None:
+                    cache["fixed"] = tuple(np.array(h) for h in hits)    # owned copies
             # the nearer hits' labels: each triangle's face class for each turn, per hit
             knob_kernels.nearest_labels(
-                ans["t_hit"].numpy().reshape(Bc, N), ans["geometry_ids"].numpy().reshape(Bc, N),
-                ans["primitive_ids"].numpy().reshape(Bc, N), self.first[k], self.az[k],
+                hits[0], hits[1], hits[2], self.first[k], self.az[k],
                 self.nz[k], self.part[k], a, fine, classes, FINE_AZIMUTHS,
                 2 * math.pi / FINE_AZIMUTHS, math.pi / 2, label, best_t)
         return (label, best_t) if with_t else label
@@ -1523,7 +1531,10 @@ class KnobReader:
             o = np.array([c[0], c[1], -shape.face])
             dirs = win.rays_camera() @ R_canvas_cam.T
             O = C - o
-            win.render = lambda alphas: caster.labels(O, dirs, alphas, -psi, fine=True, with_t=True)
+            # the fixed visuals' hits are the same for every rendering of this window
+            fixed_hits: dict = {}
+            win.render = lambda alphas: caster.labels(O, dirs, alphas, -psi, fine=True, with_t=True,
+                                                      cache=fixed_hits)
             win.c = c
             win.depth_fit = None
             if depth is not None:
