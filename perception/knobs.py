@@ -1612,6 +1612,15 @@ class KnobReader:
         return out
 
 
+def _label_lut(labels: np.ndarray) -> tuple[np.ndarray, int]:
+    """The labels present in rendered label images (any shape): a table label -> 0..L-1 and
+    L, so that label maps and normal equations have a row per label present only."""
+    present = np.flatnonzero(np.bincount(labels.ravel()))
+    lut = np.zeros(int(present[-1]) + 1, np.int64)
+    lut[present] = np.arange(len(present))
+    return lut, len(present)
+
+
 class _Window:
     """The fine canvas window of an image (``H``: window px -> image px) and how rendered
     label images of the pixels it covers (the box ``box`` = (u0, v0, u1, v1)) become soft
@@ -1681,10 +1690,8 @@ class _Window:
     def maps(self, labels: np.ndarray, t=(0.0, 0.0)) -> np.ndarray:
         """(L', N) soft label maps of a rendered box label image (flat), shifted by ``t``."""
         idx, wts = self._sampling(t)
-        present = np.flatnonzero(np.bincount(labels))
-        lut = np.zeros(int(present[-1]) + 1, np.int64)
-        lut[present] = np.arange(len(present))
-        W = np.zeros((len(present), self.n * self.n))
+        lut, L = _label_lut(labels)
+        W = np.zeros((L, self.n * self.n))
         knob_kernels.label_maps(labels, lut, idx, wts, W)     # (np.bincount's sums, compiled)
         return W
 
@@ -1717,10 +1724,7 @@ class _Window:
         if self.tv <= 1e-6 * len(self.X):
             return np.zeros(B)
         idx, wts = self._sampling((0.0, 0.0))
-        present = np.flatnonzero(np.bincount(labels.ravel()))
-        lut = np.zeros(int(present[-1]) + 1, np.int64)
-        lut[present] = np.arange(len(present))
-        L = len(present)
+        lut, L = _label_lut(labels)
         # each window pixel mixes four box pixels' labels: the Gram matrix W W^T and W X are
         # sums over pixels of those four labels' weight products (sparse, no dense W; the
         # sums np.bincount made, compiled: perception/knob_kernels.py)
@@ -1740,10 +1744,8 @@ class _Window:
         the whole window: the noise and the edges every pixel has); each rendering's label
         colours are its own least-squares fit over the whole window."""
         idx, wts = self._sampling((0.0, 0.0))
-        present = np.flatnonzero(np.bincount(labels.ravel()))
-        lut = np.zeros(int(present[-1]) + 1, np.int64)
-        lut[present] = np.arange(len(present))
-        N, L = self.n * self.n, len(present)
+        lut, L = _label_lut(labels)
+        N = self.n * self.n
         maps = [np.zeros((L, N)) for _ in labels]
         for lab, W in zip(labels, maps):
             knob_kernels.label_maps(lab, lut, idx, wts, W)
@@ -1769,10 +1771,8 @@ class _Window:
         (``perception.knob_kernels.settle_shift``: the numpy loop it replaces cost a fifth of
         a reading in small array operations; tests/knobs/test_knob_kernels.py keeps it as the
         reference, shifts within 1e-12 px)."""
-        present = np.flatnonzero(np.bincount(labels))
-        lut = np.zeros(int(present[-1]) + 1, np.int64)
-        lut[present] = np.arange(len(present))
-        t = knob_kernels.settle_shift(labels, lut, len(present), self.H, self.jj, self.ii,
+        lut, L = _label_lut(labels)
+        t = knob_kernels.settle_shift(labels, lut, L, self.H, self.jj, self.ii,
                                       np.asarray(self.box, np.int64), self.Xc, self.n,
                                       float(self.ridge), int(iterations), float(max_shift))
         return np.array(t)
