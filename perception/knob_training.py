@@ -200,6 +200,12 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
     return out
 
 
+def _level_of(r: dict) -> int:
+    """A validation reading's ``view_level`` (readings made before the levels: 0 or 1 by
+    ``hard``)."""
+    return r.get("level", int(bool(r.get("hard"))))
+
+
 def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> KnobReader:
     """The reader with its gates fitted on validation readings (module docstring)."""
     looked = [r for r in readings if r["found"] or not r["present"]]
@@ -216,7 +222,7 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # wrong; docs/knobs.md, "Readings the snap check refuses")
     max_snap = reader.config.max_snap
     passed = [r for r in passed if r.get("dot") or r.get("snap") is None or r["snap"] <= max_snap
-              or r.get("level", int(bool(r.get("hard")))) >= cfg.snap_free_levels]
+              or _level_of(r) >= cfg.snap_free_levels]
     # readings whose angle came from a round body's marker (``KnobReader._dot_reading``) have
     # a margin of their own (in expected errors of the angle), so they get gates of their own,
     # never under ``dot_margin_floor`` (a tiny validation set may hold no wrong one: a dot
@@ -292,19 +298,18 @@ def _level_gates(passed: list[dict], cfg: TrainingConfig, floor: Optional[float]
     # with a half-turn gate the state gate is calibrated on the level's readings and those of
     # the next harder level together.
     gates, turns = [], []
-    level_of = lambda r: r.get("level", int(bool(r.get("hard"))))
     for level in range(3):
-        rs = [r for r in passed if level_of(r) == level]
+        rs = [r for r in passed if _level_of(r) == level]
         if len(rs) < cfg.min_easy_readings and cfg.pool_nearest_levels:
             # the next harder level first, then the easier one, one level at a time
             lo, hi = level, level
             while len(rs) < cfg.min_easy_readings and (lo > 0 or hi < 2):
                 lo, hi = (lo, hi + 1) if hi < 2 else (lo - 1, hi)
-                rs = [r for r in passed if lo <= level_of(r) <= hi]
+                rs = [r for r in passed if lo <= _level_of(r) <= hi]
         elif len(rs) < cfg.min_easy_readings:
-            rs = [r for r in passed if level_of(r) >= max(level - 1, 0)]
-        harder = [] if any(level_of(r) == level + 1 for r in rs) else [
-            r for r in passed if level_of(r) == level + 1]
+            rs = [r for r in passed if _level_of(r) >= max(level - 1, 0)]
+        harder = [] if any(_level_of(r) == level + 1 for r in rs) else [
+            r for r in passed if _level_of(r) == level + 1]
         t, g = gates_of(rs, rs + harder)
         if gates and g.threshold_ < gates[-1].threshold_:
             g = gates[-1]
