@@ -231,3 +231,42 @@ def settle_shift(labels, lut, L, H, jj, ii, box, xc, n, ridge, iterations, max_s
         if abs(s0) < 0.02 and abs(s1) < 0.02:
             break
     return t0, t1
+
+
+@numba.njit(**_JIT)
+def rays_near_box(rays, lo, hi, keep):
+    """The rays (M, 6: origin, direction, float32) that can hit what lies in the box ``lo``
+    .. ``hi`` (3,), at t >= 0 (the slab test, in float64): their indices into ``keep``, in
+    order; returns how many. A scene's hits lie inside its bounding box, so a ray that
+    misses the box hits nothing (``perception.knobs._Caster.labels`` casts only the others:
+    Embree costs about 40 ns a ray even for one that misses, and most of a window's rays
+    pass beside the knob). The box is the caller's, padded so that rounding cannot drop a
+    ray that grazes it."""
+    M = rays.shape[0]
+    k = 0
+    for m in range(M):
+        t0, t1 = 0.0, np.inf
+        ok = True
+        for a in range(3):
+            o = np.float64(rays[m, a])
+            d = np.float64(rays[m, 3 + a])
+            if d == 0.0:
+                if o < lo[a] or o > hi[a]:
+                    ok = False
+                    break
+                continue
+            ta = (lo[a] - o) / d
+            tb = (hi[a] - o) / d
+            if ta > tb:
+                ta, tb = tb, ta
+            if ta > t0:
+                t0 = ta
+            if tb < t1:
+                t1 = tb
+            if t0 > t1:
+                ok = False
+                break
+        if ok:
+            keep[k] = m
+            k += 1
+    return k

@@ -235,13 +235,16 @@ class _Caster:
         import open3d as o3d
         self.o3d = o3d
         self.scenes, self.first, self.az, self.nz, self.part = [], [], [], [], []
+        self.bounds = []
         for turning in (True, False):
             scene = o3d.t.geometry.RaycastingScene()
-            first, az, nz, part = [], [], [], []
+            first, az, nz, part, corners = [], [], [], [], []
             count = 0
             for i, (v, t, tu) in enumerate(zip(shape.vertices, shape.triangles, shape.turns)):
                 if tu != turning:
                     continue
+                v32 = v.astype(np.float32).astype(np.float64)
+                corners += [v32.min(0), v32.max(0)]
                 mesh = o3d.t.geometry.TriangleMesh()
                 mesh.vertex.positions = o3d.core.Tensor(v.astype(np.float32))
                 mesh.triangle.indices = o3d.core.Tensor(t)
@@ -254,10 +257,32 @@ class _Caster:
                 part.append(np.full(len(t), i, dtype=np.int64))
                 count += len(t)
             self.scenes.append(scene if count else None)
+            # the scene's bounding box (the vertices as the scene holds them), padded by 0.1 mm
+            # so that no rounding drops a ray that grazes it (``knob_kernels.rays_near_box``)
+            pad = 1e-4
+            self.bounds.append((np.min(corners, 0) - pad, np.max(corners, 0) + pad) if count else None)
             self.first.append(np.array(first + [count], dtype=np.int64))
             self.az.append(np.concatenate(az + [np.zeros(1)]))
             self.nz.append(np.concatenate(nz + [np.zeros(1)]))
             self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
+
+    def _cast(self, k: int, rays: np.ndarray) -> tuple:
+        """Scene ``k``'s hits of ``rays`` (M, 6) float32: t (inf: nothing), geometry and
+        primitive ids (Embree's invalid id: nothing). Only the rays that can reach the scene's
+        bounding box are cast (``knob_kernels.rays_near_box``; the others hit nothing), with
+        the same hits as casting all of them: each ray is cast alone."""
+        keep = np.empty(len(rays), np.int64)
+        m = knob_kernels.rays_near_box(rays, *self.bounds[k], keep)
+        t = np.full(len(rays), np.inf, np.float32)
+        gid = np.full(len(rays), np.iinfo(np.uint32).max, np.uint32)
+        prim = gid.copy()
+        if m:
+            keep = keep[:m]
+            ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[keep]))
+            t[keep] = ans["t_hit"].numpy()
+            gid[keep] = ans["geometry_ids"].numpy()
+            prim[keep] = ans["primitive_ids"].numpy()
+        return t, gid, prim
 
     def labels(self, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray, fixed_turn: float,
                fine: bool = False, with_t: bool = False, cache: Optional[dict] = None):
@@ -298,11 +323,10 @@ class _Caster:
             if hits is None:
                 rays = np.empty((Bc, N, 6), np.float32)
                 knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
-                ans = scene.cast_rays(self.o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))
-                hits = (ans["t_hit"].numpy().reshape(Bc, N), ans["geometry_ids"].numpy().reshape(Bc, N),
-                        ans["primitive_ids"].numpy().reshape(Bc, N))
+                hits = self._cast(k, rays.reshape(-1, 6))
+                hits = tuple(h.reshape(Bc, N) for h in hits)
                 if once and cache is not None:
-                    cache["fixed"] = tuple(np.array(h) for h in hits)    # owned copies
+                    cache["fixed"] = hits
             # the nearer hits' labels: each triangle's face class for each turn, per hit
             knob_kernels.nearest_labels(
                 hits[0], hits[1], hits[2], self.first[k], self.az[k],

@@ -139,6 +139,40 @@ def test_the_exact_renderings_labels_are_numpys_bit_for_bit(home):
                 assert lab.tobytes() == lab0.tobytes() and t.tobytes() == t0.tobytes()
 
 
+@pytest.mark.parametrize("home", [1, 4])
+def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
+    """``rays_near_box`` keeps every ray that hits the scene (each scene's rays cast whole
+    here) and leaves out most of those that pass beside the knob, grazing ones included."""
+    import open3d as o3d
+    from perception.knobs import _Caster, knob_shape
+    from worldmodel.homegen import generate_home
+    w = generate_home(home)
+    k = w.knobs()[0]
+    caster = _Caster(knob_shape(k, w.apartment.library, w.base_dir))
+    rng = np.random.default_rng(home)
+    r = k.radius
+    C = np.array([0.5 * r, -r, 12 * r])
+    target = rng.uniform(-3 * r, 3 * r, (4000, 3))
+    target[:, 2] = 0.0
+    rays = np.concatenate([np.broadcast_to(C, (4000, 3)), target - C], 1).astype(np.float32)
+    for scene, bounds in zip(caster.scenes, caster.bounds):
+        if scene is None:
+            continue
+        lo, hi = bounds
+        hit = np.isfinite(scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy())
+        keep = np.empty(len(rays), np.int64)
+        m = knob_kernels.rays_near_box(rays, lo, hi, keep)
+        kept = np.zeros(len(rays), bool)
+        kept[keep[:m]] = True
+        assert hit.sum() > 50 and not np.any(hit & ~kept)
+        assert m < 0.6 * len(rays)
+        # a ray along a face of the box, just inside it, is kept; just outside, not
+        along = np.array([[lo[0] + 1e-6, 0.0, hi[2] + 1.0, 0.0, 0.0, -1.0],
+                          [lo[0] - 1e-6, 0.0, hi[2] + 1.0, 0.0, 0.0, -1.0]], np.float32)
+        along[:, 1] = 0.5 * (lo[1] + hi[1])
+        assert knob_kernels.rays_near_box(along, lo, hi, np.empty(2, np.int64)) == 1
+
+
 def _numpy_settle(win, labels, iterations, max_shift):
     """``_Window.settle`` as numpy made it (before ``knob_kernels.settle_shift``)."""
     n = win.n
