@@ -686,23 +686,29 @@ def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) ->
     return np.where(tv > 1e-6 * N, (explained - mean_part) / np.maximum(tv, 1e-9), 0.0)
 
 
+def measured_sums(height: np.ndarray, valid: np.ndarray, n: int) -> tuple:
+    """What ``depth_offset_scores`` needs of a measured height map whatever the template
+    (n x n): the weights, the heights (mm about their median, 0 where not valid) and their
+    box sums. Made once per canvas: a reading correlates several templates with it."""
+    w = valid.astype(np.float32)
+    ref = float(np.median(height[valid])) if valid.any() else 0.0
+    hw = np.where(valid, (height - ref) * 1000.0, 0.0).astype(np.float32)      # mm
+    return w, hw, _box_sum(w, n), _box_sum(hw, n), _box_sum(hw * hw, n)
+
+
 def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndarray,
-                        min_valid: float = 0.5) -> np.ndarray:
+                        min_valid: float = 0.5, sums: Optional[tuple] = None) -> np.ndarray:
     """Squared correlation (with a positive slope; 0 otherwise) between a measured height map
     (H, W) (m above the face plane, only where ``valid``) and a template height map (n, n) at
     every valid window position: (H - n + 1, W - n + 1). Correlation, so that an error of the
     believed plane's height (registration) or of the depth scale does not matter; windows with
     fewer than ``min_valid`` of their pixels measured score 0. OpenCV's matchTemplate does the
-    sums (masked correlation is not one of its modes: the masked sums are written out)."""
+    sums (masked correlation is not one of its modes: the masked sums are written out).
+    ``sums``: ``measured_sums`` of the same map, when made already."""
     n = template.shape[0]
     N = n * n
-    w = valid.astype(np.float32)
-    ref = float(np.median(height[valid])) if valid.any() else 0.0
-    hw = np.where(valid, (height - ref) * 1000.0, 0.0).astype(np.float32)      # mm
+    w, hw, Sw, Sh, Shh = sums if sums is not None else measured_sums(height, valid, n)
     t = ((template - template.mean()) * 1000.0).astype(np.float32)
-    Sw = _box_sum(w, n)
-    Sh = _box_sum(hw, n)
-    Shh = _box_sum(hw * hw, n)
     St = cv2.matchTemplate(w, t, cv2.TM_CCORR).astype(np.float64)
     Stt = cv2.matchTemplate(w, t * t, cv2.TM_CCORR).astype(np.float64)
     Sht = cv2.matchTemplate(hw, t, cv2.TM_CCORR).astype(np.float64)
@@ -780,12 +786,14 @@ def label_scores(patches: np.ndarray, labels: np.ndarray, counts: np.ndarray, n_
     return np.where(tv[:, None] > 1e-6 * N, bcv / np.maximum(tv, 1e-9)[:, None], 0.0)
 
 
-def _depth_center(hc, hv, template, cell, inside, off, rho, reach: int = 2, min_fit: float = 0.3):
+def _depth_center(hc, hv, template, cell, inside, off, rho, reach: int = 2, min_fit: float = 0.3,
+                  sums: Optional[tuple] = None):
     """The canvas offset (m, canvas frame) where ``template`` (heights, n x n) fits the
     measured heights best, within ``reach`` canvas pixels of ``cell`` (row, column of the
     offset grid ``off``) and inside the search region, refined by a parabola through its
-    neighbours in each direction; None when the best fit is under ``min_fit``."""
-    d = depth_offset_scores(hc, hv, template)
+    neighbours in each direction; None when the best fit is under ``min_fit``. ``sums``:
+    ``measured_sums`` of the heights."""
+    d = depth_offset_scores(hc, hv, template, sums=sums)
     ci, cj = cell
     d = np.where(inside, d, -np.inf)
     i0, i1 = max(ci - reach, 0), min(ci + reach + 1, d.shape[0])
@@ -1112,7 +1120,8 @@ class KnobReader:
             hc, hv = canvas_heights(depth, H, size, float(C[2]), shape.face)
             use_depth = bool(hv.mean() >= 0.3)
         if use_depth:
-            r2 = r2 + cfg.depth_weight * depth_offset_scores(hc, hv, tpl.heights[ti].mean(0))
+            dsums = measured_sums(hc, hv, n)
+            r2 = r2 + cfg.depth_weight * depth_offset_scores(hc, hv, tpl.heights[ti].mean(0), sums=dsums)
         off = (np.arange(2 * S + 1) - S) / rho
         prior_pen = (off[None, :] ** 2 + off[:, None] ** 2) / (2 * cfg.offset_sigma_m ** 2)
         inside = (off[None, :] ** 2 + off[:, None] ** 2) <= search_m ** 2
@@ -1133,6 +1142,15 @@ class KnobReader:
                 hp, vp, tpl.heights[ti].reshape(len(tpl.alphas), -1))
         best_cell = int(np.argmax(coarse.max(1)))
         ci, cj = cells[best_cell]
+        centres: dict = {}
+
+        def depth_center(k: int):
+            """Where template ``k``'s heights fit the depth best (``_depth_center``), once."""
+            if k not in centres:
+                centres[k] = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho,
+                                           sums=dsums)
+            return centres[k]
+
         curve = coarse[best_cell]
         center = (off[cj], -off[ci])                     # canvas frame (canvas up = -rows)
         knob_angles = _wrap(tpl.alphas + psi)            # relative angle -> knob angle
@@ -1146,7 +1164,7 @@ class KnobReader:
             # knob's body stands out of the panel whatever its colours), to a fraction of a
             # canvas pixel: colour alone can trade the centre against the angle. Then the
             # coarse angles again, in a canvas centred there.
-            c_depth = _depth_center(hc, hv, tpl.heights[ti][picks[0]], (ci, cj), inside, off, rho)
+            c_depth = depth_center(picks[0])
             if c_depth is not None:
                 center = c_depth
                 curve = self._coarse_at(rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti,
@@ -1158,9 +1176,10 @@ class KnobReader:
         # centre; to a fraction of a pixel from the top's rim at the image's own pixels
         # (``body_center``), then the angle from the dot's colour about it
         fine, from_dot = None, False
+        windows: dict = {}                  # the exact checks' windows, by centre (``_refine``)
         if use_depth and cfg.round_body_center:
             fine = self._round_body(rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks,
-                                    allowed, state_of, psi, r_px, depth, theta, flat)
+                                    allowed, state_of, psi, r_px, depth, theta, flat, windows)
             if fine is not None:
                 fine, curve, picks, from_dot = fine
 
@@ -1180,7 +1199,7 @@ class KnobReader:
             # angle) share one window
             groups: list = []
             for c in picks:
-                c_at = _depth_center(hc, hv, tpl.heights[ti][c], (ci, cj), inside, off, rho) or center
+                c_at = depth_center(c) or center
                 for g in groups:
                     if math.hypot(g[0][0] - c_at[0], g[0][1] - c_at[1]) <= 0.05 * prior.radius:
                         g[1].append(tpl.alphas[c])
@@ -1190,10 +1209,11 @@ class KnobReader:
             fine = []
             for c_at, alphas in groups:
                 fine += self._refine(rgb, K, T_wc, prior, shape, T_c, C, c_at, alphas,
-                                     psi, r_px, depth, theta)
+                                     psi, r_px, depth, theta, windows=windows)
         else:
             fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
-                                [tpl.alphas[c] for c in picks], psi, r_px, None, theta)
+                                [tpl.alphas[c] for c in picks], psi, r_px, None, theta,
+                                windows=windows)
         fine = [f for f in fine if allowed_angle(prior, f[1])] or fine
         fine.sort(key=lambda f: -f[0])
         best = fine[0]
@@ -1214,7 +1234,7 @@ class KnobReader:
                 probe = self._refine(rgb, K, T_wc, prior, shape, T_c, C, best[2],
                                      [a_next - psi], psi, r_px,
                                      depth if use_depth else None, theta, hold=True,
-                                     exact_only=True)[0]
+                                     exact_only=True, windows=windows)[0]
                 if probe[0] > best[0]:
                     fine.insert(0, probe)
                     best = probe
@@ -1251,7 +1271,7 @@ class KnobReader:
             if d[k] < math.radians(45):
                 c_at = center_c
                 if use_depth:
-                    c_at = _depth_center(hc, hv, tpl.heights[ti][k], (ci, cj), inside, off, rho) or center_c
+                    c_at = depth_center(k) or center_c
                 turned = (None, float(knob_angles[k]), c_at)
         if shape.symmetry == 1 and turned is not None and not from_dot:
             half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
@@ -1353,7 +1373,7 @@ class KnobReader:
                     tpl.heights[ti].reshape(len(tpl.alphas), -1))[0])
 
     def _round_body(self, rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks, allowed,
-                    state_of, psi, r_px, depth, theta, flat):
+                    state_of, psi, r_px, depth, theta, flat, windows=None):
         """The candidates of a round-bodied knob (``round_body_levels``, a dot no wider than
         ``dot_max_size`` of its distance from the axis) read at the centre ``body_center``
         gives (from ``center``, the canvas depth fit's): the coarse angles again in a canvas
@@ -1384,13 +1404,14 @@ class KnobReader:
             # the other knobs' (offset settled, angle searched)
             a_dot, margin, rival = dot
             fit = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center, [a_dot - psi], psi,
-                               r_px, depth, theta)[0][0]
+                               r_px, depth, theta, windows=windows)[0][0]
             return [(fit, a_dot, center), (fit - margin, rival, center)], curve, picks, True
         flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
         if flip not in picks and allowed[flip]:
             picks = picks + [flip]
         fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
-                            [tpl.alphas[c] for c in picks], psi, r_px, depth, theta, hold=True)
+                            [tpl.alphas[c] for c in picks], psi, r_px, depth, theta, hold=True,
+                            windows=windows)
         return fine, curve, picks, False
 
     def _dot_reading(self, rgb, K, T_wc, prior, shape, T_c, center, psi, r_px):
@@ -1509,7 +1530,7 @@ class KnobReader:
         return {k: round(float(v), 4) for k, v in out.items()}
 
     def _refine(self, rgb, K, T_wc, prior, shape, T_c, C, center, alphas0, psi, r_px,
-                depth=None, theta=0.0, hold=False, exact_only=False):
+                depth=None, theta=0.0, hold=False, exact_only=False, windows=None):
         """The exact check (module docstring, step 4): the knob rendered as the camera sees
         it, a ray through every image pixel around it from the real camera centre, at
         relative angles around each of ``alphas0`` (rad; the best coarse angle first), with
@@ -1529,8 +1550,10 @@ class KnobReader:
         within ``depth_settle_radii`` of where the depth put the knob (the colour alone of a
         knob without contrast can fit a marker flipped by 180 degrees a radius away).
         ``exact_only``: the fits at ``alphas0`` themselves, at ``center`` (no offset settled,
-        no angle searched). Returns [(fit, knob angle, centre in the canvas frame)] per
-        candidate."""
+        no angle searched). ``windows``: a dict one reading keeps, of the windows its exact
+        checks looked through by centre (a check at a centre another one ended at, the next
+        state's, reuses its window: the same image, rays and fixed visuals' hits). Returns
+        [(fit, knob angle, centre in the canvas frame)] per candidate."""
         cfg, tm = self.config, self.templates
         if r_px > cfg.decimate_above_px:
             rgb = rgb[::2, ::2]
@@ -1548,8 +1571,13 @@ class KnobReader:
         w_depth = cfg.depth_weight
 
         def look(c) -> Optional[_Window]:
+            key = (float(c[0]), float(c[1]), depth is None)
+            if windows is not None and key in windows:
+                return windows[key]
             win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, c), n,
                           ridge=cfg.fine_ridge_px)
+            if windows is not None:
+                windows[key] = win if win.box is not None else None
             if win.box is None:
                 return None
             o = np.array([c[0], c[1], -shape.face])
