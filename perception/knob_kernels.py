@@ -95,28 +95,33 @@ def turn_rays(origins, dirs, c, s, rays):
 
 
 @numba.njit(**_JIT)
-def nearest_labels(t, gid, prim, first, az, nz, part, turns, fine, classes, n_fine, fine_step,
-                   quarter, label, best_t):
-    """Where a ray's hit ``t`` (Bc, N; Bc = 1: the same hits for every turn) is nearer than
-    ``best_t`` (B, N), its label and t there: the label 1 + visual * classes + face class of
-    the triangle hit (``first[geometry] + primitive``), the face class from the triangle's
-    normal steepness ``nz`` and azimuth ``az`` turned by the turn (``perception.knobs.
+def nearest_labels(keep, t, gid, prim, Bc, first, az, nz, part, turns, fine, classes, n_fine,
+                   fine_step, quarter, label, best_t):
+    """Where a ray's hit is nearer than ``best_t`` (B, N), its label and t there. The hits
+    are those of the rays cast: ray ``keep[j]`` (an index into Bc x N rays; Bc = 1: the same
+    rays, so the same hits, for every turn) hit triangle ``first[gid[j]] + prim[j]`` at
+    ``t[j]`` (inf: nothing); the rays not cast hit nothing. The label is 1 + visual *
+    classes + face class of the triangle hit, the face class from the triangle's normal
+    steepness ``nz`` and azimuth ``az`` turned by the turn (``perception.knobs.
     _Caster.labels``, whose per-turn tables it replaces: the same float64 operations;
     ``fine_step`` 2 pi / n_fine and ``quarter`` pi / 2 as Python computed them)."""
     B, N = label.shape
     last = first.shape[0] - 1
-    for b in range(B):
-        r = b if t.shape[0] > 1 else 0
-        a = turns[b]
-        for n in range(N):
-            tt = t[r, n]
+    for j in range(keep.shape[0]):
+        tt = t[j]
+        if not (tt < np.inf):
+            continue
+        r = keep[j] // N
+        n = keep[j] - r * N
+        g = np.int64(gid[j])
+        if g > last:
+            g = last
+        tri = first[g] + np.int64(prim[j])
+        b0, b1 = (0, B) if Bc == 1 else (r, r + 1)
+        for b in range(b0, b1):
             if not (tt < best_t[b, n]):
                 continue
-            g = np.int64(gid[r, n])
-            if g > last:
-                g = last
-            tri = first[g] + np.int64(prim[r, n])
-            azv = az[tri] + a
+            azv = az[tri] + turns[b]
             if fine:
                 sector = np.int64(np.rint(azv / fine_step)) % n_fine
                 if nz[tri] > 0.97:

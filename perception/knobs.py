@@ -267,22 +267,18 @@ class _Caster:
             self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
 
     def _cast(self, k: int, rays: np.ndarray) -> tuple:
-        """Scene ``k``'s hits of ``rays`` (M, 6) float32: t (inf: nothing), geometry and
-        primitive ids (Embree's invalid id: nothing). Only the rays that can reach the scene's
-        bounding box are cast (``knob_kernels.rays_near_box``; the others hit nothing), with
-        the same hits as casting all of them: each ray is cast alone."""
+        """Scene ``k``'s hits of ``rays`` (M, 6) float32, of the rays that can reach its
+        bounding box (``knob_kernels.rays_near_box``; the others hit nothing, and each ray is
+        cast alone, so the hits are those of casting all): their indices, t (inf: nothing),
+        geometry and primitive ids."""
         keep = np.empty(len(rays), np.int64)
         m = knob_kernels.rays_near_box(rays, *self.bounds[k], keep)
-        t = np.full(len(rays), np.inf, np.float32)
-        gid = np.full(len(rays), np.iinfo(np.uint32).max, np.uint32)
-        prim = gid.copy()
-        if m:
-            keep = keep[:m]
-            ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[keep]))
-            t[keep] = ans["t_hit"].numpy()
-            gid[keep] = ans["geometry_ids"].numpy()
-            prim[keep] = ans["primitive_ids"].numpy()
-        return t, gid, prim
+        keep = keep[:m]
+        if not m:
+            return keep, np.empty(0, np.float32), np.empty(0, np.uint32), np.empty(0, np.uint32)
+        ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[keep]))
+        return (keep, np.array(ans["t_hit"].numpy()), np.array(ans["geometry_ids"].numpy()),
+                np.array(ans["primitive_ids"].numpy()))
 
     def labels(self, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray, fixed_turn: float,
                fine: bool = False, with_t: bool = False, cache: Optional[dict] = None):
@@ -324,12 +320,11 @@ class _Caster:
                 rays = np.empty((Bc, N, 6), np.float32)
                 knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
                 hits = self._cast(k, rays.reshape(-1, 6))
-                hits = tuple(h.reshape(Bc, N) for h in hits)
                 if once and cache is not None:
                     cache["fixed"] = hits
             # the nearer hits' labels: each triangle's face class for each turn, per hit
             knob_kernels.nearest_labels(
-                hits[0], hits[1], hits[2], self.first[k], self.az[k],
+                *hits, Bc, self.first[k], self.az[k],
                 self.nz[k], self.part[k], a, fine, classes, FINE_AZIMUTHS,
                 2 * math.pi / FINE_AZIMUTHS, math.pi / 2, label, best_t)
         return (label, best_t) if with_t else label
@@ -720,24 +715,32 @@ def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndar
     return np.where(ok, cov * cov / np.maximum(vh * vt, 1e-12), 0.0)
 
 
-def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
-                 min_valid: float = 0.5) -> np.ndarray:
-    """Squared correlation (positive slope, else 0) of measured heights ``heights`` (P, N)
-    (valid where ``valid``) with template heights ``templates`` (A, N): (P, A)."""
+def measured_heights(heights: np.ndarray, valid: np.ndarray) -> tuple:
+    """What ``depth_scores`` needs of measured heights (P, N) whatever the templates: the
+    weights, the heights (mm, 0 where not valid), their weighted product and sums. Made once
+    for a window whose renderings are scored again and again."""
     W = valid.astype(np.float64)
     m = np.where(valid, heights, 0.0).astype(np.float64) * 1000.0
+    Wm = W * m
+    return (W, Wm, np.maximum(W.sum(1), 1.0)[:, None], Wm.sum(1)[:, None],
+            (W * m * m).sum(1)[:, None], W.sum(1)[:, None])
+
+
+def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
+                 min_valid: float = 0.5, measured: Optional[tuple] = None) -> np.ndarray:
+    """Squared correlation (positive slope, else 0) of measured heights ``heights`` (P, N)
+    (valid where ``valid``) with template heights ``templates`` (A, N): (P, A).
+    ``measured``: ``measured_heights`` of them, when made already."""
+    W, Wm, Sw, Sm, Smm, count = measured if measured is not None else measured_heights(heights, valid)
     T = templates.astype(np.float64) * 1000.0
     T = T - T.mean(1, keepdims=True)
-    Sw = np.maximum(W.sum(1), 1.0)[:, None]
-    Sm = (W * m).sum(1)[:, None]
-    Smm = (W * m * m).sum(1)[:, None]
     St = W @ T.T
     Stt = W @ (T * T).T
-    Smt = (W * m) @ T.T
+    Smt = Wm @ T.T
     cov = Smt - Sm * St / Sw
     vm = Smm - Sm * Sm / Sw
     vt = Stt - St * St / Sw
-    ok = (W.sum(1)[:, None] >= min_valid * heights.shape[1]) & (cov > 0) & (vm > 1e-9) & (vt > 1e-9)
+    ok = (count >= min_valid * W.shape[1]) & (cov > 0) & (vm > 1e-9) & (vt > 1e-9)
     return np.where(ok, cov * cov / np.maximum(vm * vt, 1e-12), 0.0)
 
 
@@ -1596,8 +1599,10 @@ class KnobReader:
                 panel = -O[2] / dz                     # the panel plane (z = 0 of the knob)
                 valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
                 if valid.mean() >= 0.3:
+                    measured = measured_heights(m[None], valid[None])
                     win.depth_fit = lambda ts: depth_scores(
-                        m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]))[0]
+                        m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]),
+                        measured=measured)[0]
             return win
 
         def scores(win, labs, ts) -> np.ndarray:
@@ -1673,6 +1678,23 @@ def _label_lut(labels: np.ndarray) -> tuple[np.ndarray, int]:
     return lut, len(present)
 
 
+_GRIDS: dict = {}
+
+
+def _window_grid(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An n x n window's pixel columns and rows (N,) and their homogeneous points (3, N),
+    made once per size (read-only: every window of that size shares them)."""
+    got = _GRIDS.get(n)
+    if got is None:
+        jj, ii = np.meshgrid(np.arange(n, dtype=np.float64), np.arange(n, dtype=np.float64))
+        jj, ii = jj.ravel(), ii.ravel()
+        got = (jj, ii, np.stack([jj, ii, np.ones_like(jj)]))
+        for a in got:
+            a.flags.writeable = False
+        _GRIDS[n] = got
+    return got
+
+
 class _Window:
     """The fine canvas window of an image (``H``: window px -> image px) and how rendered
     label images of the pixels it covers (the box ``box`` = (u0, v0, u1, v1)) become soft
@@ -1693,9 +1715,8 @@ class _Window:
         self.sum_sq = float((X * X).sum())
         self.mean_part = float((total * total).sum()) / len(X)
         self.tv = self.sum_sq - self.mean_part
-        jj, ii = np.meshgrid(np.arange(n, dtype=np.float64), np.arange(n, dtype=np.float64))
-        self.jj, self.ii = jj.ravel(), ii.ravel()
-        uv = self._image_points(0.0, 0.0)
+        self.jj, self.ii, self._grid = _window_grid(n)
+        uv = self._uv0 = self._image_points(0.0, 0.0)
         if uv is None:
             self.box = None
             return
@@ -1706,7 +1727,9 @@ class _Window:
 
     def _image_points(self, tx: float, ty: float):
         """Image coordinates (2, N) of the window pixels shifted by -t (the knob moved by t)."""
-        p = self.H @ np.stack([self.jj - tx, self.ii + ty, np.ones_like(self.jj)])
+        grid = self._grid if tx == 0.0 and ty == 0.0 else np.stack([self.jj - tx, self.ii + ty,
+                                                                   self._grid[2]])
+        p = self.H @ grid
         if np.any(p[2] <= 0):
             return None
         return p[:2] / p[2]
@@ -1726,7 +1749,7 @@ class _Window:
             return self._sampling0
         u0, v0, u1, v1 = self.box
         w, h = u1 - u0, v1 - v0
-        uv = self._image_points(*key)
+        uv = self._uv0 if key == (0.0, 0.0) else self._image_points(*key)
         x = np.clip(uv[0] - u0, 0, w - 1)
         y = np.clip(uv[1] - v0, 0, h - 1)
         x0 = np.minimum(np.floor(x).astype(np.int64), w - 2)
