@@ -394,3 +394,25 @@ def test_the_state_next_to_a_reading_is_the_nearest_other_state_on_its_side():
     Prior.symmetry = 2                                            # a bar: modulo half a turn
     name, a = _next_state(Prior, math.radians(-8), "3")          # 170 deg is -10 deg
     assert name == "off" and abs(a) < 1e-12
+
+
+def test_allowed_angles_answer_as_allowed_angle_does_one_by_one():
+    """The vector form the reader uses: the same answers for any travel and symmetry, at the
+    travel's widened ends too."""
+    import math
+    from types import SimpleNamespace
+    from perception.knobs import allowed_angle, allowed_angles
+    rng = np.random.default_rng(3)
+    seen = set()
+    for sym in (1, 2, 4):
+        for _ in range(50):
+            lo = rng.uniform(-4, 4)
+            hi = lo + rng.uniform(0, 6)
+            prior = SimpleNamespace(travel=(lo, hi), symmetry=sym)
+            ends = np.array([lo, hi]) + np.array([-1, 1]) * math.radians(15)
+            a = np.concatenate([rng.uniform(-20, 20, 200), ends, ends + 1e-9, ends - 1e-9])
+            got = allowed_angles(prior, a)
+            assert got.tolist() == [allowed_angle(prior, x) for x in a]
+            seen |= set(got.tolist())
+    assert seen == {True, False}
+    assert allowed_angles(SimpleNamespace(travel=None, symmetry=1), [0.0, 3.0]).all()
