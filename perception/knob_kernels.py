@@ -300,3 +300,41 @@ def rays_near_box(rays, lo, hi, keep):
             keep[k] = m
             k += 1
     return k
+
+
+@numba.njit(**_JIT)
+def label_fits(labels, idx, wts, xc, diag, out):
+    """``perception.knobs._Window.fits`` in one call: for each of B renderings (``labels``
+    (B, box pixels)), the normal equations of its soft label maps (``label_gram``, over the
+    labels present in any of them, numbered in increasing order as ``_label_lut`` numbers
+    them), ``diag`` added to their diagonal, each label's colour solved (LAPACK's gesv, as
+    numpy's solve) and ``out[b]`` = the explained sum of squares, sum(b * mu). The numpy
+    calls it replaces cost more than their sums on a window (a tenth of a millisecond each
+    rendering call)."""
+    B = labels.shape[0]
+    top = 0
+    for b in range(B):
+        for p in range(labels.shape[1]):
+            if labels[b, p] > top:
+                top = labels[b, p]
+    lut = np.full(top + 1, -1, np.int64)
+    for b in range(B):
+        for p in range(labels.shape[1]):
+            lut[labels[b, p]] = 0
+    L = 0
+    for v in range(top + 1):
+        if lut[v] == 0:
+            lut[v] = L
+            L += 1
+    G = np.zeros((B, L, L))
+    bv = np.zeros((B, L, 3))
+    label_gram(labels, lut, idx, wts, xc, G, bv)
+    for b in range(B):
+        for l in range(L):
+            G[b, l, l] += diag
+        mu = np.linalg.solve(G[b], bv[b])
+        s = 0.0
+        for l in range(L):
+            for c in range(3):
+                s += bv[b, l, c] * mu[l, c]
+        out[b] = s

@@ -1583,27 +1583,45 @@ class KnobReader:
                 windows[key] = win if win.box is not None else None
             if win.box is None:
                 return None
-            o = np.array([c[0], c[1], -shape.face])
-            dirs = win.rays_camera() @ R_canvas_cam.T
-            O = C - o
+            O = C - np.array([c[0], c[1], -shape.face])
+            dirs, measured = pixels(win.box, O[2])
             # the fixed visuals' hits are the same for every rendering of this window
             fixed_hits: dict = {}
             win.render = lambda alphas: caster.labels(O, dirs, alphas, -psi, fine=True, with_t=True,
                                                       cache=fixed_hits)
             win.c = c
             win.depth_fit = None
+            if measured is not None:
+                m, valid, panel, sums = measured
+                win.depth_fit = lambda ts: depth_scores(
+                    m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]),
+                    measured=sums)[0]
+            return win
+
+        def pixels(box, height: float):
+            """The rays of a box's pixels (canvas frame) and, with depth, the measured depth
+            there: (m, valid, the panel's t, ``measured_heights``), or None when under a third
+            is valid. The same for every window on the same box (a window moved by a fraction
+            of a pixel, ``settle``): the panel's place along a ray depends only on the
+            camera's height over it (``height``, the same for every centre), so made once."""
+            bkey = ("pixels", box, depth is None)
+            got = windows.get(bkey) if windows is not None else None
+            if got is not None:
+                return got
+            u0, v0, u1, v1 = box
+            dirs = _box_rays(box, K) @ R_canvas_cam.T
+            measured = None
             if depth is not None:
-                u0, v0, u1, v1 = win.box
                 m = depth[v0:v1, u0:u1].ravel().astype(np.float64)
                 dz = np.where(np.abs(dirs[:, 2]) > 1e-6, dirs[:, 2], 1e-6)
-                panel = -O[2] / dz                     # the panel plane (z = 0 of the knob)
+                panel = -height / dz                   # the panel plane (z = 0 of the knob)
                 valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
                 if valid.mean() >= 0.3:
-                    measured = measured_heights(m[None], valid[None])
-                    win.depth_fit = lambda ts: depth_scores(
-                        m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]),
-                        measured=measured)[0]
-            return win
+                    measured = (m, valid, panel, measured_heights(m[None], valid[None]))
+            got = (dirs, measured)
+            if windows is not None:
+                windows[bkey] = got
+            return got
 
         def scores(win, labs, ts) -> np.ndarray:
             """The fits of renderings (B, N) and their ray parameters, in one go."""
@@ -1678,6 +1696,14 @@ def _label_lut(labels: np.ndarray) -> tuple[np.ndarray, int]:
     return lut, len(present)
 
 
+def _box_rays(box, K: Intrinsics) -> np.ndarray:
+    """Camera-frame directions (z = 1) through every pixel centre of an image box (u0, v0,
+    u1, v1), row by row."""
+    u0, v0, u1, v1 = box
+    uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
+    return np.stack([(uu.ravel() - K.cx) / K.fx, (vv.ravel() - K.cy) / K.fy, np.ones(uu.size)], 1)
+
+
 _GRIDS: dict = {}
 
 
@@ -1736,10 +1762,7 @@ class _Window:
 
     def rays_camera(self) -> np.ndarray:
         """Camera-frame directions (z = 1) through every pixel centre of the box."""
-        u0, v0, u1, v1 = self.box
-        uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
-        K = self.K
-        return np.stack([(uu.ravel() - K.cx) / K.fx, (vv.ravel() - K.cy) / K.fy, np.ones(uu.size)], 1)
+        return _box_rays(self.box, self.K)
 
     def _sampling(self, t) -> tuple[np.ndarray, np.ndarray]:
         """The four box pixels (4, N) each window pixel mixes, and their bilinear weights,
@@ -1799,16 +1822,13 @@ class _Window:
         if self.tv <= 1e-6 * len(self.X):
             return np.zeros(B)
         idx, wts = self._sampling((0.0, 0.0))
-        lut, L = _label_lut(labels)
         # each window pixel mixes four box pixels' labels: the Gram matrix W W^T and W X are
         # sums over pixels of those four labels' weight products (sparse, no dense W; the
-        # sums np.bincount made, compiled: perception/knob_kernels.py)
-        G = np.zeros((B, L, L))
-        b = np.zeros((B, L, 3))
-        knob_kernels.label_gram(labels, lut, idx, wts, self.Xc, G, b)
-        G[:, np.arange(L), np.arange(L)] += 1e-6 + self.ridge
-        mu = np.linalg.solve(G, b)
-        return np.einsum("blc,blc->b", b, mu) / self.tv
+        # sums np.bincount made), solved, compiled: perception/knob_kernels.py
+        out = np.empty(B)
+        knob_kernels.label_fits(np.ascontiguousarray(labels), idx, wts, self.Xc,
+                                1e-6 + self.ridge, out)
+        return out / self.tv
 
     def contrast(self, labels: np.ndarray) -> tuple[float, float, float]:
         """The colour residual (sum of squares) of each of two renderings (2, N box pixels)

@@ -68,6 +68,25 @@ def test_label_gram_is_bincounts_sums(seed):
         assert np.abs(b - b0).max() <= 1e-12 * np.abs(b0).max()
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_label_fits_are_numpys_least_squares(seed):
+    """The fused fit (labels numbered, normal equations, ridge, solve, explained sum) against
+    numpy's: the labels present in any rendering, ``np.linalg.solve`` and the sum."""
+    rng = np.random.default_rng(seed)
+    labels, _, idx, wts, xc = _window(rng, 1600, 961, 20 + 10 * seed, 1 + 3 * seed)
+    labels[:, 1000:] = labels[:, 1000:] * 2          # label values with gaps, as renderings have
+    present = np.flatnonzero(np.bincount(labels.ravel()))
+    lut = np.zeros(int(present[-1]) + 1, np.int64)
+    lut[present] = np.arange(len(present))
+    G, b = _bincount_gram(labels, lut, idx, wts, xc)
+    L = len(present)
+    G[:, np.arange(L), np.arange(L)] += 0.5
+    want = np.einsum("blc,blc->b", b, np.linalg.solve(G, b))
+    got = np.empty(len(labels))
+    knob_kernels.label_fits(labels, idx, wts, xc, 0.5, got)
+    assert np.allclose(got, want, rtol=1e-10, atol=0)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_label_maps_are_bincounts_sums_bit_for_bit(seed):
     rng = np.random.default_rng(100 + seed)
