@@ -338,3 +338,36 @@ def label_fits(labels, idx, wts, xc, diag, out):
             for c in range(3):
                 s += bv[b, l, c] * mu[l, c]
         out[b] = s
+
+
+@numba.njit(**_JIT)
+def depth_fits(ts, panel, valid, wm, sw, sm, smm, ok_count, out):
+    """``perception.knobs.depth_scores`` of one window's measured depth against B renderings
+    in one call: rendering b's depth along each ray is ``ts[b]`` where it hit the knob, else
+    ``panel``; in mm about its mean over all the window's rays, correlated (squared, a
+    positive slope only, else 0) with the measured depth where ``valid``. ``wm``: the
+    measured depth (mm) where valid, else 0; ``sw``, ``sm``, ``smm``: the count of valid rays
+    (at least 1), and the sums of the measured depth and of its square; ``ok_count``: whether
+    enough rays are valid. The same operations as numpy's, summed in another order."""
+    B, N = ts.shape
+    for b in range(B):
+        mean = 0.0
+        for n in range(N):
+            z = ts[b, n] if np.isfinite(ts[b, n]) else panel[n]
+            mean += z * 1000.0
+        mean /= N
+        st, stt, smt = 0.0, 0.0, 0.0
+        for n in range(N):
+            if valid[n]:
+                z = ts[b, n] if np.isfinite(ts[b, n]) else panel[n]
+                t = z * 1000.0 - mean
+                st += t
+                stt += t * t
+                smt += wm[n] * t
+        cov = smt - sm * st / sw
+        vm = smm - sm * sm / sw
+        vt = stt - st * st / sw
+        if ok_count and cov > 0 and vm > 1e-9 and vt > 1e-9:
+            out[b] = cov * cov / max(vm * vt, 1e-12)
+        else:
+            out[b] = 0.0

@@ -1584,41 +1584,46 @@ class KnobReader:
             if win.box is None:
                 return None
             O = C - np.array([c[0], c[1], -shape.face])
-            dirs, measured = pixels(win.box, O[2])
+            dirs, depth_fit = pixels(win.box, O[2])
             # the fixed visuals' hits are the same for every rendering of this window
             fixed_hits: dict = {}
             win.render = lambda alphas: caster.labels(O, dirs, alphas, -psi, fine=True, with_t=True,
                                                       cache=fixed_hits)
             win.c = c
-            win.depth_fit = None
-            if measured is not None:
-                m, valid, panel, sums = measured
-                win.depth_fit = lambda ts: depth_scores(
-                    m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]),
-                    measured=sums)[0]
+            win.depth_fit = depth_fit
             return win
 
         def pixels(box, height: float):
-            """The rays of a box's pixels (canvas frame) and, with depth, the measured depth
-            there: (m, valid, the panel's t, ``measured_heights``), or None when under a third
-            is valid. The same for every window on the same box (a window moved by a fraction
-            of a pixel, ``settle``): the panel's place along a ray depends only on the
-            camera's height over it (``height``, the same for every centre), so made once."""
+            """The rays of a box's pixels (canvas frame) and, with depth, the fit of the
+            measured depth there to renderings' ray parameters (B, N) -> (B,), or None when
+            under a third of it is valid. The same for every window on the same box (a
+            window moved by a fraction of a pixel, ``settle``): the panel's place along a ray
+            depends only on the camera's height over it (``height``, the same for every
+            centre), so made once."""
             bkey = ("pixels", box, depth is None)
             got = windows.get(bkey) if windows is not None else None
             if got is not None:
                 return got
             u0, v0, u1, v1 = box
             dirs = _box_rays(box, K) @ R_canvas_cam.T
-            measured = None
+            depth_fit = None
             if depth is not None:
                 m = depth[v0:v1, u0:u1].ravel().astype(np.float64)
                 dz = np.where(np.abs(dirs[:, 2]) > 1e-6, dirs[:, 2], 1e-6)
                 panel = -height / dz                   # the panel plane (z = 0 of the knob)
                 valid = (m > 0) & (m > panel - slack) & (m < panel + 0.03)
                 if valid.mean() >= 0.3:
-                    measured = (m, valid, panel, measured_heights(m[None], valid[None]))
-            got = (dirs, measured)
+                    # ``depth_scores`` of the renderings' depths (compiled: the numpy calls
+                    # cost more than the sums)
+                    W, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
+                    args = (panel, valid, Wm[0], float(Sw[0, 0]), float(Sm[0, 0]),
+                            float(Smm[0, 0]), bool(count[0, 0] >= 0.5 * len(m)))
+
+                    def depth_fit(ts, args=args):
+                        out = np.empty(len(ts))
+                        knob_kernels.depth_fits(np.ascontiguousarray(ts), *args, out)
+                        return out
+            got = (dirs, depth_fit)
             if windows is not None:
                 windows[bkey] = got
             return got

@@ -256,3 +256,26 @@ def test_the_compiled_settle_finds_numpys_shift(reader, monkeypatch):
         assert np.abs(t - ref).max() < 1e-9, (t, ref)
         moved += np.hypot(*ref) > 0.05
     assert moved >= 3              # the views' pose errors: most windows do move
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_depth_fits_are_depth_scores(seed):
+    """One window's measured depth against renderings' ray parameters (inf: the ray missed
+    the knob and meets the panel), compiled, against ``depth_scores``: the same scores, the
+    zeros (too few valid rays, a negative slope) included."""
+    from perception.knobs import depth_scores, measured_heights
+    rng = np.random.default_rng(seed)
+    N, B = 900, 6
+    panel = 0.5 + rng.normal(0, 0.002, N)
+    ts = np.where(rng.random((B, N)) < 0.4, panel - rng.uniform(0.005, 0.02, (B, N)), np.inf)
+    ts[-1] = panel + (panel - np.where(np.isfinite(ts[0]), ts[0], panel))   # the knob inverted
+    m = np.where(np.isfinite(ts[0]), ts[0], panel) + rng.normal(0, 5e-4, N)
+    for share in (0.8, 0.3):
+        valid = rng.random(N) < share
+        want = depth_scores(m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]))[0]
+        W, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
+        got = np.empty(B)
+        knob_kernels.depth_fits(ts, panel, valid, Wm[0], float(Sw[0, 0]), float(Sm[0, 0]),
+                                float(Smm[0, 0]), bool(count[0, 0] >= 0.5 * N), got)
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-12)
+        assert (want[0] > 0.5) == (share == 0.8) and want[-1] == 0.0
