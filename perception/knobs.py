@@ -1279,7 +1279,7 @@ class KnobReader:
         if shape.symmetry == 1 and turned is not None and not from_dot:
             half_turn = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
                                         (float(turned[1]) - psi, turned[2]), psi, r_px,
-                                        depth if use_depth else None, theta)
+                                        depth if use_depth else None, theta, windows=windows)
         center_k = rotate_xy(center_c, psi)              # canvas frame -> knob face frame
         p_world = prior.T_world_face() @ np.array([center_k[0], center_k[1], 0.0, 1.0])
         pcam = np.linalg.inv(T_wc) @ p_world
@@ -1301,7 +1301,7 @@ class KnobReader:
             # (docs/knobs.md, "The marker against the next state")
             versus = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
                                      (float(fine[1][1]) - psi, fine[1][2]), psi, r_px,
-                                     depth if use_depth else None, theta) if len(fine) > 1 else None
+                                     depth if use_depth else None, theta, windows=windows) if len(fine) > 1 else None
             if versus is not None:
                 ev["rival"] = versus["half_turn"]
         if half_turn is not None:
@@ -1470,7 +1470,7 @@ class KnobReader:
         return a_dot, float(margin), rival
 
     def _half_turn(self, rgb, K, T_wc, prior, shape, T_c, C, reading, turned, psi, r_px,
-                   depth=None, theta=0.0) -> Optional[dict]:
+                   depth=None, theta=0.0, windows: Optional[dict] = None) -> Optional[dict]:
         """How much better the reading (``reading`` = (relative angle rad, centre in the canvas
         frame m)) explains the image than the knob turned by half a turn from it
         (``turned``, the same: the exact check that ended nearest the half turn, or the half
@@ -1492,7 +1492,7 @@ class KnobReader:
         median difference over the pixels where the two agree (the believed plane's height
         error). ``half_turn``: the colour's plus ``depth_weight`` times the depth's, checked
         against ``half_turn_gate_for`` (calibrated like the state gate). None when the window
-        leaves the image."""
+        leaves the image. ``windows``: the reading's exact checks' windows (``_refine``)."""
         cfg = self.config
         if r_px > cfg.decimate_above_px:
             rgb = rgb[::2, ::2]
@@ -1501,15 +1501,23 @@ class KnobReader:
         rho = cfg.fine_px_per_radius / prior.radius
         n = 2 * int(math.ceil(self.templates.window_radii * cfg.fine_px_per_radius)) + 1
         mid = ((reading[1][0] + turned[1][0]) / 2, (reading[1][1] + turned[1][1]) / 2)
-        win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, mid), n, ridge=cfg.fine_ridge_px)
+        # the exact checks' window there when they looked through one (``_refine``'s
+        # ``windows``: the same window, rays and, at one centre for both, renderings)
+        seen = (windows or {}).get((float(mid[0]), float(mid[1]), depth is None))
+        win = seen or _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, mid), n,
+                              ridge=cfg.fine_ridge_px)
         if win.box is None:
             return None
-        dirs = win.rays_camera() @ (np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]).T
-        # both in one cast: the rays of each from the camera as seen from its own centre
-        origins = np.stack([np.broadcast_to(C - np.array([c[0], c[1], -shape.face]), dirs.shape)
-                            for _, c in (reading, turned)])
-        labs, ts = self.caster(prior.shape).labels(origins, dirs, np.array([reading[0], turned[0]]), -psi,
-                                                   fine=True, with_t=True)
+        if seen is not None and tuple(reading[1]) == tuple(turned[1]):
+            labs, ts = seen.render(np.array([reading[0], turned[0]]))
+            dirs = (windows or {})[("pixels", win.box, depth is None)][0]
+        else:
+            dirs = win.rays_camera() @ (np.linalg.inv(T_c)[:3, :3] @ T_wc[:3, :3]).T
+            # both in one cast: the rays of each from the camera as seen from its own centre
+            origins = np.stack([np.broadcast_to(C - np.array([c[0], c[1], -shape.face]), dirs.shape)
+                                for _, c in (reading, turned)])
+            labs, ts = self.caster(prior.shape).labels(origins, dirs, np.array([reading[0], turned[0]]),
+                                                       -psi, fine=True, with_t=True)
         colour = _contrast_ratio(*win.contrast(labs))
         out = dict(half_turn=colour, half_turn_colour=colour)
         if depth is not None:
