@@ -585,13 +585,21 @@ def plane_homography(K: Intrinsics, T_world_camera: np.ndarray, T_world_plane: n
     """3x3 homography from canvas pixels to image pixels: the canvas is ``size`` px square,
     shows the plane z = 0 of ``T_world_plane`` head-on at ``px_per_m``, its centre pixel at
     plane point ``center`` (m), canvas right = plane +x, canvas up = plane +y."""
+    return image_of_plane(K, T_world_camera, T_world_plane) @ _canvas_to_plane(px_per_m, size, center)
+
+
+def image_of_plane(K: Intrinsics, T_world_camera: np.ndarray, T_world_plane: np.ndarray) -> np.ndarray:
+    """3x3 homography from the plane z = 0 of ``T_world_plane`` (m) to image pixels."""
     T_cp = np.linalg.inv(T_world_camera) @ T_world_plane
-    H_img_plane = K.matrix() @ np.column_stack([T_cp[:3, 0], T_cp[:3, 1], T_cp[:3, 3]])
+    return K.matrix() @ np.column_stack([T_cp[:3, 0], T_cp[:3, 1], T_cp[:3, 3]])
+
+
+def _canvas_to_plane(px_per_m: float, size: int, center) -> np.ndarray:
+    """``plane_homography``'s canvas pixels -> plane (m)."""
     c = (size - 1) / 2.0
-    A = np.array([[1.0 / px_per_m, 0.0, center[0] - c / px_per_m],
-                  [0.0, -1.0 / px_per_m, center[1] + c / px_per_m],
-                  [0.0, 0.0, 1.0]])
-    return H_img_plane @ A
+    return np.array([[1.0 / px_per_m, 0.0, center[0] - c / px_per_m],
+                     [0.0, -1.0 / px_per_m, center[1] + c / px_per_m],
+                     [0.0, 0.0, 1.0]])
 
 
 def rectify(image: np.ndarray, H_img_canvas: np.ndarray, size: int) -> np.ndarray:
@@ -823,10 +831,9 @@ def _candidates(curve: np.ndarray, allowed: np.ndarray, state_of: np.ndarray, k:
     angles, best first, and the best allowed angle of another state than the first when
     none of them is of one (the runner-up the margin is measured against)."""
     c = np.where(allowed, curve, -np.inf)
-    peaks = [i for i in range(len(c)) if np.isfinite(c[i])
-             and c[i] >= c[i - 1] and c[i] >= c[(i + 1) % len(c)]]
-    peaks.sort(key=lambda i: -c[i])
-    picks = peaks[:k] or [int(np.argmax(c))]
+    peaks = np.flatnonzero(np.isfinite(c) & (c >= np.roll(c, 1)) & (c >= np.roll(c, -1)))
+    peaks = peaks[np.argsort(-c[peaks], kind="stable")]             # best first, ties in order
+    picks = [int(i) for i in peaks[:k]] or [int(np.argmax(c))]
     if all(state_of[i] == state_of[picks[0]] for i in picks):
         others = np.flatnonzero(allowed & (state_of != state_of[picks[0]]))
         if len(others):
@@ -1581,12 +1588,13 @@ class KnobReader:
         slack = shape.face / max(math.cos(theta), 0.3) + 0.03
         w_depth = cfg.depth_weight
 
+        H_plane = image_of_plane(K, T_wc, T_c)     # every window's homography: this, then its canvas
+
         def look(c) -> Optional[_Window]:
             key = (float(c[0]), float(c[1]), depth is None)
             if windows is not None and key in windows:
                 return windows[key]
-            win = _Window(rgb, K, plane_homography(K, T_wc, T_c, rho, n, c), n,
-                          ridge=cfg.fine_ridge_px)
+            win = _Window(rgb, K, H_plane @ _canvas_to_plane(rho, n, c), n, ridge=cfg.fine_ridge_px)
             if windows is not None:
                 windows[key] = win if win.box is not None else None
             if win.box is None:
