@@ -671,6 +671,17 @@ def _box_sum(img: np.ndarray, n: int) -> np.ndarray:
     return ii[n:, n:] - ii[:-n, n:] - ii[n:, :-n] + ii[:-n, :-n]
 
 
+def _windows(img: np.ndarray, n: int) -> np.ndarray:
+    """Every n x n window (valid positions, row-major) of a 2-D image, or of each channel of
+    a 3-D one, as the rows of a matrix: (h * w, n * n) or (h * w * channels, n * n), so that
+    one BLAS product correlates many templates with the image at every position (what one
+    ``cv2.matchTemplate`` call per template and channel did, a call costing more than its
+    sums on a canvas this small)."""
+    from numpy.lib.stride_tricks import sliding_window_view
+    win = sliding_window_view(img, (n, n), axis=(0, 1))           # (h, w[, c], n, n)
+    return np.ascontiguousarray(win).reshape(-1, n * n)
+
+
 def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) -> np.ndarray:
     """R^2 of the soft-label regression of the RGB ``canvas`` (H, W, 3) float32 on ``soft``
     (L, n, n) label maps at every valid window position: (H - n + 1, W - n + 1)."""
@@ -678,8 +689,10 @@ def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) ->
     N = n * n
     keep = np.flatnonzero(np.diag(gram_inv) > 0)
     chans = [np.ascontiguousarray(canvas[..., ch]) for ch in range(3)]
-    b = np.stack([np.stack([cv2.matchTemplate(c, soft[l], cv2.TM_CCORR) for c in chans])
-                  for l in keep])                                      # (L', 3, h, w)
+    h, w = canvas.shape[0] - n + 1, canvas.shape[1] - n + 1
+    # each label's map correlated with each channel at every offset, one product
+    b = (_windows(canvas, n) @ soft[keep].reshape(len(keep), N).T).reshape(h, w, 3, len(keep))
+    b = b.transpose(3, 2, 0, 1)                                        # (L', 3, h, w)
     G = gram_inv[np.ix_(keep, keep)]
     explained = np.einsum("lchw,lm,mchw->hw", b, G, b)
     sums = np.stack([_box_sum(c, n) for c in chans])
@@ -691,12 +704,13 @@ def offset_scores(canvas: np.ndarray, soft: np.ndarray, gram_inv: np.ndarray) ->
 
 def measured_sums(height: np.ndarray, valid: np.ndarray, n: int) -> tuple:
     """What ``depth_offset_scores`` needs of a measured height map whatever the template
-    (n x n): the weights, the heights (mm about their median, 0 where not valid) and their
-    box sums. Made once per canvas: a reading correlates several templates with it."""
+    (n x n): the windows (``_windows``) of the weights and of the heights (mm about their
+    median, 0 where not valid), and their box sums. Made once per canvas: a reading
+    correlates several templates with it."""
     w = valid.astype(np.float32)
     ref = float(np.median(height[valid])) if valid.any() else 0.0
     hw = np.where(valid, (height - ref) * 1000.0, 0.0).astype(np.float32)      # mm
-    return w, hw, _box_sum(w, n), _box_sum(hw, n), _box_sum(hw * hw, n)
+    return _windows(w, n), _windows(hw, n), _box_sum(w, n), _box_sum(hw, n), _box_sum(hw * hw, n)
 
 
 def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndarray,
@@ -705,16 +719,18 @@ def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndar
     (H, W) (m above the face plane, only where ``valid``) and a template height map (n, n) at
     every valid window position: (H - n + 1, W - n + 1). Correlation, so that an error of the
     believed plane's height (registration) or of the depth scale does not matter; windows with
-    fewer than ``min_valid`` of their pixels measured score 0. OpenCV's matchTemplate does the
-    sums (masked correlation is not one of its modes: the masked sums are written out).
-    ``sums``: ``measured_sums`` of the same map, when made already."""
+    fewer than ``min_valid`` of their pixels measured score 0. Masked correlation is not one
+    of OpenCV's matchTemplate modes: the masked sums are written out, as products of the
+    map's windows (``_windows``) with the template. ``sums``: ``measured_sums`` of the same
+    map, when made already."""
     n = template.shape[0]
     N = n * n
-    w, hw, Sw, Sh, Shh = sums if sums is not None else measured_sums(height, valid, n)
-    t = ((template - template.mean()) * 1000.0).astype(np.float32)
-    St = cv2.matchTemplate(w, t, cv2.TM_CCORR).astype(np.float64)
-    Stt = cv2.matchTemplate(w, t * t, cv2.TM_CCORR).astype(np.float64)
-    Sht = cv2.matchTemplate(hw, t, cv2.TM_CCORR).astype(np.float64)
+    Pw, Ph, Sw, Sh, Shh = sums if sums is not None else measured_sums(height, valid, n)
+    t = ((template - template.mean()) * 1000.0).astype(np.float32).ravel()
+    shape = Sw.shape
+    St = (Pw @ t).reshape(shape).astype(np.float64)
+    Stt = (Pw @ (t * t)).reshape(shape).astype(np.float64)
+    Sht = (Ph @ t).reshape(shape).astype(np.float64)
     Swc = np.maximum(Sw, 1.0)
     cov = Sht - Sh * St / Swc
     vh = Shh - Sh * Sh / Swc
