@@ -70,31 +70,6 @@ def label_maps(labels, lut, idx, wts, W):
 
 
 @numba.njit(**_JIT)
-def turn_rays(origins, dirs, c, s, rays):
-    """Rays turned back by each turn's angle about +z into the visuals' frame, as float32
-    (origin, direction): x' = c x + s y, y' = -s x + c y, z' = z, in float64 and then
-    rounded (numpy's order). ``origins`` (Bo, No, 3) and ``dirs`` (Bd, N, 3) with Bo, Bd 1 or
-    the turns' count and No 1 or N (numpy's broadcasting); ``c``, ``s`` (Bc,); ``rays`` (Bc,
-    N, 6)."""
-    Bc, N = rays.shape[0], rays.shape[1]
-    for b in range(Bc):
-        bo = b if origins.shape[0] > 1 else 0
-        bd = b if dirs.shape[0] > 1 else 0
-        cb, sb = c[b], s[b]
-        ms = -sb
-        for n in range(N):
-            no = n if origins.shape[1] > 1 else 0
-            x, y = origins[bo, no, 0], origins[bo, no, 1]
-            rays[b, n, 0] = cb * x + sb * y
-            rays[b, n, 1] = ms * x + cb * y
-            rays[b, n, 2] = origins[bo, no, 2]
-            x, y = dirs[bd, n, 0], dirs[bd, n, 1]
-            rays[b, n, 3] = cb * x + sb * y
-            rays[b, n, 4] = ms * x + cb * y
-            rays[b, n, 5] = dirs[bd, n, 2]
-
-
-@numba.njit(**_JIT)
 def nearest_labels(keep, t, gid, prim, Bc, first, az, nz, part, turns, fine, classes, n_fine,
                    fine_step, quarter, label, best_t):
     """Where a ray's hit is nearer than ``best_t`` (B, N), its label and t there. The hits
@@ -264,45 +239,6 @@ def settle_shift(labels, lut, L, H, jj, ii, box, xc, n, ridge, iterations, max_s
 
 
 @numba.njit(**_JIT)
-def rays_near_box(rays, lo, hi, keep):
-    """The rays (M, 6: origin, direction, float32) that can hit what lies in the box ``lo``
-    .. ``hi`` (3,), at t >= 0 (the slab test, in float64): their indices into ``keep``, in
-    order; returns how many. A scene's hits lie inside its bounding box, so a ray that
-    misses the box hits nothing (``perception.knobs._Caster.labels`` casts only the others:
-    Embree costs about 40 ns a ray even for one that misses, and most of a window's rays
-    pass beside the knob). The box is the caller's, padded so that rounding cannot drop a
-    ray that grazes it."""
-    M = rays.shape[0]
-    k = 0
-    for m in range(M):
-        t0, t1 = 0.0, np.inf
-        ok = True
-        for a in range(3):
-            o = np.float64(rays[m, a])
-            d = np.float64(rays[m, 3 + a])
-            if d == 0.0:
-                if o < lo[a] or o > hi[a]:
-                    ok = False
-                    break
-                continue
-            ta = (lo[a] - o) / d
-            tb = (hi[a] - o) / d
-            if ta > tb:
-                ta, tb = tb, ta
-            if ta > t0:
-                t0 = ta
-            if tb < t1:
-                t1 = tb
-            if t0 > t1:
-                ok = False
-                break
-        if ok:
-            keep[k] = m
-            k += 1
-    return k
-
-
-@numba.njit(**_JIT)
 def label_fits(labels, idx, wts, xc, diag, out):
     """``perception.knobs._Window.fits`` in one call: for each of B renderings (``labels``
     (B, box pixels)), the normal equations of its soft label maps (``label_gram``, over the
@@ -371,3 +307,63 @@ def depth_fits(ts, panel, valid, wm, sw, sm, smm, ok_count, out):
             out[b] = cov * cov / max(vm * vt, 1e-12)
         else:
             out[b] = 0.0
+
+
+@numba.njit(**_JIT)
+def turn_rays_near_box(origins, dirs, c, s, lo, hi, out, keep):
+    """Rays turned back by each turn's angle about +z into the visuals' frame, kept only
+    when they can hit what lies in the box ``lo`` .. ``hi`` (3,) at t >= 0. Turning: x' = c
+    x + s y, y' = -s x + c y, z' = z, in float64 and rounded to float32 (numpy's order);
+    ``origins`` (Bo, No, 3) and ``dirs`` (Bd, N, 3) with Bo, Bd 1 or the turns' count and No
+    1 or N (numpy's broadcasting); ``c``, ``s`` (Bc,). The box test: the slab test in float64
+    on the rounded ray. A scene's hits lie inside its bounding box, so a ray that misses the
+    box hits nothing: ``perception.knobs._Caster`` casts only the others (Embree costs about
+    40 ns a ray even for one that misses, and most of a window's rays pass beside the knob;
+    the box is the caller's, padded so that rounding cannot drop a ray that grazes it). The
+    kept rays go to ``out`` (Bc * N, 6) in order and their indices (b * N + n) to ``keep``;
+    returns how many."""
+    Bc, N = c.shape[0], dirs.shape[1]
+    k = 0
+    ray = np.empty(6, np.float32)
+    for b in range(Bc):
+        bo = b if origins.shape[0] > 1 else 0
+        bd = b if dirs.shape[0] > 1 else 0
+        cb, sb = c[b], s[b]
+        ms = -sb
+        for n in range(N):
+            no = n if origins.shape[1] > 1 else 0
+            x, y = origins[bo, no, 0], origins[bo, no, 1]
+            ray[0] = cb * x + sb * y
+            ray[1] = ms * x + cb * y
+            ray[2] = origins[bo, no, 2]
+            x, y = dirs[bd, n, 0], dirs[bd, n, 1]
+            ray[3] = cb * x + sb * y
+            ray[4] = ms * x + cb * y
+            ray[5] = dirs[bd, n, 2]
+            t0, t1 = 0.0, np.inf
+            ok = True
+            for a in range(3):
+                o = np.float64(ray[a])
+                d = np.float64(ray[3 + a])
+                if d == 0.0:
+                    if o < lo[a] or o > hi[a]:
+                        ok = False
+                        break
+                    continue
+                ta = (lo[a] - o) / d
+                tb = (hi[a] - o) / d
+                if ta > tb:
+                    ta, tb = tb, ta
+                if ta > t0:
+                    t0 = ta
+                if tb < t1:
+                    t1 = tb
+                if t0 > t1:
+                    ok = False
+                    break
+            if ok:
+                for j in range(6):
+                    out[k, j] = ray[j]
+                keep[k] = b * N + n
+                k += 1
+    return k

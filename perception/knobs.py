@@ -258,7 +258,7 @@ class _Caster:
                 count += len(t)
             self.scenes.append(scene if count else None)
             # the scene's bounding box (the vertices as the scene holds them), padded by 0.1 mm
-            # so that no rounding drops a ray that grazes it (``knob_kernels.rays_near_box``)
+            # so that no rounding drops a ray that grazes it (``knob_kernels.turn_rays_near_box``)
             pad = 1e-4
             self.bounds.append((np.min(corners, 0) - pad, np.max(corners, 0) + pad) if count else None)
             self.first.append(np.array(first + [count], dtype=np.int64))
@@ -266,17 +266,21 @@ class _Caster:
             self.nz.append(np.concatenate(nz + [np.zeros(1)]))
             self.part.append(np.concatenate(part + [np.zeros(1, np.int64)]))
 
-    def _cast(self, k: int, rays: np.ndarray) -> tuple:
-        """Scene ``k``'s hits of ``rays`` (M, 6) float32, of the rays that can reach its
-        bounding box (``knob_kernels.rays_near_box``; the others hit nothing, and each ray is
-        cast alone, so the hits are those of casting all): their indices, t (inf: nothing),
-        geometry and primitive ids."""
-        keep = np.empty(len(rays), np.int64)
-        m = knob_kernels.rays_near_box(rays, *self.bounds[k], keep)
+    def _cast(self, k: int, origins: np.ndarray, dirs: np.ndarray, turns: np.ndarray) -> tuple:
+        """Scene ``k``'s hits of the rays ``origins``, ``dirs`` (``labels``' broadcast forms)
+        turned back by each of ``turns`` into the visuals' frame: of the rays that can reach
+        the scene's bounding box (``knob_kernels.turn_rays_near_box``; the others hit
+        nothing, and each ray is cast alone, so the hits are those of casting all), their
+        indices (b * N + n), t (inf: nothing), geometry and primitive ids."""
+        M = len(turns) * dirs.shape[1]
+        rays = np.empty((M, 6), np.float32)
+        keep = np.empty(M, np.int64)
+        m = knob_kernels.turn_rays_near_box(origins, dirs, np.cos(turns), np.sin(turns),
+                                            *self.bounds[k], rays, keep)
         keep = keep[:m]
         if not m:
             return keep, np.empty(0, np.float32), np.empty(0, np.uint32), np.empty(0, np.uint32)
-        ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[keep]))
+        ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[:m]))
         return (keep, np.array(ans["t_hit"].numpy()), np.array(ans["geometry_ids"].numpy()),
                 np.array(ans["primitive_ids"].numpy()))
 
@@ -317,9 +321,7 @@ class _Caster:
             # perception/knob_kernels.py)
             hits = cache.get("fixed") if (once and cache is not None) else None
             if hits is None:
-                rays = np.empty((Bc, N, 6), np.float32)
-                knob_kernels.turn_rays(o3, d3, np.cos(a[:Bc]), np.sin(a[:Bc]), rays)
-                hits = self._cast(k, rays.reshape(-1, 6))
+                hits = self._cast(k, o3, d3, a[:Bc])
                 if once and cache is not None:
                     cache["fixed"] = hits
             # the nearer hits' labels: each triangle's face class for each turn, per hit

@@ -172,8 +172,9 @@ def test_the_exact_renderings_labels_are_numpys_bit_for_bit(home):
 
 @pytest.mark.parametrize("home", [1, 4])
 def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
-    """``rays_near_box`` keeps every ray that hits the scene (each scene's rays cast whole
-    here) and leaves out most of those that pass beside the knob, grazing ones included."""
+    """``turn_rays_near_box`` keeps every ray that hits the scene (each scene's rays cast
+    whole here) and leaves out most of those that pass beside the knob, grazing ones
+    included."""
     import open3d as o3d
     from perception.knobs import _Caster, knob_shape
     from worldmodel.homegen import generate_home
@@ -186,13 +187,19 @@ def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
     target = rng.uniform(-3 * r, 3 * r, (4000, 3))
     target[:, 2] = 0.0
     rays = np.concatenate([np.broadcast_to(C, (4000, 3)), target - C], 1).astype(np.float32)
+
+    def near(r, lo, hi, keep):
+        """The kernel on rays (M, 6), each with its own origin, not turned."""
+        out = np.empty((len(r), 6), np.float32)
+        return knob_kernels.turn_rays_near_box(r[None, :, :3], r[None, :, 3:], np.ones(1),
+                                               np.zeros(1), lo, hi, out, keep)
     for scene, bounds in zip(caster.scenes, caster.bounds):
         if scene is None:
             continue
         lo, hi = bounds
         hit = np.isfinite(scene.cast_rays(o3d.core.Tensor.from_numpy(rays))["t_hit"].numpy())
         keep = np.empty(len(rays), np.int64)
-        m = knob_kernels.rays_near_box(rays, lo, hi, keep)
+        m = near(rays.astype(np.float64), lo, hi, keep)
         kept = np.zeros(len(rays), bool)
         kept[keep[:m]] = True
         assert hit.sum() > 50 and not np.any(hit & ~kept)
@@ -201,7 +208,7 @@ def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
         along = np.array([[lo[0] + 1e-6, 0.0, hi[2] + 1.0, 0.0, 0.0, -1.0],
                           [lo[0] - 1e-6, 0.0, hi[2] + 1.0, 0.0, 0.0, -1.0]], np.float32)
         along[:, 1] = 0.5 * (lo[1] + hi[1])
-        assert knob_kernels.rays_near_box(along, lo, hi, np.empty(2, np.int64)) == 1
+        assert near(along.astype(np.float64), lo, hi, np.empty(2, np.int64)) == 1
 
 
 def _numpy_settle(win, labels, iterations, max_shift):
