@@ -1,4 +1,5 @@
-"""The knob reader's label sums compiled by numba (``perception.knobs._Window``).
+"""The knob reader's exact-check loops compiled by numba (``perception.knobs._Caster`` and
+``_Window``).
 
 Written by hand because no library has them: the exact check (``KnobReader._refine``) fits
 each rendering's soft label maps to the image window by least squares, and the normal
@@ -13,7 +14,11 @@ corners show one label (most pixels: a label's inside) as one product, the squar
 weights' sum, not sixteen: the same sums to rounding (1e-12 of the largest in the tests), a
 tenth of a reading faster; over 240 readings of six homes every state and every evidence
 figure stayed the same, angles to 1e-9 rad (tests/knobs/test_knob_kernels.py compares them
-with the numpy sums). No fast-math; ``cache=True`` and ``nogil`` as in ``perception.kernels``.
+with the numpy sums). The exact renderings' rays are turned and culled to the visuals'
+bounding box (``turn_rays_near_box``) and labelled from their hits (``nearest_labels``), and
+a batch of renderings is fitted in one call each to the colours (``label_fits``) and to the
+depth (``depth_fits``): there the numpy calls cost more than their sums. No fast-math;
+``cache=True`` and ``nogil`` as in ``perception.kernels``.
 """
 from __future__ import annotations
 

@@ -743,8 +743,9 @@ def depth_offset_scores(height: np.ndarray, valid: np.ndarray, template: np.ndar
 
 def measured_heights(heights: np.ndarray, valid: np.ndarray) -> tuple:
     """What ``depth_scores`` needs of measured heights (P, N) whatever the templates: the
-    weights, the heights (mm, 0 where not valid), their weighted product and sums. Made once
-    for a window whose renderings are scored again and again."""
+    weights, the heights (mm, 0 where not valid) weighted, the count of valid pixels (at
+    least 1), the sums of the heights and of their squares, and the count itself. An exact
+    check's window makes them once for all its renderings (``knob_kernels.depth_fits``)."""
     W = valid.astype(np.float64)
     m = np.where(valid, heights, 0.0).astype(np.float64) * 1000.0
     Wm = W * m
@@ -752,12 +753,15 @@ def measured_heights(heights: np.ndarray, valid: np.ndarray) -> tuple:
             (W * m * m).sum(1)[:, None], W.sum(1)[:, None])
 
 
+#: the share of a window's pixels with a measured depth that ``depth_scores`` needs
+DEPTH_MIN_VALID = 0.5
+
+
 def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
-                 min_valid: float = 0.5, measured: Optional[tuple] = None) -> np.ndarray:
+                 min_valid: float = DEPTH_MIN_VALID) -> np.ndarray:
     """Squared correlation (positive slope, else 0) of measured heights ``heights`` (P, N)
-    (valid where ``valid``) with template heights ``templates`` (A, N): (P, A).
-    ``measured``: ``measured_heights`` of them, when made already."""
-    W, Wm, Sw, Sm, Smm, count = measured if measured is not None else measured_heights(heights, valid)
+    (valid where ``valid``) with template heights ``templates`` (A, N): (P, A)."""
+    W, Wm, Sw, Sm, Smm, count = measured_heights(heights, valid)
     T = templates.astype(np.float64) * 1000.0
     T = T - T.mean(1, keepdims=True)
     St = W @ T.T
@@ -1588,7 +1592,8 @@ class KnobReader:
         ``exact_only``: the fits at ``alphas0`` themselves, at ``center`` (no offset settled,
         no angle searched). ``windows``: a dict one reading keeps, of the windows its exact
         checks looked through by centre (a check at a centre another one ended at, the next
-        state's, reuses its window: the same image, rays and fixed visuals' hits). Returns
+        state's, reuses its window: the same image, rays and fixed visuals' hits), and of
+        the rays and depth fit of each image box (``pixels``; ``_half_turn`` reads both). Returns
         [(fit, knob angle, centre in the canvas frame)] per candidate."""
         cfg, tm = self.config, self.templates
         if r_px > cfg.decimate_above_px:
@@ -1649,9 +1654,9 @@ class KnobReader:
                 if valid.mean() >= 0.3:
                     # ``depth_scores`` of the renderings' depths (compiled: the numpy calls
                     # cost more than the sums)
-                    W, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
+                    _, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
                     args = (panel, valid, Wm[0], float(Sw[0, 0]), float(Sm[0, 0]),
-                            float(Smm[0, 0]), bool(count[0, 0] >= 0.5 * len(m)))
+                            float(Smm[0, 0]), bool(count[0, 0] >= DEPTH_MIN_VALID * len(m)))
 
                     def depth_fit(ts, args=args):
                         out = np.empty(len(ts))

@@ -280,7 +280,7 @@ def test_depth_fits_are_depth_scores(seed):
     for share in (0.8, 0.3):
         valid = rng.random(N) < share
         want = depth_scores(m[None], valid[None], np.where(np.isfinite(ts), ts, panel[None]))[0]
-        W, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
+        _, Wm, Sw, Sm, Smm, count = measured_heights(m[None], valid[None])
         got = np.empty(B)
         knob_kernels.depth_fits(ts, panel, valid, Wm[0], float(Sw[0, 0]), float(Sm[0, 0]),
                                 float(Smm[0, 0]), bool(count[0, 0] >= 0.5 * N), got)
