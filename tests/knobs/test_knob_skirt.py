@@ -135,3 +135,34 @@ def test_a_dot_reading_is_compared_with_the_next_state_where_the_two_differ(skir
     s = strict.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
     assert s.state == "unknown"
     assert s.reason.startswith("unsure (3: its marker fits nearly as well at "), s.reason
+
+
+def test_a_second_speck_on_the_cap_leaves_a_dot_reading_unsure(skirt):
+    """The dot's margin weighs how much the dot stands out over any other dot-sized spot on
+    the cap: a dark speck like the dot a quarter turn away (a crumb, a burn mark) makes a
+    clear reading "unsure", never another state."""
+    import cv2
+    from perception.camera import project
+    world, reader, scenes = skirt
+    k = world.get("oven_knob_1")
+    a = k.state_angle("3")
+    frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 20.0, 15.0)
+    clear = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
+    assert clear.state == "3", clear.reason
+    rc = 0.7 * k.radius                    # skirt_world's cap and dot
+    dot = 0.27 * rc
+    yd = rc - 1.25 * dot
+
+    def pixel(angle):
+        p = pr.T_world_knob @ np.array([-yd * math.sin(angle), yd * math.cos(angle), k.depth + 0.001, 1.0])
+        return project((np.linalg.inv(T_wc) @ p)[None, :3], K)[0][0]
+
+    u, v = pixel(a)
+    assert frame.color[int(v), int(u)].max() < 40            # the dot is where it is drawn
+    u, v = pixel(a + math.pi / 2)
+    img = frame.color.copy()
+    cv2.circle(img, (int(round(u)), int(round(v))), max(1, int(round(K.fx * dot / 0.7))), (13, 13, 13), -1)
+    speck = reader.read(img, K, T_wc, [pr], depth=frame.depth)[0]
+    assert speck.found and speck.state == "unknown", (speck.state, speck.reason)
+    assert speck.reason.startswith("unsure"), speck.reason
+    assert speck.evidence["margin"] < 0.1 * clear.evidence["margin"], (speck.evidence, clear.evidence)
