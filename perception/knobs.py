@@ -281,7 +281,9 @@ class _Caster:
         keep = keep[:m]
         if not m:
             return keep, np.empty(0, np.float32), np.empty(0, np.uint32), np.empty(0, np.uint32)
-        ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[:m]))
+        # one thread: a few thousand rays a call, and Embree's threads cost more CPU than
+        # they save (a pointer reading 9.6 -> 9.1 ms CPU, its wall time the same to the noise)
+        ans = self.scenes[k].cast_rays(self.o3d.core.Tensor.from_numpy(rays[:m]), nthreads=1)
         return (keep, np.array(ans["t_hit"].numpy()), np.array(ans["geometry_ids"].numpy()),
                 np.array(ans["primitive_ids"].numpy()))
 
