@@ -152,8 +152,9 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 
 #: Knob designs: body colour, marker colour, radius range, depth range.
 #: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
-#: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on.
-GENERATOR_VERSION = 3
+#: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on;
+#: 4 = a skirt knob's dot stands 1 mm proud of its cap as built (not level with it on some homes).
+GENERATOR_VERSION = 4
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -925,10 +926,17 @@ def _knob_design(ctx: _Ctx, family: str, r: float, depth: float) -> dict:
         hs = _mm(depth * u(0.3, 0.5))
         rc = r * u(0.6, 0.75)
         dot = rc * u(0.24, 0.3)
+        cap = cyl(rc, depth - hs, z=hs + (depth - hs) / 2, color=grip_c, name="cap")
+        # the dot 1 mm proud of the cap as built: its centre from the cap's top after the
+        # cap's centre was rounded to the millimetre. Rounded to the millimetre itself, the
+        # dot's top came level with the cap's on some homes (generator version 3: home 1's
+        # cap 9.5-26.5 mm, its dot 25.5-26.5 mm), and the two faces fought in the renderer:
+        # the dot a speckle of pixels that no real knob shows
+        top = cap.pose.z + cap.length / 2
+        mk = cyl(dot, 0.001, y=rc - 1.25 * dot, color=mark, name="dot")
+        mk = replace(mk, pose=Pose(mk.pose.x, mk.pose.y, round(top + 0.0005, 4) + 0.0))
         return dict(base=Model([cyl(r, hs, z=hs / 2, color=body, name="skirt")]),
-                    grip=Model([cyl(rc, depth - hs, z=hs + (depth - hs) / 2, color=grip_c, name="cap")]),
-                    marker=Model([cyl(dot, 0.001, y=rc - 1.25 * dot, z=depth + 0.0005, color=mark,
-                                      name="dot")]))
+                    grip=Model([cap]), marker=Model([mk]))
     return {}
 
 
