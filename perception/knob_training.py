@@ -59,7 +59,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 26   # 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
+CODE_VERSION = 27   # 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
 
 _canon = canon   # the name earlier code imported
 
@@ -228,8 +228,10 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
     # readings whose angle came from a round body's marker (``KnobReader._dot_reading``) have
     # a margin of their own (in expected errors of the angle), so they get gates of their own,
     # never under ``dot_margin_floor`` (a tiny validation set may hold no wrong one: a dot
-    # too small to see then read a fixed speck of noise as a state at margin 0.02)
-    dots = [r for r in passed if r.get("dot")]
+    # too small to see then read a fixed speck of noise as a state at margin 0.02). Those seen
+    # more obliquely than ``KnobConfig.dot_max_off_axis_deg`` never give a state: they set
+    # no gate either
+    dots = [r for r in passed if r.get("dot") and r.get("off_axis", 0.0) <= reader.config.dot_max_off_axis_deg]
     passed = [r for r in passed if not r.get("dot")]
     gates, turns = _level_gates(passed, cfg)
     out = KnobReader(reader.templates, det, gates[0], reader.config, state_gate_hard=gates[1])

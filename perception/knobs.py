@@ -134,7 +134,8 @@ class KnobConfig:
     the marker's colour, ``KnobReader._dot_reading``, with ``dot_noise_floor`` (grey
     levels), ``dot_center_px`` and ``dot_blob_px`` (the expected errors of the centre and of
     the marker, image pixels, the marker's over its contrast to noise) and
-    ``dot_dominance_power`` for its margin)."""
+    ``dot_dominance_power`` for its margin); such a reading seen more than
+    ``dot_max_off_axis_deg`` off the knob's axis gives no state."""
     px_per_radius: float = 8.0
     window_radii: float = 1.25
     alpha_step_deg: float = 5.0
@@ -165,6 +166,7 @@ class KnobConfig:
     dot_center_px: float = read_time(0.25)
     dot_blob_px: float = read_time(1.0)
     dot_dominance_power: float = read_time(3.0)
+    dot_max_off_axis_deg: float = read_time(55.0)
     threshold: Optional[float] = read_time(None)
     margin_threshold: Optional[float] = read_time(None)
 
@@ -1354,7 +1356,8 @@ class KnobReader:
                                reason=f"no knob found in its region (fit {ev['score']:.2f})")
         state, c_snap = snap_to_state(r.angle, prior)
         ev["snap"] = round(1.0 - c_snap, 3)
-        hard = view_level(ev.get("radius_px", 0.0), off_axis_deg(T_wc, prior))
+        oblique = off_axis_deg(T_wc, prior)
+        hard = view_level(ev.get("radius_px", 0.0), oblique)
         gate = gates.margin_threshold_for(hard, bool(ev.get("dot")))
         is_off = state == prior.off_state
         need = gate * (cfg.off_margin_factor if is_off else 1.0)
@@ -1366,6 +1369,13 @@ class KnobReader:
         def doubt(need_margin: float) -> Optional[str]:
             """Why the reading may not give its state with a margin gate of ``need_margin``
             (None: it may)."""
+            if ev.get("dot") and oblique > cfg.dot_max_off_axis_deg:
+                # a marker seen this obliquely: the centre from the depth leans towards the
+                # camera and the marker's side shows; its held-out readings beyond 55 degrees
+                # were read a state or two off, margins well over their gates (docs/knobs.md,
+                # "A dot seen obliquely")
+                return (f"unsure ({state}: its marker is seen {oblique:.0f} degrees off the "
+                        f"knob's axis, at most {cfg.dot_max_off_axis_deg:.0f})")
             if ev["margin"] <= need_margin:
                 return (f"unsure ({state}: margin {ev['margin']:.3f} over {ev['runner_up']}, "
                         f"needs {need_margin:.3f})")
