@@ -59,7 +59,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 27   # 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
+CODE_VERSION = 28   # 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
 
 _canon = canon   # the name earlier code imported
 

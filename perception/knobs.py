@@ -2067,15 +2067,21 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
         panel = roi & ~np.isfinite(t)
         if panel.sum() < min_pixels:
             return None
-        h = hm - float(np.median(hm[panel]))          # the panel's measured height as 0
         # the top's rim only: the marker stands on the top, and a lower step's centre (the
         # skirt's) is off the top's when the believed axis leans (and its step over the
         # panel is nearer the depth noise): home 1's centre error 0.60 -> 0.36 mm at the
         # median (p90 1.20 -> 0.89) against both steps weighted by their pixels
-        mm, mr = roi & (h > taus[-1]), roi & (hr > taus[-1])
+        mr = roi & (hr > taus[-1])
         nr = int(mr.sum())
-        if nr < min_pixels:
+        if nr < min_pixels or not (mr & valid).any():
             return None
+        # the measured heights put on the rendered ones by the top itself (the median
+        # difference over the rendered top), not by the panel: a knob standing half a
+        # millimetre off its panel (a bezel's gap, a recess) moved the cut on the side wall
+        # the camera sees, and with it the centre towards the camera, 0.1-0.4 mm with the
+        # obliquity on views without noise (docs/knobs.md, "The top as the reference")
+        h = hm - float(np.median(hm[mr & valid] - hr[mr & valid]))
+        mm = roi & (h > taus[-1])
         # only measured top pixels that could be this knob's: on the top's plane within its
         # rendered radius and a quarter radius more. A packed neighbour's top (2 radii away,
         # its edge inside the region of interest) would pull the centroid towards it, and
@@ -2111,6 +2117,16 @@ def marker_dot(shape: KnobShape) -> Optional[tuple[float, float, float, float]]:
     return math.atan2(-m[0], m[1]), rho, size, top
 
 
+def marker_proud(shape: KnobShape) -> float:
+    """How far (m) a knob's marker stands out of the top of the rest of the knob (0: none,
+    flush or sunk)."""
+    if "marker" not in shape.roles:
+        return 0.0
+    mz = max(float(v[:, 2].max()) for v, r in zip(shape.vertices, shape.roles) if r == "marker")
+    body = [float(v[:, 2].max()) for v, r in zip(shape.vertices, shape.roles) if r != "marker"]
+    return max(0.0, mz - max(body)) if body else 0.0
+
+
 def dot_profile(rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndarray, shape: KnobShape,
                 center, px_per_radius: float = 32.0, step_deg: float = 1.0):
     """How much a marker-sized disc on the knob's top differs in colour from the top, at each
@@ -2140,6 +2156,19 @@ def dot_profile(rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndarra
     rr = np.sqrt(np.linspace(0.0, 1.0, 6)[1:])[:, None] * size * 0.8
     tt = np.linspace(0.0, 2 * math.pi, 10, endpoint=False)[None, :]
     disc = np.concatenate([[[0.0, 0.0]], np.stack([(rr * np.cos(tt)).ravel(), (rr * np.sin(tt)).ravel()], 1)])
+    # a marker standing proud of the top shows its side to the camera: seen on the face plane
+    # (the marker's top) that side lies towards the camera, by up to its height times the
+    # tangent of the obliquity. The disc swept that way is what the marker looks like; a disc
+    # alone found it that far towards the camera (on views without noise, the reading's angle
+    # error correlated -0.8 with the sine of the marker's direction from the camera's beyond
+    # 45 degrees: docs/knobs.md, "The marker's side")
+    proud = marker_proud(shape)
+    if proud > 0:
+        cam = (np.linalg.inv(T_c) @ np.append(T_wc[:3, 3], 1.0))[:3]
+        v = cam[:2] - np.asarray(center, dtype=float)
+        if cam[2] > 1e-6 and np.hypot(*v) > 1e-9:
+            sweep = v / np.hypot(*v) * proud * np.hypot(*v) / cam[2]
+            disc = np.concatenate([disc + f * sweep for f in (0.0, 0.5, 1.0)])
     alphas = np.radians(np.arange(0.0, 360.0, step_deg))
     mx, my = -rho_d * np.sin(alphas + a0), rho_d * np.cos(alphas + a0)
     X = (mx[:, None] + disc[None, :, 0]) * rho + c
