@@ -28,7 +28,12 @@ whatever their colours, so the depth image says where the panel's knobs are as a
 5. the best candidate is used when it scores at least ``min_score`` and leads every other
    candidate by ``min_lead`` (a row shifted by a pitch whose end knob is out of view is
    still a candidate: then nothing is moved and each knob is searched where the map says,
-   as before).
+   as before). When that ambiguous best match moves a knob further than the reader's own
+   search, which knob is which is not sure: the knobs are read both where the map puts them
+   and where the match puts them, and a knob read differently the two ways is "unknown"
+   (``read_panel``; home 18, a pose 9 cm off along a row of five skirt knobs 12.6 cm apart:
+   each region held its neighbour, an "on" knob was read "off" from its neighbour's dot and
+   the mission ended in a wrong success).
 
 The knobs are then read where the panel is (``shift_priors``). Only the knobs' image
 positions change, not the map or the robot's pose. Written here because no library matches a
@@ -80,7 +85,8 @@ class PanelFix:
     """The shift (m, world frame) of a group of knobs, its size (m), the match's score and its
     lead over the next other peak; ``used``: whether it passed the gates; ``knobs``: each
     knob's own shift (the panel's and its own around it, m, world frame); ``here_ok``: whether
-    every knob in view stands on a bump where the map puts it."""
+    every knob in view stands on a bump where the map puts it; ``ambiguous``: another match
+    came within ``min_lead`` of this one."""
     knob_ids: tuple[str, ...]
     shift_world: np.ndarray
     shift_m: float
@@ -90,6 +96,7 @@ class PanelFix:
     why: str = ""
     knobs: dict = field(default_factory=dict)
     here_ok: bool = False
+    ambiguous: bool = False
 
 
 def panel_groups(priors: Sequence, tol: float = 0.01) -> list[list]:
@@ -287,7 +294,8 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
                         why=f"{missing} knob{'s' if many else ''} not where the match puts "
                             f"{'them' if many else 'it'}")
     if lead < cfg.min_lead:
-        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok, why=f"ambiguous (lead {lead:.2f})")
+        return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok,
+                        why=f"ambiguous (lead {lead:.2f})", ambiguous=True)
     if max([size] + [float(np.linalg.norm(v)) for v in knobs.values()]) < cfg.min_shift:
         return PanelFix(ids, shift, size, best, lead, False, knobs=knobs, here_ok=here_ok,
                         why=WHERE_THE_MAP_SAYS)
@@ -323,15 +331,23 @@ def read_panel(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors:
     taken; otherwise the knobs are read where the map puts them and where the match puts
     them, and the match is taken when the reader finds more knobs there, or as many when the
     map's places are not all on bumps (a row one pitch off: its regions hold the neighbours).
-    A panel whose match is not taken gets ``used`` False and the reason. Returns the
-    readings and what was found per panel (``shift_priors``)."""
+    A panel whose match is not taken gets ``used`` False and the reason. A panel whose best
+    match is ambiguous and moves a knob beyond the reader's search (a row one pitch along
+    matches as well) is read both ways, and its knobs read differently are "unknown"
+    (``_same_both_ways``). Returns the readings and what was found per panel
+    (``shift_priors``)."""
     moved, fixes = shift_priors(priors, depth, K, T_wc, cfg)
     keep = lambda ps: [p for p in ps if only is None or p.knob_id in only]
     used = [f for f in fixes if f.used]
-    if not used:
-        return reader.read(rgb, K, T_wc, keep(priors), depth=depth), fixes
     rc = reader.config
     reach = {p.knob_id: max(rc.search_m, rc.search_radii * p.radius) for p in priors}
+    if not used:
+        here = reader.read(rgb, K, T_wc, keep(priors), depth=depth)
+        doubtful = [f for f in fixes if f.ambiguous and any(
+            float(np.linalg.norm(v)) > reach[k] for k, v in f.knobs.items())]
+        if doubtful:
+            here = _same_both_ways(reader, rgb, K, T_wc, keep(priors), here, doubtful, depth)
+        return here, fixes
     near = all(float(np.linalg.norm(v)) <= reach[k] for f in used for k, v in f.knobs.items())
     if near:
         # within the reader's own search radius (0.6 radii or 14 mm) of where the map puts
@@ -346,3 +362,38 @@ def read_panel(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors:
     why = (f"its knobs are found where the map puts them ({n_here} of {len(here)}; "
            f"{n_there} where the match puts them)")
     return here, [replace(f, used=False, why=why) if f.used else f for f in fixes]
+
+
+def _same_both_ways(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Sequence,
+                    here: list, doubtful: Sequence[PanelFix], depth: Optional[np.ndarray]) -> list:
+    """``here`` (the readings of ``priors`` where the map puts them) with every knob of the
+    ``doubtful`` panels that reads otherwise where their ambiguous match puts it made
+    "unknown": with the robot's pose a knob pitch off, each region holds its neighbour, and
+    its reading is the neighbour's state (an "on" knob read "off"). A knob that reads the
+    same both ways (or is unknown here) keeps its reading."""
+    shift = {k: v for f in doubtful for k, v in f.knobs.items()}
+    there = {}
+    moved = []
+    for p in priors:
+        if p.knob_id in shift:
+            T = p.T_world_knob.copy()
+            T[:3, 3] = T[:3, 3] + shift[p.knob_id]
+            moved.append(replace(p, T_world_knob=T))
+    if moved:
+        there = {r.knob_id: r for r in reader.read(rgb, K, T_wc, moved, depth=depth)}
+    out = []
+    for r in here:
+        t = there.get(r.knob_id)
+        told = r.state != "unknown" or r.evidence.get("off_one_view")
+        if t is None or not told or (t.state == r.state and bool(t.evidence.get("off_one_view"))
+                                     == bool(r.evidence.get("off_one_view"))):
+            out.append(r)
+            continue
+        f = next(f for f in doubtful if r.knob_id in f.knobs)
+        other = t.state if t.found else "no knob"
+        lean = r.state if r.state != "unknown" else r.evidence.get("leaning", "unknown")
+        ev = {k: v for k, v in r.evidence.items() if k != "off_one_view"}
+        out.append(replace(r, state="unknown", confidence=0.0, evidence=ev,
+                           reason=f"unsure ({lean}: its panel matches as well "
+                                  f"{f.shift_m * 100:.0f} cm along, where it reads {other})"))
+    return out

@@ -145,3 +145,41 @@ def test_a_shift_beyond_the_readers_search_is_taken_only_when_the_reader_finds_t
         knob_panel.shift_priors = real
     assert [f.used for f in fixes] == [False] and "found where the map puts them" in fixes[0].why
     assert all(x.found for x in readings)
+
+
+def test_a_panel_that_matches_as_well_one_pitch_along_gives_no_neighbour_s_state(demo_world, reader):
+    """The pose a knob pitch off along the row: each knob's region holds its neighbour. When
+    the panel's match cannot tell that shift from another (ambiguous), a knob that reads
+    otherwise where the match puts it is "unknown", never its neighbour's state; read as
+    before (no ambiguous match reported), some knob takes its neighbour's state."""
+    from perception import knob_panel
+    from perception.knob_panel import read_panel
+    priors = knob_priors(demo_world, "oven")
+    along = priors[0].T_world_knob[:3, 0]
+    pitch = min(abs(float(along @ (p.T_world_knob[:3, 3] - q.T_world_knob[:3, 3])))
+                for p in priors for q in priors if p is not q)
+    truth = {p.knob_id: p.state_names[(i + 1) % len(p.state_names)] for i, p in enumerate(priors)}
+    angles = {p.knob_id: p.state_angles[p.state_names.index(truth[p.knob_id])] for p in priors}
+    error = pitch * along
+    r, _, T_believed, priors = _view(demo_world, "oven", error, angles=angles)
+    real = knob_panel.shift_priors
+
+    def ambiguous(flag):
+        def made_up(ps, depth, K_, T, cfg=knob_panel.PanelConfig()):
+            fix = knob_panel.PanelFix(tuple(p.knob_id for p in ps), error, pitch, 0.7, 0.0, False,
+                                      why="ambiguous (lead 0.00)", knobs={p.knob_id: error for p in ps},
+                                      here_ok=True, ambiguous=flag)
+            return list(ps), [fix]
+        return made_up
+    try:
+        knob_panel.shift_priors = ambiguous(False)
+        before, _ = read_panel(reader, r.color, K, T_believed, priors, depth=r.depth)
+        knob_panel.shift_priors = ambiguous(True)
+        now, _ = read_panel(reader, r.color, K, T_believed, priors, depth=r.depth)
+    finally:
+        knob_panel.shift_priors = real
+    assert any(x.state not in ("unknown", truth[x.knob_id]) for x in before), \
+        [(x.knob_id, x.state, truth[x.knob_id]) for x in before]
+    assert all(x.state in ("unknown", truth[x.knob_id]) for x in now), \
+        [(x.knob_id, x.state, truth[x.knob_id]) for x in now]
+    assert any("its panel matches as well" in x.reason for x in now), [x.reason for x in now]
