@@ -370,7 +370,9 @@ def _same_both_ways(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, pr
     ``doubtful`` panels that reads otherwise where their ambiguous match puts it made
     "unknown": with the robot's pose a knob pitch off, each region holds its neighbour, and
     its reading is the neighbour's state (an "on" knob read "off"). A knob that reads the
-    same both ways (or is unknown here) keeps its reading."""
+    same both ways (or is unknown here) keeps its reading, and so do the knobs of a panel
+    none of whose knobs the reader finds where the match puts them: the reader refutes that
+    match (home 2, the pose right, matches 8-16 cm along over bare panel)."""
     shift = {k: v for f in doubtful for k, v in f.knobs.items()}
     there = {}
     moved = []
@@ -381,6 +383,9 @@ def _same_both_ways(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, pr
             moved.append(replace(p, T_world_knob=T))
     if moved:
         there = {r.knob_id: r for r in reader.read(rgb, K, T_wc, moved, depth=depth)}
+    for f in doubtful:
+        if not any(there[k].found for k in f.knob_ids if k in there):
+            there = {k: r for k, r in there.items() if k not in f.knob_ids}
     out = []
     for r in here:
         t = there.get(r.knob_id)
