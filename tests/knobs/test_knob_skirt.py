@@ -169,14 +169,14 @@ def test_a_second_speck_on_the_cap_leaves_a_dot_reading_unsure(skirt):
 
 
 def test_a_dot_seen_too_obliquely_stays_unknown(skirt):
-    """Beyond ``dot_max_off_axis_deg`` (55) off the knob's axis a marker's reading gives no
+    """Beyond ``dot_max_off_axis_deg`` (60) off the knob's axis a marker's reading gives no
     state, however clear: the reason says how obliquely it was seen."""
     world, reader, scenes = skirt
     a = world.get("oven_knob_1").state_angle("3")
-    frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 57.0, 15.0)
+    frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 62.0, 15.0)
     r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
     assert r.found and r.state == "unknown", (r.state, r.reason)
     assert r.evidence.get("dot")
-    assert "its marker is seen 58 degrees off the knob's axis, at most 55" in r.reason, r.reason
+    assert "its marker is seen 63 degrees off the knob's axis, at most 60" in r.reason, r.reason
     frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 40.0, 15.0)
     assert reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0].state == "3"
