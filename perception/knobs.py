@@ -2065,7 +2065,6 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
         _lab, t = caster.labels(O, d, np.array([alpha]), -psi, with_t=True)
         t = t[0]
         hr = np.where(np.isfinite(t), C[2] + t * d[:, 2] + face, 0.0)
-        Pr = C[None, :2] + np.where(np.isfinite(t), t, 0.0)[:, None] * d[:, :2]
         panel = roi & ~np.isfinite(t)
         if panel.sum() < min_pixels:
             return None
@@ -2082,23 +2081,24 @@ def body_center(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndar
         # millimetre off its panel (a bezel's gap, a recess) moved the cut on the side wall
         # the camera sees, and with it the centre towards the camera, 0.1-0.4 mm with the
         # obliquity on views without noise (docs/knobs.md, "The top as the reference")
-        h = hm - float(np.median(hm[mr & valid] - hr[mr & valid]))
-        mm = roi & (h > taus[-1])
+        off = float(np.median(hm[mr & valid] - hr[mr & valid]))
+        mm = np.flatnonzero(roi)                       # indices, the masks' in their order
+        mm = mm[hm[mm] - off > taus[-1]]
         # only measured top pixels that could be this knob's: on the top's plane within its
         # rendered radius and a quarter radius more. A packed neighbour's top (2 radii away,
         # its edge inside the region of interest) would pull the centroid towards it, and
         # each step pulls more: home 8's skirt knobs 2.15 radii apart, centres 7-17 mm off
         # towards the neighbour and dot angles 20-45 degrees off on a quarter of the views.
         r_top = float(np.hypot(*(q[-1][mr] - c).T).max())
-        mm &= np.hypot(*(q[-1] - c).T) <= r_top + 0.25 * shape.radius
+        mm = mm[np.hypot(*(q[-1][mm] - c).T) <= r_top + 0.25 * shape.radius]
         # ... and whose measured point itself lies within the rendered top's radius of the
         # axis and half a radius more (a quarter cut noisy rims: home 784's centre p90 1.4 ->
         # 2.6 mm). Projected onto the top's plane, a neighbour's tall cap seen over the knob
         # from 45-60 degrees came within reach, and the centre walked towards it 5-17 mm on
         # views without noise (homes 8 and 17; docs/knobs.md, "Points, not their shadows")
-        r3 = float(np.hypot(*(Pr[mr] - c).T).max())
-        mm &= np.hypot(*(Pm - c).T) <= r3 + 0.5 * shape.radius
-        used = int(mm.sum())
+        r3 = float(np.hypot(*(C[None, :2] + t[mr][:, None] * d[mr, :2] - c).T).max())
+        mm = mm[np.hypot(*(Pm[mm] - c).T) <= r3 + 0.5 * shape.radius]
+        used = int(mm.size)
         if used < min_pixels:
             return None
         step = q[-1][mm].mean(0) - q[-1][mr].mean(0)
