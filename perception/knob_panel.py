@@ -99,6 +99,13 @@ class PanelFix:
     ambiguous: bool = False
 
 
+def _shifted(prior, shift_world: np.ndarray):
+    """The knob prior moved by ``shift_world`` (m, world frame)."""
+    T = prior.T_world_knob.copy()
+    T[:3, 3] = T[:3, 3] + shift_world
+    return replace(prior, T_world_knob=T)
+
+
 def panel_groups(priors: Sequence, tol: float = 0.01) -> list[list]:
     """The priors grouped by panel: knob axes parallel (within about 3 degrees) and their
     planes (z = 0 of the knob frames) within ``tol`` of each other."""
@@ -272,12 +279,9 @@ def locate_panel(depth: np.ndarray, K: Intrinsics, T_wc: np.ndarray, priors: Seq
     lift, here_ok = 0.0, m[7]
     if m[0] >= cfg.min_score and abs(m[4]) > 0.003:
         lift = m[4]
-        ref2, moved = ref.copy(), []
+        ref2 = ref.copy()
         ref2[:3, 3] += ref[:3, 2] * lift
-        for p in priors:
-            T = p.T_world_knob.copy()
-            T[:3, 3] += ref[:3, 2] * lift
-            moved.append(replace(p, T_world_knob=T))
+        moved = [_shifted(p, ref[:3, 2] * lift) for p in priors]
         m2 = _match(depth, K, T_wc, ref2, moved, cfg)
         if m2 is not None:
             m = m2
@@ -316,9 +320,7 @@ def shift_priors(priors: Sequence, depth: Optional[np.ndarray], K: Intrinsics, T
         fixes.append(fix)
         if fix.used:
             for p in group:
-                T = p.T_world_knob.copy()
-                T[:3, 3] = T[:3, 3] + fix.knobs.get(p.knob_id, fix.shift_world)
-                out[p.knob_id] = replace(p, T_world_knob=T)
+                out[p.knob_id] = _shifted(p, fix.knobs.get(p.knob_id, fix.shift_world))
     return [out[p.knob_id] for p in priors], fixes
 
 
@@ -375,12 +377,7 @@ def _same_both_ways(reader, rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, pr
     match (home 2, the pose right, matches 8-16 cm along over bare panel)."""
     shift = {k: v for f in doubtful for k, v in f.knobs.items()}
     there = {}
-    moved = []
-    for p in priors:
-        if p.knob_id in shift:
-            T = p.T_world_knob.copy()
-            T[:3, 3] = T[:3, 3] + shift[p.knob_id]
-            moved.append(replace(p, T_world_knob=T))
+    moved = [_shifted(p, shift[p.knob_id]) for p in priors if p.knob_id in shift]
     if moved:
         there = {r.knob_id: r for r in reader.read(rgb, K, T_wc, moved, depth=depth)}
     for f in doubtful:
