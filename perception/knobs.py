@@ -2179,7 +2179,7 @@ def dot_profile(rgb: np.ndarray, K: Intrinsics, T_wc: np.ndarray, T_c: np.ndarra
         cam = (np.linalg.inv(T_c) @ np.append(T_wc[:3, 3], 1.0))[:3]
         v = cam[:2] - np.asarray(center, dtype=float)
         if cam[2] > 1e-6 and np.hypot(*v) > 1e-9:
-            sweep = v / np.hypot(*v) * proud * np.hypot(*v) / cam[2]
+            sweep = v * (proud / cam[2])             # towards the camera, proud * tan(obliquity)
             disc = np.concatenate([disc + f * sweep for f in (0.0, 0.5, 1.0)])
     alphas = np.radians(np.arange(0.0, 360.0, step_deg))
     mx, my = -rho_d * np.sin(alphas + a0), rho_d * np.cos(alphas + a0)
