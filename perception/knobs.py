@@ -1228,10 +1228,12 @@ class KnobReader:
         elif use_depth:
             if shape.symmetry == 1:
                 # and the best coarse angle turned by half a turn, whatever the coarse curve
-                # says of it: a marker flipped a radius away is the mistake colour makes
-                flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
-                if flip not in picks and allowed[flip]:
-                    picks = picks + [flip]
+                # says of it: a marker flipped a radius away is the mistake colour makes. The
+                # allowed angle nearest the half turn, within 45 degrees: a knob that turns
+                # one way only may stop short of it (home 4: states 0-223 degrees, the best
+                # coarse angle 61 with the knob at 222; the half turn, 241, was not allowed,
+                # and no angle near the knob's was checked)
+                picks = _with_half_turn(tpl.alphas, picks, allowed)
             # candidates whose centres agree (a knob whose body looks the same at every
             # angle) share one window
             groups: list = []
@@ -1451,9 +1453,7 @@ class KnobReader:
             fit = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center, [a_dot - psi], psi,
                                r_px, depth, theta, windows=windows)[0][0]
             return [(fit, a_dot, center), (fit - margin, rival, center)], curve, picks, True
-        flip = int(np.argmin(np.abs(_wrap(tpl.alphas - tpl.alphas[picks[0]] - math.pi))))
-        if flip not in picks and allowed[flip]:
-            picks = picks + [flip]
+        picks = _with_half_turn(tpl.alphas, picks, allowed)
         fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
                             [tpl.alphas[c] for c in picks], psi, r_px, depth, theta, hold=True,
                             windows=windows)
@@ -1955,6 +1955,14 @@ def allowed_angle(prior: KnobPrior, angle: float, margin: float = math.radians(1
     mid, half = (lo + hi) / 2, (hi - lo) / 2 + margin
     d = abs(math.remainder(angle - mid, period))
     return d <= half
+
+
+def _with_half_turn(alphas: np.ndarray, picks: list, allowed: np.ndarray) -> list:
+    """``picks`` (indices of ``alphas``, the best first) and the allowed angle nearest the
+    best one's half turn, within 45 degrees, where it is not among them."""
+    d = np.where(allowed, np.abs(_wrap(alphas - alphas[picks[0]] - math.pi)), np.inf)
+    flip = int(np.argmin(d))
+    return picks + [flip] if flip not in picks and d[flip] < math.radians(45) else picks
 
 
 def allowed_angles(prior: KnobPrior, angles, margin: float = math.radians(15)) -> np.ndarray:

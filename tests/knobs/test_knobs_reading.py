@@ -416,3 +416,21 @@ def test_allowed_angles_answer_as_allowed_angle_does_one_by_one():
             seen |= set(got.tolist())
     assert seen == {True, False}
     assert allowed_angles(SimpleNamespace(travel=None, symmetry=1), [0.0, 3.0]).all()
+
+
+def test_the_half_turn_candidate_is_the_allowed_angle_nearest_the_half_turn():
+    """A knob that turns one way only may stop short of its best coarse angle's half turn:
+    the candidate checked is then the allowed angle nearest to it, within 45 degrees (home 4:
+    states 0-223 degrees, the best coarse angle 61 with the knob at 222; the exact half turn,
+    241, is not allowed), and none where no allowed angle comes that near."""
+    import math
+    from perception.knobs import _with_half_turn
+    alphas = np.radians(np.arange(-180, 180, 5.0))
+    travel = (alphas >= math.radians(-1)) & (alphas <= math.radians(224))   # 0..223 deg, one way
+    allowed = travel | (alphas <= math.radians(-137))          # -180..-137 = 180..223 deg
+    best = int(np.argmin(np.abs(alphas - math.radians(60))))
+    got = _with_half_turn(alphas, [best], allowed)
+    assert len(got) == 2 and round(math.degrees(alphas[got[1]])) == -140    # 220 deg, not 240
+    assert _with_half_turn(alphas, [best, got[1]], allowed) == [best, got[1]]
+    narrow = (alphas >= math.radians(-1)) & (alphas <= math.radians(60))
+    assert _with_half_turn(alphas, [best], narrow) == [best]   # nothing within 45 degrees
