@@ -55,11 +55,11 @@ import numpy as np
 from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
 from perception.knobs import (
     CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape, view_level,
-    off_axis_deg, snap_to_state, to_rgb,
+    not_there, off_axis_deg, snap_to_state, to_rgb,
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 33   # 33: the best coarse angle's half turn checked at the allowed angle nearest it (a knob that turns one way only); 32: body_center stops at steps under 0.1 mm, not 0.02; 31: dot_max_off_axis_deg 60, not 55 (the dot gates' readings); 30: the same with half a radius of slack; 29: a round body's measured top pixels kept by where their points are, not only by their projection on the top's plane (body_center); 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
+CODE_VERSION = 34   # 34: no knob where the depth shows under min_relief of its relief (stands) or beyond max_offset_searches search radii (offset), the detect gate fitted on the others (the middle of the floor and the lowest positive where no negative is left); 33: the best coarse angle's half turn checked at the allowed angle nearest it (a knob that turns one way only); 32: body_center stops at steps under 0.1 mm, not 0.02; 31: dot_max_off_axis_deg 60, not 55 (the dot gates' readings); 30: the same with half a radius of slack; 29: a round body's measured top pixels kept by where their points are, not only by their projection on the top's plane (body_center); 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
 
 _canon = canon   # the name earlier code imported
 
@@ -189,6 +189,7 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
                         half_turn=r.evidence.get("half_turn"), rival=r.evidence.get("rival"),
+                        stands=r.evidence.get("stands"), offset=r.evidence.get("offset"),
                         angle=r.angle,
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         snap=round(1.0 - float(inside), 6),
@@ -210,6 +211,10 @@ def _level_of(r: dict) -> int:
 
 def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> KnobReader:
     """The reader with its gates fitted on validation readings (module docstring)."""
+    # a reading whose depth shows too little of the knob's relief, or that stands far beyond
+    # where the knob was looked for, is no knob whatever its fit (``not_there``): the detect
+    # gate is fitted on the others
+    readings = [r for r in readings if not not_there(r, reader.config)]
     looked = [r for r in readings if r["found"] or not r["present"]]
     det = CalibratedThreshold("fewest_errors").fit(
         np.array([[r["score"]] for r in looked] or [[0.0]]),

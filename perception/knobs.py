@@ -135,7 +135,11 @@ class KnobConfig:
     levels), ``dot_center_px`` and ``dot_blob_px`` (the expected errors of the centre and of
     the marker, image pixels, the marker's over its contrast to noise) and
     ``dot_dominance_power`` for its margin); such a reading seen more than
-    ``dot_max_off_axis_deg`` off the knob's axis gives no state."""
+    ``dot_max_off_axis_deg`` off the knob's axis gives no state. ``min_relief``: with depth,
+    a knob is found only where the depth shows at least this share of its rendered relief
+    (evidence ``stands``, ``depth_slope``), and ``max_offset_searches``: only within this
+    many search radii of where the map puts it (evidence ``offset``), whatever its fit
+    (``not_there``)."""
     px_per_radius: float = 8.0
     window_radii: float = 1.25
     alpha_step_deg: float = 5.0
@@ -160,6 +164,8 @@ class KnobConfig:
     depth_weight: float = read_time(1.0)
     depth_settle_radii: float = read_time(0.03)
     round_body_center: bool = read_time(True)
+    min_relief: float = read_time(0.45)
+    max_offset_searches: float = read_time(1.5)
     dot_angle: bool = read_time(True)
     dot_noise_floor: float = read_time(2.0)
     dot_max_size: float = read_time(0.6)
@@ -435,7 +441,8 @@ class CalibratedThreshold(BaseEstimator, ClassifierMixin):
     """A one-feature classifier: ``predict(X)`` is X[:, 0] > ``threshold_``. ``fit(X, y)``
     chooses the threshold on validation readings: ``objective="fewest_errors"`` the middle of
     the lowest step of (positives at or under it) + (negatives over it), as far from both
-    kinds of error as the validation set allows; ``"no_false_accepts"`` just above the
+    kinds of error as the validation set allows (down to ``floor`` where no negative lies
+    under the positives); ``"no_false_accepts"`` just above the
     highest negative (times ``safety``, and at least ``floor``), so that no negative of the
     validation set passes."""
 
@@ -456,7 +463,12 @@ class CalibratedThreshold(BaseEstimator, ClassifierMixin):
             if len(cuts) == 0:
                 t = self.floor
             else:
-                cand = np.concatenate([[cuts[0] - 1e-3], (cuts[:-1] + cuts[1:]) / 2, [cuts[-1] + 1e-3]])
+                # the lowest cut at the floor: with no negative under the positives (the
+                # relief check took them all) the step runs from the floor to the lowest
+                # positive, not to just under it
+                low = [self.floor] if self.floor < cuts[0] - 1e-3 else []
+                cand = np.concatenate([low, [cuts[0] - 1e-3], (cuts[:-1] + cuts[1:]) / 2,
+                                       [cuts[-1] + 1e-3]])
                 err = np.searchsorted(pos, cand, side="right") + (len(neg) - np.searchsorted(neg, cand, side="right"))
                 best = np.flatnonzero(err == err.min())
                 run = best[:np.argmax(np.diff(np.append(best, best[-1] + 2)) > 1) + 1]
@@ -777,6 +789,39 @@ def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
     vt = Stt - St * St / Sw
     ok = (count >= min_valid * W.shape[1]) & (cov > 0) & (vm > 1e-9) & (vt > 1e-9)
     return np.where(ok, cov * cov / np.maximum(vm * vt, 1e-12), 0.0)
+
+
+def not_there(evidence: dict, config: "KnobConfig") -> Optional[str]:
+    """Why a reading is no knob in its region whatever its fit (None: it may be one): its
+    depth shows less than ``KnobConfig.min_relief`` of the knob's relief (evidence
+    ``stands``; a reading without depth shows none), or it stands more than
+    ``max_offset_searches`` search radii from where the map puts the knob (``offset``, in
+    search radii: a round body's centre follows the depth's tops, and with the knob gone
+    it walked to a packed neighbour's)."""
+    if evidence.get("stands") is not None and evidence["stands"] < config.min_relief:
+        return (f"its depth shows {100 * evidence['stands']:.0f} % of a knob's relief, needs "
+                f"{100 * config.min_relief:.0f} %")
+    if evidence.get("offset") is not None and evidence["offset"] > config.max_offset_searches:
+        return (f"the best fit stands {evidence['offset']:.1f} search radii from where the map "
+                f"puts it, at most {config.max_offset_searches:.1f}")
+    return None
+
+
+def depth_slope(heights: np.ndarray, valid: np.ndarray, template: np.ndarray,
+                min_valid: float = DEPTH_MIN_VALID) -> Optional[float]:
+    """The least-squares slope of measured heights ``heights`` (N,) (valid where ``valid``)
+    on a rendering's heights ``template`` (N,): how much of the rendered knob's relief the
+    depth shows (near 1 where the knob stands, near 0 over a bare panel; the correlation
+    ``depth_scores`` fits is blind to the scale). None with too few valid pixels or a flat
+    rendering."""
+    v = valid.ravel()
+    if v.mean() < min_valid:
+        return None
+    m = heights.ravel()[v].astype(np.float64)
+    t = template.ravel()[v].astype(np.float64)
+    t = t - t.mean()
+    vt = float(t @ t)
+    return None if vt < 1e-12 else float(t @ (m - m.mean())) / vt
 
 
 def _onehot(labels: np.ndarray, n_labels: int):
@@ -1323,9 +1368,19 @@ class KnobReader:
         det = KnobDetection((float(center_k[0]), float(center_k[1])), float(score_best),
                             (float(pixel[0]), float(pixel[1])), float(psi))
         ev = dict(score=round(float(score_best), 4), margin=round(float(margin), 4),
+                  offset=round(math.hypot(*center_k) / search_m, 3),
                   runner_up=(snap_to_state(fine[1][1], prior)[0] if len(fine) > 1 else None),
                   coarse_score=round(float(curve[c_best]), 4), radius_px=round(r_px, 2),
                   depth=bool(use_depth))
+        if use_depth:
+            # how much of the knob's relief the depth shows where it was read (``depth_slope``:
+            # a coarse canvas centred on the reading, the template nearest its angle)
+            k = int(np.argmin(np.abs(_wrap(tpl.alphas - (float(angle) - psi)))))
+            hr, vr = canvas_heights(depth, plane_homography(K, T_wc, T_c, rho, n, center_c), n,
+                                    float(C[2]), shape.face)
+            sl = depth_slope(hr, vr, tpl.heights[ti][k])
+            if sl is not None:
+                ev["stands"] = round(sl, 3)
         if from_dot:
             ev["dot"] = True
             # the marker's reading against the nearest other state (``fine[1]``, at the same
@@ -1353,6 +1408,10 @@ class KnobReader:
         cfg = self.config
         ev = r.evidence
         gates = self.gates_for(bool(ev.get("depth")))
+        why = not_there(ev, cfg)
+        if why:
+            return KnobReading(prior.knob_id, False, evidence=ev,
+                               reason=f"no knob found in its region ({why})")
         if ev["score"] <= gates.detect_threshold:
             return KnobReading(prior.knob_id, False, evidence=ev,
                                reason=f"no knob found in its region (fit {ev['score']:.2f})")

@@ -31,14 +31,18 @@ def _cyl(r, h, z, color, y=0.0, name=""):
     return Visual("cylinder", Pose(0, y, z), radius=r, length=h, color=color, name=name)
 
 
-def skirt_world(directory, dot_scale=1.0):
+def skirt_world(directory, dot_scale=1.0, pitch=None):
     """The demo home with oven knobs 1 and 2 made skirt knobs in the panel's colour (skirt
     8 mm high, cap 0.7 of the radius, a black dot 1 mm proud: 0.27 of the cap's radius, or
     ``dot_scale`` times that on knob 2) with a state every 30 degrees, written out and loaded
-    back."""
+    back; ``pitch``: knob 2 moved to this many radii from knob 1 along the row."""
+    from dataclasses import replace
     from tests.conftest import DEMO_WORLD
     from worldmodel.io import load_world, to_xml
     w = load_world(DEMO_WORLD)
+    if pitch is not None:
+        k1, k2 = w.get("oven_knob_1"), w.get("oven_knob_2")
+        k2.pose = replace(k2.pose, y=round(k1.pose.y - pitch * k1.radius, 4))
     for i, scale in ((1, 1.0), (2, dot_scale)):
         k = w.get(f"oven_knob_{i}")
         r, depth, hs = k.radius, k.depth, 0.008
@@ -180,3 +184,35 @@ def test_a_dot_seen_too_obliquely_stays_unknown(skirt):
     assert "its marker is seen 63 degrees off the knob's axis, at most 60" in r.reason, r.reason
     frame, T_wc, pr = _frame(world, scenes, "oven_knob_1", a, 0.7, 40.0, 15.0)
     assert reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0].state == "3"
+
+
+@pytest.fixture(scope="module")
+def packed_skirt(tmp_path_factory):
+    """The skirt knobs 2.15 radii apart (home 8's rows), their reader and scenes."""
+    from skills.knob_models import TrainingConfig, load_or_train
+    d = tmp_path_factory.mktemp("packed_skirt")
+    world = skirt_world(d, pitch=2.15)
+    reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
+    return world, reader, KnobScenes(world)
+
+
+@pytest.mark.parametrize("off_axis", [-40.0, -20.0, 0.0, 20.0, 40.0])
+def test_a_knob_taken_off_is_not_found_on_its_packed_neighbour(packed_skirt, off_axis):
+    """With knob 1 gone, nothing of its region stands out of the panel: the depth shows none
+    of a knob's relief there, and a round body's centre, which follows the depth's tops, may
+    walk to the neighbour's top 2.15 radii away, beyond where the knob was looked for (it was
+    read as the missing knob: 8 of 22 empty views of home 8 found a knob)."""
+    world, reader, scenes = packed_skirt
+    pr = next(p for p in knob_priors(world, "oven") if p.knob_id == "oven_knob_1")
+    T = pr.T_world_face()
+    a = math.radians(off_axis)
+    T_wc = look_at(T[:3, 3] + 0.8 * (T[:3, :3] @ np.array([math.sin(a), 0.2, math.cos(a)])), T[:3, 3])
+    angles = {p.knob_id: p.state_angles[0] for p in knob_priors(world, "oven")}
+    frame = scenes.scene("oven", angles, missing=("oven_knob_1",)).render(K, T_wc)
+    r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
+    assert not r.found and r.state == "unknown", (r.reason, r.evidence)
+    assert r.reason.startswith("no knob found in its region")
+    # the same frame with the knob in place is found, its relief shown by the depth
+    frame = scenes.scene("oven", angles).render(K, T_wc)
+    r = reader.read(frame.color, K, T_wc, [pr], depth=frame.depth)[0]
+    assert r.found and r.evidence["stands"] > 0.8 and r.evidence["offset"] < 1.0, r.evidence

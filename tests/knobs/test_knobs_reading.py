@@ -434,3 +434,12 @@ def test_the_half_turn_candidate_is_the_allowed_angle_nearest_the_half_turn():
     assert _with_half_turn(alphas, [best, got[1]], allowed) == [best, got[1]]
     narrow = (alphas >= math.radians(-1)) & (alphas <= math.radians(60))
     assert _with_half_turn(alphas, [best], narrow) == [best]   # nothing within 45 degrees
+
+
+def test_a_reading_the_depth_shows_flat_or_far_off_is_no_knob_whatever_its_fit():
+    from perception.knobs import KnobConfig, not_there
+    cfg = KnobConfig()
+    assert not_there(dict(score=1.9, stands=0.93, offset=0.4), cfg) is None
+    assert not_there(dict(score=1.9), cfg) is None                  # colour alone: no relief to see
+    assert "relief" in not_there(dict(score=1.9, stands=0.12, offset=0.4), cfg)
+    assert "search radii" in not_there(dict(score=1.9, stands=0.9, offset=2.7), cfg)
