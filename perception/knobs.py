@@ -1263,7 +1263,8 @@ class KnobReader:
             fine = self._round_body(rgb, K, T_wc, prior, shape, tpl, ti, T_c, C, center, picks,
                                     allowed, state_of, psi, r_px, depth, theta, flat, windows)
             if fine is not None:
-                fine, curve, picks, from_dot = fine
+                fine, again, picks, from_dot = fine
+                curve = curve if again is None else again
 
         # (4) the exact check of the candidates at the fine scale; with depth, each candidate
         # at the centre the depth gives the shape at its own angle (a pointer flipped by 180
@@ -1482,13 +1483,13 @@ class KnobReader:
                     state_of, psi, r_px, depth, theta, flat, windows=None):
         """The candidates of a round-bodied knob (``round_body_levels``, a dot no wider than
         ``dot_max_size`` of its distance from the axis) read at the centre ``body_center``
-        gives (from ``center``, the canvas depth fit's): the coarse angles again in a canvas
-        centred there; the angle from the dot (``_dot_reading``) and, as rival, the nearest
+        gives (from ``center``, the canvas depth fit's): the angle from the dot
+        (``_dot_reading``), its fit the exact check's there, and, as rival, the nearest
         other state at the fit less the dot's margin; without a dot profile (``dot_angle``
-        off, no top to see it on) the best coarse angles and the best turned by half a turn
-        checked exactly with the centre held. Returns (fine, coarse curve, picks, whether
-        from the dot) as ``evidence`` uses them, or None (not such a knob, or too few depth
-        pixels)."""
+        off, no top to see it on) the coarse angles again in a canvas centred there, the best
+        ones and the best turned by half a turn checked exactly with the centre held. Returns (fine, coarse curve, picks, whether
+        from the dot) as ``evidence`` uses them (the curve None from the dot: the one before
+        stands), or None (not such a knob, or too few depth pixels)."""
         cfg = self.config
         levels = round_body_levels(shape)
         md = marker_dot(shape)
@@ -1501,17 +1502,19 @@ class KnobReader:
         if got is None:
             return None
         center = got[0]
-        curve = self._coarse_at(rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti, flat, center)
-        picks = _candidates(curve, allowed, state_of, cfg.candidates)
         dot = self._dot_reading(rgb, K, T_wc, prior, shape, T_c, center, psi, r_px) if cfg.dot_angle else None
         if dot is not None:
             # the angle from the marker's colour about that centre, the margin the marker's
-            # evidence; the fit (for the detect gate) that of the exact check from there, as
-            # the other knobs' (offset settled, angle searched)
+            # evidence; the fit (for the detect gate) that of the exact check there, at that
+            # angle: both come from the image already, and settling the offset by colour and
+            # searching the angle (a round body in its panel's colour says little of either)
+            # took a fifth of a skirt knob's reading (the coarse curve is the one before)
             a_dot, margin, rival = dot
             fit = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center, [a_dot - psi], psi,
-                               r_px, depth, theta, windows=windows)[0][0]
-            return [(fit, a_dot, center), (fit - margin, rival, center)], curve, picks, True
+                               r_px, depth, theta, hold=True, exact_only=True, windows=windows)[0][0]
+            return [(fit, a_dot, center), (fit - margin, rival, center)], None, picks, True
+        curve = self._coarse_at(rgb, depth, K, T_wc, T_c, C, prior, shape, tpl, ti, flat, center)
+        picks = _candidates(curve, allowed, state_of, cfg.candidates)
         picks = _with_half_turn(tpl.alphas, picks, allowed)
         fine = self._refine(rgb, K, T_wc, prior, shape, T_c, C, center,
                             [tpl.alphas[c] for c in picks], psi, r_px, depth, theta, hold=True,
