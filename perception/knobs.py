@@ -793,14 +793,12 @@ def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
 
 def not_there(evidence: dict, config: "KnobConfig") -> Optional[str]:
     """Why a reading is no knob in its region whatever its fit (None: it may be one): its
-    depth shows less than ``KnobConfig.min_relief`` of the knob's relief, surely (evidence
-    ``stands`` and three standard errors ``stands_se`` under it; a reading without depth
-    shows none, and a shallow knob far away in a coarse depth shows its relief too unsurely
-    to be refused by it), or it stands more than ``max_offset_searches`` search radii from
-    where the map puts the knob (``offset``, in search radii: a round body's centre follows
-    the depth's tops, and with the knob gone it walked to a packed neighbour's)."""
-    if evidence.get("stands") is not None and \
-            evidence["stands"] + 3 * evidence.get("stands_se", 0.0) < config.min_relief:
+    depth shows less than ``KnobConfig.min_relief`` of the knob's relief (evidence
+    ``stands``; a reading without depth shows none), or it stands more than
+    ``max_offset_searches`` search radii from where the map puts the knob (``offset``, in
+    search radii: a round body's centre follows the depth's tops, and with the knob gone
+    it walked to a packed neighbour's)."""
+    if evidence.get("stands") is not None and evidence["stands"] < config.min_relief:
         return (f"its depth shows {100 * evidence['stands']:.0f} % of a knob's relief, needs "
                 f"{100 * config.min_relief:.0f} %")
     if evidence.get("offset") is not None and evidence["offset"] > config.max_offset_searches:
@@ -810,26 +808,20 @@ def not_there(evidence: dict, config: "KnobConfig") -> Optional[str]:
 
 
 def depth_slope(heights: np.ndarray, valid: np.ndarray, template: np.ndarray,
-                min_valid: float = DEPTH_MIN_VALID) -> Optional[tuple[float, float]]:
+                min_valid: float = DEPTH_MIN_VALID) -> Optional[float]:
     """The least-squares slope of measured heights ``heights`` (N,) (valid where ``valid``)
-    on a rendering's heights ``template`` (N,), and its standard error: how much of the
-    rendered knob's relief the depth shows (near 1 where the knob stands, near 0 over a bare
-    panel; the correlation ``depth_scores`` fits is blind to the scale), and how surely (a
-    knob a few millimetres proud seen far away, in a depth that steps by as much, shows its
-    relief unsurely). None with too few valid pixels or a flat rendering."""
+    on a rendering's heights ``template`` (N,): how much of the rendered knob's relief the
+    depth shows (near 1 where the knob stands, near 0 over a bare panel; the correlation
+    ``depth_scores`` fits is blind to the scale). None with too few valid pixels or a flat
+    rendering."""
     v = valid.ravel()
-    if v.mean() < min_valid or v.sum() < 3:
+    if v.mean() < min_valid:
         return None
     m = heights.ravel()[v].astype(np.float64)
     t = template.ravel()[v].astype(np.float64)
     t = t - t.mean()
-    m = m - m.mean()
     vt = float(t @ t)
-    if vt < 1e-12:
-        return None
-    slope = float(t @ m) / vt
-    r = m - slope * t
-    return slope, math.sqrt(float(r @ r) / (len(r) - 2) / vt)
+    return None if vt < 1e-12 else float(t @ (m - m.mean())) / vt
 
 
 def _onehot(labels: np.ndarray, n_labels: int):
@@ -1389,7 +1381,7 @@ class KnobReader:
                                     float(C[2]), shape.face)
             sl = depth_slope(hr, vr, tpl.heights[ti][k])
             if sl is not None:
-                ev["stands"], ev["stands_se"] = round(sl[0], 3), round(sl[1], 3)
+                ev["stands"] = round(sl, 3)
         if from_dot:
             ev["dot"] = True
             # the marker's reading against the nearest other state (``fine[1]``, at the same
