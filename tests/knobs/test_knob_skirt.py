@@ -58,14 +58,19 @@ def skirt_world(directory, dot_scale=1.0, pitch=None):
     return load_world(directory / "world.xml")
 
 
+def _made(tmp_path_factory, name, **world_args):
+    """A ``skirt_world`` (``world_args``), its reader (tiny training) and its scenes."""
+    from skills.knob_models import TrainingConfig, load_or_train
+    d = tmp_path_factory.mktemp(name)
+    world = skirt_world(d, **world_args)
+    reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
+    return world, reader, KnobScenes(world)
+
+
 @pytest.fixture(scope="module")
 def skirt(tmp_path_factory):
     """The world, its reader and its scenes."""
-    from skills.knob_models import TrainingConfig, load_or_train
-    d = tmp_path_factory.mktemp("skirt")
-    world = skirt_world(d, dot_scale=0.05)
-    reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
-    return world, reader, KnobScenes(world)
+    return _made(tmp_path_factory, "skirt", dot_scale=0.05)
 
 
 def _frame(world, scenes, kid, angle, distance, off_axis_deg, up_deg, seed=3):
@@ -189,11 +194,7 @@ def test_a_dot_seen_too_obliquely_stays_unknown(skirt):
 @pytest.fixture(scope="module")
 def packed_skirt(tmp_path_factory):
     """The skirt knobs 2.15 radii apart (home 8's rows), their reader and scenes."""
-    from skills.knob_models import TrainingConfig, load_or_train
-    d = tmp_path_factory.mktemp("packed_skirt")
-    world = skirt_world(d, pitch=2.15)
-    reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
-    return world, reader, KnobScenes(world)
+    return _made(tmp_path_factory, "packed_skirt", pitch=2.15)
 
 
 @pytest.mark.parametrize("off_axis", [-40.0, -20.0, 0.0, 20.0, 40.0])
