@@ -1487,9 +1487,10 @@ class KnobReader:
         (``_dot_reading``), its fit the exact check's there, and, as rival, the nearest
         other state at the fit less the dot's margin; without a dot profile (``dot_angle``
         off, no top to see it on) the coarse angles again in a canvas centred there, the best
-        ones and the best turned by half a turn checked exactly with the centre held. Returns (fine, coarse curve, picks, whether
-        from the dot) as ``evidence`` uses them (the curve None from the dot: the one before
-        stands), or None (not such a knob, or too few depth pixels)."""
+        ones and the best turned by half a turn checked exactly with the centre held. Returns
+        (fine, coarse curve, picks, whether from the dot) as ``evidence`` uses them (the curve
+        None from the dot: the one before stands), or None (not such a knob, or too few depth
+        pixels)."""
         cfg = self.config
         levels = round_body_levels(shape)
         md = marker_dot(shape)
