@@ -1932,18 +1932,11 @@ class _Window:
             mu = np.linalg.lstsq(G, b, rcond=None)[0]
         return mu, b
 
-    def fit(self, labels: np.ndarray, t=(0.0, 0.0)) -> float:
-        """R^2 of the least-squares mix of a rendering's soft label maps (each label one
-        colour) to the window."""
-        if self.tv <= 1e-6 * len(self.X):
-            return 0.0
-        mu, b = self._solve(self.maps(labels, t))
-        return float(np.vdot(b, mu)) / self.tv
-
     def fits(self, labels: np.ndarray) -> np.ndarray:
-        """``fit`` of each of B renderings (B, N box pixels) at no shift, solved together: the
-        labels of all of them are the columns of one batch (a label a rendering lacks has no
-        pixels, its colour solves to 0 and adds nothing: the same fit as alone)."""
+        """R^2 of the least-squares mix of each of B renderings' (B, N box pixels) soft label
+        maps (each label one colour) to the window, at no shift, solved together: the labels
+        of all of them are the columns of one batch (a label a rendering lacks has no pixels,
+        its colour solves to 0 and adds nothing: the same fit as alone)."""
         B = len(labels)
         if self.tv <= 1e-6 * len(self.X):
             return np.zeros(B)
