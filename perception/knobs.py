@@ -84,6 +84,7 @@ Frames: ``T_world_camera`` maps camera points (OpenCV axes) to the world; a knob
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import math
 import time
@@ -1089,6 +1090,17 @@ class KnobReader:
         d = dict(self.__dict__)
         d["_casters"] = {}
         return d
+
+    def with_config(self, config: KnobConfig) -> "KnobReader":
+        """This reader reading with ``config``'s read-time settings: its templates and every
+        gate as they were calibrated (state, very hard, half-turn, dot and rival gates, and
+        those of colour alone), only the configuration replaced."""
+        out = copy.copy(self)
+        out.config = config
+        out._casters = {}
+        if getattr(self, "colour_gates", None) is not None:
+            out.colour_gates = self.colour_gates.with_config(config)
+        return out
 
     def caster(self, key: str) -> _Caster:
         if key not in self._casters:

@@ -61,15 +61,7 @@ def load_or_train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfi
         raise PerceptionError(f"knob models for this home: {err}; run `hearth train knobs "
                               f"--world {_about(world)['file'] or 'WORLD'}`") from None
     if reader.config != knob:
-        colour = getattr(reader, "colour_gates", None)
-        if colour is not None:
-            very = getattr(colour, "state_gate_very_hard", None)
-            colour = KnobReader(colour.templates, colour.detect_gate, colour.state_gate, knob,
-                                state_gate_hard=colour.state_gate_hard)
-            colour.state_gate_very_hard = very
-        very = getattr(reader, "state_gate_very_hard", None)
-        reader = KnobReader(reader.templates, reader.detect_gate, reader.state_gate, knob,
-                            state_gate_hard=getattr(reader, "state_gate_hard", None),
-                            colour_gates=colour)
-        reader.state_gate_very_hard = very
+        # the gates as calibrated, the read-time settings the caller's (rebuilding the reader
+        # from its state gates alone dropped its half-turn and dot gates)
+        reader = reader.with_config(knob)
     return reader, info

@@ -114,6 +114,14 @@ def test_changing_a_trained_reader_field_makes_the_model_stale_and_a_read_time_o
     r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(threshold=0.5, search_m=0.03),
                             directory=model_dir, retrain=False)
     assert info.source == "disk" and r.config.threshold == 0.5
+    # with every gate it was calibrated with, of colour alone too: a reader rebuilt from its
+    # state gates alone read without its half-turn gates
+    for mine, stored in ((r, reader), (r.colour_gates, reader.colour_gates)):
+        assert mine.config.threshold == 0.5
+        assert stored.half_turn_gates is not None
+        assert mine.half_turn_gates == stored.half_turn_gates
+        assert mine.state_gate_very_hard.threshold_ == stored.state_gate_very_hard.threshold_
+        assert mine.dot_gates == stored.dot_gates and mine.dot_rival_gates == stored.dot_rival_gates
 
 
 def test_knob_config_fields_are_trained_unless_declared_read_time():
