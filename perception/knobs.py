@@ -795,7 +795,7 @@ def depth_scores(heights: np.ndarray, valid: np.ndarray, templates: np.ndarray,
 def not_there(evidence: dict, config: "KnobConfig") -> Optional[str]:
     """Why a reading is no knob in its region whatever its fit (None: it may be one): its
     depth shows less than ``KnobConfig.min_relief`` of the knob's relief (evidence
-    ``stands``; a reading without depth shows none), or it stands more than
+    ``stands``; a reading without depth has none and is not judged by it), or it stands more than
     ``max_offset_searches`` search radii from where the map puts the knob (``offset``, in
     search radii: a round body's centre follows the depth's tops, and with the knob gone
     it walked to a packed neighbour's)."""
