@@ -37,7 +37,11 @@ read can be told apart.
 Angle errors of a symmetric knob are taken modulo its symmetry. ``per_design``: the same
 figures for each knob design (``design_of``: the roles and primitive kinds of its shape and
 its symmetry, "plain" for the format-1 knob), pooled over the worlds; ``packed``: the knobs
-whose nearest neighbour is at most ``PACKED_RADII`` radii away.
+whose nearest neighbour is at most ``PACKED_RADII`` radii away. ``state_over_views`` (also in
+``generated``): state accuracy, read-wrong rate and on read as off when each knob is read
+from 1, 2 or 3 of its held-out views at the same state, the first state given kept, as a
+mission reads a knob from one place and then from others while it stays unknown
+(``over_views``); the per-view figures above are the issue's.
 """
 from __future__ import annotations
 
@@ -109,7 +113,8 @@ def _measure(world, reader, n: int, seed: int, noise, label: str) -> list[dict]:
             hit = v.present and d <= 0.5 * v.truth.radius
         knob = world.get(v.truth.knob_id)
         period = 2 * math.pi / max(1, v.truth.symmetry)
-        out.append(dict(world=label, design=design_of(knob), present=v.present, found=r.found,
+        out.append(dict(world=label, knob=v.truth.knob_id, design=design_of(knob),
+                        present=v.present, found=r.found,
                         hit=hit, state=r.state, truth=v.state, off=knob.off,
                         err=_wrap_deg(r.angle - v.angle, period) if hit else None,
                         distance=v.distance, off_axis=v.off_axis_deg, ms=ms, cpu_ms=cpu,
@@ -139,6 +144,36 @@ def _figures(recs: list[dict]) -> dict:
         ms_per_knob=round(float(np.median([r["ms"] for r in recs])), 2) if recs else None,
         cpu_ms_per_knob=round(float(np.median([r["cpu_ms"] for r in recs])), 2) if recs else None,
     )
+
+
+def over_views(recs: list[dict], views=(1, 2, 3)) -> dict:
+    """The state a knob is given when it is read from up to k views, as a mission reads it
+    (``ReadKnobs`` from one place, then from the others while it stays unknown, the first
+    state given kept): for each k in ``views``, each held-out view of a present knob leads
+    a sequence once, followed by the next k - 1 views of the same knob of the same world at
+    the same state in the bench's order (cyclically); the sequence's state is the first
+    view's that is not "unknown". Knobs with fewer than k such views make no sequence
+    (``sequences`` says how many were made). k = 1 is the per-view figure."""
+    groups: dict = {}
+    for r in recs:
+        if r["present"]:
+            groups.setdefault((r["world"], r["knob"], r["truth"]), []).append(r)
+    out = {}
+    for k in views:
+        n = right = wrong = on_off = 0
+        for g in groups.values():
+            if len(g) < k:
+                continue
+            for i in range(len(g)):
+                seq = [g[(i + j) % len(g)] for j in range(k)]
+                state = next((r["state"] for r in seq if r["state"] != "unknown"), "unknown")
+                n += 1
+                right += state == g[0]["truth"]
+                wrong += state not in ("unknown", g[0]["truth"])
+                on_off += g[0]["truth"] != g[0]["off"] and state == g[0]["off"]
+        out[str(k)] = dict(sequences=n, state_accuracy=round(right / max(n, 1), 4),
+                           state_wrong_rate=round(wrong / max(n, 1), 4), on_read_as_off=on_off)
+    return out
 
 
 def _frames_ms(world, reader, seed: int, n: int) -> list[float]:
@@ -233,6 +268,7 @@ def run(args) -> dict:
         packed=_figures([r for r in recs if r["pitch_radii"] <= PACKED_RADII]),
         per_level={lv: _figures([r for r in recs if r["level"] == lv])
                    for lv in LEVELS if any(r["level"] == lv for r in recs)},
+        state_over_views=over_views(recs),
         angle_err_deg_median_beyond_1_2m=_summary(far_err)["median"],
         angle_err_deg_median_beyond_45deg=_summary(oblique_err)["median"],
         hard_corner=dict(knobs_present=len(hard),
@@ -249,7 +285,7 @@ def run(args) -> dict:
         ratio_ms_per_knob_vs_ramcip=round(ms / REFERENCE["ms_per_knob"], 4),
     )
     if gen and len(gen) < len(recs):
-        out["generated"] = _figures(gen)
+        out["generated"] = dict(_figures(gen), state_over_views=over_views(gen))
     if len(read) == 1:      # one world: its reader's gates at the top level, as before
         w = read[0]
         out.update(detector_threshold=w["detector_threshold"],

@@ -23,6 +23,11 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
     assert set(out["per_level"]) <= {"near", "hard", "very_hard"}
     assert sum(f["views"] for f in out["per_level"].values()) == 40
     assert sum(f["knobs_present"] for f in out["per_level"].values()) == out["knobs_present"]
+    # read from more views as a mission does; from one view, the per-view figure
+    views = out["state_over_views"]
+    assert views["1"]["state_accuracy"] == out["state_accuracy"]
+    assert views["1"]["sequences"] == out["knobs_present"]
+    assert set(views) == {"1", "2", "3"}
     assert out["detector_threshold"] == round(reader.detect_gate.threshold_, 4)
     assert out["detector_calibration"]["positives"] > 0
 
@@ -45,3 +50,29 @@ def test_bench_knobs_pools_the_worlds_it_is_given_and_says_when_it_has_none(read
     assert main(["bench", "knobs", "--json", "--no-demo"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].endswith("knobs: no world to run on (--no-demo needs --world or --homes)")
+
+
+def test_a_knob_read_from_more_views_keeps_the_first_state_a_view_gives():
+    """``state_over_views``: each view leads a sequence of k views of the same knob at the
+    same state; the first view that gives a state decides, right or wrong, as a mission
+    reading from one place and then another does."""
+    from hearth.benchmarks.knobs import over_views
+
+    def view(knob, truth, state, present=True, world="w"):
+        return dict(world=world, knob=knob, truth=truth, off="off", state=state, present=present)
+    recs = [view("a", "2", "unknown"), view("a", "2", "2"), view("a", "2", "unknown"),
+            view("b", "3", "1"), view("b", "3", "3"),
+            view("c", "1", "off"), view("c", "1", "unknown", present=False),
+            view("a", "2", "2", world="other")]
+    out = over_views(recs)
+    # one view: every present view alone (a 1/3 right, b 1/2, c wrong: read off, and a of
+    # the other world right)
+    assert out["1"] == dict(sequences=7, state_accuracy=round(3 / 7, 4),
+                            state_wrong_rate=round(2 / 7, 4), on_read_as_off=1)
+    # two views: a's three sequences (u,2) (2,u) (u,u) give 2, 2, unknown; b's (1,3) (3,1)
+    # give 1 (wrong) and 3; c and the other world's a have one view: no sequence
+    assert out["2"] == dict(sequences=5, state_accuracy=0.6, state_wrong_rate=0.2,
+                            on_read_as_off=0)
+    # three views: only a, right from every start
+    assert out["3"] == dict(sequences=3, state_accuracy=1.0, state_wrong_rate=0.0,
+                            on_read_as_off=0)
