@@ -64,6 +64,13 @@ class LocalisationConfig:
     probe_m: float = 0.02
     probe_deg: float = 2.0
     min_sharpness: float = 0.0
+    #: A trusted fix is ``loose`` when, moved ``ring_m`` in any of 8 directions (no turn),
+    #: its depth agreement drops by less than ``min_ring_drop`` (a share): a long flat front
+    #: slides along itself (a worktop fix 9.6 cm off and a bookshelf fix 8 cm off were
+    #: trusted; docs/registration.md, "Loose fixes"). It is still the best pose the view
+    #: gives (the skill applies it) but not one to say "corrected" on.
+    ring_m: float = 0.03
+    min_ring_drop: float = 0.05
     #: The corrected pose must explain at least this share of what the believed pose explains
     #: (depth agreement of the landmarks' points).
     min_improvement: float = 0.98
@@ -83,7 +90,9 @@ class LocalisationFix:
     """``correction``: 4x4 ``T_corrected_believed`` in the world frame (apply as
     ``correction @ T_world_base``); ``T_world_base``: the corrected base pose; ``dx``, ``dy``
     (m) and ``dyaw`` (rad): how far the base moves; ``ok``: the fix is trustworthy (enough
-    overlap, converged, every direction constrained); ``quality``: the figures behind it."""
+    overlap, converged, every direction constrained); ``quality``: the figures behind it, with
+    ``loose`` (trusted, but a pose ``ring_m`` away explains the view nearly as well: applied,
+    not reported as corrected; ``LocalisationConfig.min_ring_drop``)."""
     landmarks: list[str]
     correction: np.ndarray
     T_world_base: np.ndarray
@@ -94,6 +103,11 @@ class LocalisationFix:
     quality: dict = field(default_factory=dict)
     icp: Optional[ICPResult] = None
     timings_ms: dict = field(default_factory=dict)
+
+    @property
+    def loose(self) -> bool:
+        """Trusted, but not pinned down within ``LocalisationConfig.ring_m``."""
+        return bool(self.quality.get("loose", False))
 
 
 def visible_landmarks(world, K, T_world_camera: np.ndarray, max_range: float = 4.5) -> list[str]:
@@ -194,6 +208,7 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     sharp = _sharpness(C, agree, used.points.mean(axis=0), cfg)
     ok = bool(res.converged) and weakest >= cfg.min_weakest \
         and inside and alt is None and better and sharp >= cfg.min_sharpness
+    ring = _ring_drop(C, agree, used.points.mean(axis=0), cfg)
     doubts = [what for bad, what in (
         (not res.converged, "the registration did not converge"),
         (weakest < cfg.min_weakest, f"the view constrains one direction too little "
@@ -208,7 +223,8 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                    weakest=round(weakest, 4), landmarks=len(ids), points=len(src),
                    ambiguous=alt is not None, within_search=inside,
                    agreement=int(s_fix), agreement_believed=int(s_believed),
-                   sharpness=round(sharp, 4),
+                   sharpness=round(sharp, 4), ring_drop=round(ring, 4),
+                   loose=bool(ok and ring < cfg.min_ring_drop),
                    parts_used=parts_used, doubts=doubts,
                    settle_mm=round(1000 * settle_m, 2) if math.isfinite(settle_m) else None,
                    settle_deg=round(settle_deg, 3) if math.isfinite(settle_deg) else None)
@@ -310,6 +326,18 @@ def _sharpness(C: np.ndarray, agree, centre: np.ndarray, cfg) -> float:
     probes = [planar_about(dx, dy, da, centre) @ C for dx, dy, da in
               ((cfg.probe_m, 0, 0), (-cfg.probe_m, 0, 0), (0, cfg.probe_m, 0),
                (0, -cfg.probe_m, 0), (0, 0, a), (0, 0, -a))]
+    s = agree(np.stack([C] + probes))
+    if s[0] <= 0:
+        return 0.0
+    return float(1.0 - np.max(s[1:]) / s[0])
+
+
+def _ring_drop(C: np.ndarray, agree, centre: np.ndarray, cfg) -> float:
+    """How much the depth agreement drops when the fix is moved by ``ring_m`` in the worst
+    of 8 directions (45 degrees apart, no turn), as a share of the agreement at the fix:
+    ``_sharpness`` a little further out and in every direction, not only along x and y."""
+    probes = [planar_about(cfg.ring_m * math.cos(a), cfg.ring_m * math.sin(a), 0.0, centre) @ C
+              for a in np.arange(8) * (math.pi / 4)]
     s = agree(np.stack([C] + probes))
     if s[0] <= 0:
         return 0.0

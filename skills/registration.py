@@ -81,7 +81,7 @@ class RefineLocalisation(_PerceptionSkill):
     OUTPUTS = (Port("correction", "dict", required=False), Port("quality", "dict", required=False))
 
     def perceive(self) -> str:
-        from perception.localisation import refine_localisation
+        from perception.localisation import LocalisationConfig, refine_localisation
         depth, K, T_wc = capture(self.robot)
         T_wb = self.robot.base_pose().matrix()
         fix = refine_localisation(self.world, depth, K, T_wc, T_wb,
@@ -94,8 +94,18 @@ class RefineLocalisation(_PerceptionSkill):
         self.robot.apply_correction(Pose.from_matrix(fix.T_world_base))
         corr = dict(dx=fix.dx, dy=fix.dy, dyaw=fix.dyaw)
         self.set_output("correction", corr)
-        return (f"localisation corrected by {math.hypot(fix.dx, fix.dy) * 100:.1f} cm, "
-                f"{math.degrees(fix.dyaw):.1f} deg on {', '.join(fix.landmarks)}")
+        moved = (f"{math.hypot(fix.dx, fix.dy) * 100:.1f} cm, {math.degrees(fix.dyaw):.1f} deg "
+                 f"on {', '.join(fix.landmarks)}")
+        if fix.loose:
+            # the best pose this view gives, so it is applied (the other missions read knobs
+            # and grasp better from it than from the pose before), but a pose a few
+            # centimetres along the landmarks explains the view nearly as well: the skill
+            # fails, so that the missions try other landmarks and never say "corrected" on it
+            raise PerceptionError(
+                f"localisation moved by {moved}, but not pinned down: a pose "
+                f"{100 * LocalisationConfig.ring_m:.0f} cm away explains the view nearly as well "
+                f"(drop {fix.quality['ring_drop']:.3f})")
+        return f"localisation corrected by {moved}"
 
 
 class RegisterArticulated(_PerceptionSkill):

@@ -20,8 +20,11 @@ A failure is a task that raised, a part left unknown (``*_unknown_rate``, e.g. a
 hidden below an open one) or a result outside twice the target (``*_wrong_rate``: door
 > 3 deg, drawer > 10 mm, handle > 10 mm or > 2 deg, localisation > 2 cm or > 1 deg, large
 object > 10 mm or > 1 deg). ``loc_quality_ok_rate``: the share of localisation scenes whose
-fix is trusted (``LocalisationFix.ok``: the skill applies it); ``loc_trusted_wrong_rate``: the
-share whose fix is trusted and still wrong (a mission would say "corrected" and be off). Handles are also counted by the kind of face they stand on
+fix is trusted (``LocalisationFix.ok``: the skill applies it); ``loc_loose_rate``: the share
+trusted but ``loose`` (a pose 3 cm away explains the view nearly as well: applied, but the
+skill fails and no mission says "corrected"), ``loc_loose_wrong_rate`` those of them over
+the limits; ``loc_trusted_wrong_rate``: the share trusted, not loose and still wrong (a
+mission would say "corrected" and be off). Handles are also counted by the kind of face they stand on
 (``handle_by_face``: box or mesh). The second view (what the missions do when
 RegisterArticulated reports parts unknown): the robot drives to the parking position of the
 object nearest the first viewpoint, looks at the object and registers again;
@@ -367,11 +370,14 @@ def bench_localisation(world, n: int, rng, layout: Layout, t: Tally) -> None:
         t.add("loc_cm", cm)
         t.add("loc_deg", deg)
         t.count("loc_ok", int(fix.ok))
+        t.count("loc_loose", int(fix.ok and fix.loose))
         if cm > 2.0 or deg > 1.0:
             t.count("loc_bad")
-            # the figure that matters to a mission: a fix the skill would apply (``ok``) that
-            # leaves the robot further off than twice the target
-            t.count("loc_trusted_wrong", int(fix.ok))
+            # the figure that matters to a mission: a fix the skill reports as a correction
+            # (trusted, ``ok``, and not ``loose``) that leaves the robot further off than
+            # twice the target
+            t.count("loc_trusted_wrong", int(fix.ok and not fix.loose))
+            t.count("loc_loose_wrong", int(fix.ok and fix.loose))
 
 
 def _front_view(world, truth, oid: str, K, rng, layout: Layout, t: Tally, scenes: str):
@@ -590,6 +596,8 @@ def figures(t: Tally) -> dict:
         loc_failure_rate=_rate(t.c("loc_bad"), t.c("loc_scenes")),
         loc_quality_ok_rate=_rate(t.c("loc_ok"), t.c("loc_scenes")),
         loc_trusted_wrong_rate=_rate(t.c("loc_trusted_wrong"), t.c("loc_scenes")),
+        loc_loose_rate=_rate(t.c("loc_loose"), t.c("loc_scenes")),
+        loc_loose_wrong_rate=_rate(t.c("loc_loose_wrong"), t.c("loc_scenes")),
         loc_scenes=t.c("loc_scenes"),
         large_object_ms_median=_median(t.l("large_object_ms")),
         large_object_cpu_ms_median=_median(t.l("large_object_cpu_ms")),

@@ -16,6 +16,7 @@ def test_a_trusted_fix_that_leaves_the_robot_off_counts_as_trusted_wrong(demo_wo
     def trusting(world, depth, K, T_wc, T_wb, *args, trust=True, **kwargs):
         fix = real(world, depth, K, T_wc, T_wb, *args, **kwargs)
         fix.T_world_base, fix.ok = np.asarray(T_wb, dtype=float), trust
+        fix.quality["loose"] = False
         return fix
 
     layout = bench.Layout.of(demo_world)
@@ -32,3 +33,4 @@ def test_a_trusted_fix_that_leaves_the_robot_off_counts_as_trusted_wrong(demo_wo
     assert figures[True]["loc_trusted_wrong_rate"] == wrong
     assert figures[False]["loc_failure_rate"] == wrong
     assert figures[False]["loc_trusted_wrong_rate"] == 0.0
+    assert figures[True]["loc_loose_rate"] == figures[False]["loc_loose_rate"] == 0.0

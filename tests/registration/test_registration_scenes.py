@@ -135,3 +135,27 @@ def test_localisation_corrected_from_12_cm_and_6_degrees(demo_world):
     assert abs(math.degrees(math.atan2(E[1, 0], E[0, 0]))) < 0.5
     assert fix.ok and "cupboard" in fix.landmarks
     assert fix.quality["residual_mm"] < 5
+    # the cupboard's doors and edges pin the pose down in every direction
+    assert not fix.loose and fix.quality["ring_drop"] > 0.05
+
+
+def test_a_fix_that_slides_along_a_front_is_loose():
+    """``_ring_drop``: the depth agreement 3 cm from the fix in 8 directions. Where it hardly
+    drops along one of them (a long flat front slides along itself), the fix is loose."""
+    from types import SimpleNamespace
+
+    from perception.localisation import LocalisationConfig, _ring_drop
+    centre = np.array([2.0, 1.0, 0.5])
+
+    def agreement(along_x_cost):
+        def agree(Ts):
+            # the landmarks' centre moved by each candidate: a score falling with distance,
+            # along x by ``along_x_cost`` a metre, along y by 20 a metre
+            d = np.array([T[:3, :3] @ centre + T[:3, 3] - centre for T in Ts])
+            return 1000.0 * (1.0 - along_x_cost * np.abs(d[:, 0]) - 20.0 * np.abs(d[:, 1]))
+        return agree
+    cfg = LocalisationConfig()
+    pinned = _ring_drop(np.eye(4), agreement(20.0), centre, cfg)
+    sliding = _ring_drop(np.eye(4), agreement(0.5), centre, cfg)
+    assert pinned > cfg.min_ring_drop > sliding
+    assert sliding == pytest.approx(0.5 * 0.03, abs=1e-9)   # 3 cm along x costs 1.5 %

@@ -77,6 +77,29 @@ def test_refine_localisation_applies_the_correction_through_the_robot(demo_world
     assert py_trees.blackboard.Blackboard.get("/q")["residual_mm"] < 5
 
 
+def test_a_fix_that_is_not_pinned_down_is_applied_but_the_skill_fails(demo_world, monkeypatch):
+    """A trusted fix that a pose 3 cm away explains nearly as well (``loose``: a long front
+    sliding along itself) moves the believed pose, the best the view gives, but the skill
+    fails, so that no mission says "corrected" on it and the missions try other landmarks."""
+    import perception.localisation as localisation
+    real = localisation.refine_localisation
+
+    def loose(*args, **kwargs):
+        fix = real(*args, **kwargs)
+        assert fix.ok and not fix.loose           # the drawer unit pins the pose down ...
+        fix.quality.update(loose=True, ring_drop=0.012)   # ... this one does not
+        return fix
+    monkeypatch.setattr(localisation, "refine_localisation", loose)
+    T_true = _in_front(demo_world, "drawer_unit", 1.9)
+    robot = FramedRobot(demo_world, T_true, T_true @ planar(0.07, -0.05, math.radians(4)))
+    s = make(RefineLocalisation, demo_world, robot, outputs={"correction": "/c", "quality": "/q"})
+    s.tick_once()
+    assert s.status == S.FAILURE
+    assert len(robot.corrections) == 1
+    assert "not pinned down: a pose 3 cm away explains the view nearly as well" in s.feedback_message
+    assert py_trees.blackboard.Blackboard.get("/q")["loose"] is True
+
+
 def test_register_articulated_writes_door_states_with_history(demo_world):
     truth = demo_world.copy()
     truth.set_joint_state("cupboard_door_left", math.radians(40))
