@@ -323,21 +323,23 @@ def _sharpness(C: np.ndarray, agree, centre: np.ndarray, cfg) -> float:
     pin that direction down (a flat front seen square on turns about its centre freely), and
     ICP's information matrix, built from gated correspondences, can miss it."""
     a = math.radians(cfg.probe_deg)
-    probes = [planar_about(dx, dy, da, centre) @ C for dx, dy, da in
-              ((cfg.probe_m, 0, 0), (-cfg.probe_m, 0, 0), (0, cfg.probe_m, 0),
-               (0, -cfg.probe_m, 0), (0, 0, a), (0, 0, -a))]
-    s = agree(np.stack([C] + probes))
-    if s[0] <= 0:
-        return 0.0
-    return float(1.0 - np.max(s[1:]) / s[0])
+    return _worst_drop(C, agree, centre, ((cfg.probe_m, 0, 0), (-cfg.probe_m, 0, 0),
+                                          (0, cfg.probe_m, 0), (0, -cfg.probe_m, 0),
+                                          (0, 0, a), (0, 0, -a)))
 
 
 def _ring_drop(C: np.ndarray, agree, centre: np.ndarray, cfg) -> float:
     """How much the depth agreement drops when the fix is moved by ``ring_m`` in the worst
     of 8 directions (45 degrees apart, no turn), as a share of the agreement at the fix:
     ``_sharpness`` a little further out and in every direction, not only along x and y."""
-    probes = [planar_about(cfg.ring_m * math.cos(a), cfg.ring_m * math.sin(a), 0.0, centre) @ C
-              for a in np.arange(8) * (math.pi / 4)]
+    return _worst_drop(C, agree, centre, [(cfg.ring_m * math.cos(a), cfg.ring_m * math.sin(a), 0.0)
+                                          for a in np.arange(8) * (math.pi / 4)])
+
+
+def _worst_drop(C: np.ndarray, agree, centre: np.ndarray, moves) -> float:
+    """1 - the best depth agreement of the fix ``C`` moved by each of ``moves`` ((dx, dy,
+    dyaw) about ``centre``) over the agreement at ``C`` (0 where that is not positive)."""
+    probes = [planar_about(dx, dy, da, centre) @ C for dx, dy, da in moves]
     s = agree(np.stack([C] + probes))
     if s[0] <= 0:
         return 0.0

@@ -24,8 +24,8 @@ fix is trusted (``LocalisationFix.ok``: the skill applies it); ``loc_loose_rate`
 trusted but ``loose`` (a pose 3 cm away explains the view nearly as well: applied, but the
 skill fails and no mission says "corrected"), ``loc_loose_wrong_rate`` those of them over
 the limits; ``loc_trusted_wrong_rate``: the share trusted, not loose and still wrong (a
-mission would say "corrected" and be off). Handles are also counted by the kind of face they stand on
-(``handle_by_face``: box or mesh). The second view (what the missions do when
+mission would say "corrected" and be off). Handles are also counted by the kind of face they
+stand on (``handle_by_face``: box or mesh). The second view (what the missions do when
 RegisterArticulated reports parts unknown): the robot drives to the parking position of the
 object nearest the first viewpoint, looks at the object and registers again;
 ``*_unknown_after_second_view_rate`` is the share of parts (handles: of handles, their

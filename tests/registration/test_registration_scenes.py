@@ -142,8 +142,6 @@ def test_localisation_corrected_from_12_cm_and_6_degrees(demo_world):
 def test_a_fix_that_slides_along_a_front_is_loose():
     """``_ring_drop``: the depth agreement 3 cm from the fix in 8 directions. Where it hardly
     drops along one of them (a long flat front slides along itself), the fix is loose."""
-    from types import SimpleNamespace
-
     from perception.localisation import LocalisationConfig, _ring_drop
     centre = np.array([2.0, 1.0, 0.5])
 
