@@ -103,7 +103,8 @@ class RefineLocalisation(_PerceptionSkill):
             # fails, so that the missions try other landmarks and never say "corrected" on it
             raise PerceptionError(
                 f"localisation moved by {moved}, but not pinned down: a pose "
-                f"{100 * LocalisationConfig.ring_m:.0f} cm away explains the view nearly as well "
+                f"{100 * fix.quality.get('ring_m', LocalisationConfig.ring_m):.0f} cm away "
+                f"explains the view nearly as well "
                 f"(drop {fix.quality['ring_drop']:.3f})")
         return f"localisation corrected by {moved}"
 

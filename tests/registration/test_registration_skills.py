@@ -87,7 +87,8 @@ def test_a_fix_that_is_not_pinned_down_is_applied_but_the_skill_fails(demo_world
     def loose(*args, **kwargs):
         fix = real(*args, **kwargs)
         assert fix.ok and not fix.loose           # the drawer unit pins the pose down ...
-        fix.quality.update(loose=True, ring_drop=0.012)   # ... this one does not
+        fix.quality.update(loose=True, ring_drop=0.012, ring_m=0.05)   # ... this one does not,
+        # on a ring of 5 cm (the sentence names the ring the fix was probed on)
         return fix
     monkeypatch.setattr(localisation, "refine_localisation", loose)
     T_true = _in_front(demo_world, "drawer_unit", 1.9)
@@ -96,7 +97,7 @@ def test_a_fix_that_is_not_pinned_down_is_applied_but_the_skill_fails(demo_world
     s.tick_once()
     assert s.status == S.FAILURE
     assert len(robot.corrections) == 1
-    assert "not pinned down: a pose 3 cm away explains the view nearly as well" in s.feedback_message
+    assert "not pinned down: a pose 5 cm away explains the view nearly as well" in s.feedback_message
     assert py_trees.blackboard.Blackboard.get("/q")["loose"] is True
 
 
