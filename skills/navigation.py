@@ -14,7 +14,8 @@ from worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
 
 #: ``parking: another``: the nearest parking position other than the one the robot is at.
 ANOTHER = "another"
-#: ``parking: nearest``: the parking position nearest the robot (it may be already there).
+#: ``parking: nearest``: the parking position nearest the robot (it may be already there), or
+#: with ``near`` given, nearest that pose (an object to grasp at the far end of a long table).
 NEAREST = "nearest"
 #: ``parking: knobs``: straight in front of the node's knob panel, facing it, the robot centre
 #: ``distance`` (default KNOB_VIEW_DISTANCE) from its knobs (knobs on top: on the parking side,
@@ -38,9 +39,15 @@ def _knob_distance(distance) -> float:
     return float(distance)
 
 
-def parkings_by_distance(world, robot, target: str, beyond: float = -1.0) -> list:
+def parkings_by_distance(world, robot, target: str, beyond: float = -1.0, near=None) -> list:
     """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
-    further than ``beyond`` from the robot, nearest first."""
+    further than ``beyond`` from the robot, nearest first; with ``near`` (a pose, as
+    ``as_pose`` takes it):
+    ``(metres from it, id, world pose)``, every one, nearest to it first."""
+    if near is not None:
+        at = as_pose(near)
+        return sorted(((math.hypot(pose.x - at.x, pose.y - at.y), p.id, pose)
+                       for p, pose in world.parking_positions(target)), key=lambda f: f[:2])
     here = robot.base_pose()
     found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
              for p, pose in world.parking_positions(target))
@@ -63,6 +70,10 @@ class NavigateTo(RobotActionSkill):
                                "view of the same thing), or 'nearest': the nearest one "
                                "(back within reach of the node from a view further away), or "
                                "'knobs': straight in front of its knob panel, facing it"),
+              Port("near", "pose", required=False, default=None,
+                   description="with parking 'nearest': the one nearest this pose (world) "
+                               "instead of the robot: where an object to grasp was seen, so "
+                               "that the arm reaches it on a long table"),
               Port("distance", "number", required=False, default=None,
                    description="with parking 'knobs': metres from the knobs (0.3-3; default "
                                "1.0)"))
@@ -75,7 +86,7 @@ class NavigateTo(RobotActionSkill):
             if parking == ANOTHER:
                 parking, goal = self._another(target)
             elif parking == NEAREST:
-                parking, goal = self._nearest(target)
+                parking, goal = self._nearest(target, self.input("near"))
             elif parking == KNOBS:
                 goal = knob_view_pose(self.world, target,
                                       _knob_distance(self.input("distance")))
@@ -103,10 +114,10 @@ class NavigateTo(RobotActionSkill):
             raise ValueError(f"{target} has no other parking position than the one the robot is at")
         return found[0][1], found[0][2]
 
-    def _nearest(self, target: str):
-        """The parking position of ``target`` nearest to the robot (ValueError when it has
-        none)."""
-        found = self._by_distance(target)
+    def _nearest(self, target: str, near=None):
+        """The parking position of ``target`` nearest to the robot, or to ``near`` when given
+        (ValueError when it has none)."""
+        found = parkings_by_distance(self.world, self.robot, target, near=near)
         if not found:
             raise ValueError(f"{target} has no parking position")
         return found[0][1], found[0][2]

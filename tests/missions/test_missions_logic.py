@@ -455,7 +455,7 @@ def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_se
     back = sub.made[f"{base}/come_closer/sequence/back_within_reach"]
     assert back.activations == 1
     assert back.seen_inputs[0] == {"target": "kitchen_table", "parking": "nearest",
-                                   "distance": None}
+                                   "near": seen, "distance": None}
     assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].activations == 1
     assert sub.made[f"{base}/grasp_again_or_where_seen/grasp_where_seen"].seen_inputs[0]["pose"] \
         == seen

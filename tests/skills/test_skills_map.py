@@ -209,6 +209,29 @@ def test_navigate_to_the_nearest_parking_position_comes_back_within_reach(demo_w
     assert "oven_right" in s.describe()
 
 
+def test_navigate_to_the_parking_position_nearest_an_object_not_the_robot(demo_world):
+    # Found from one end of a long piece of furniture, the object lies at the other: back
+    # within reach means the parking position nearest the object, not the one the robot is at.
+    places = demo_world.parking_positions("oven")
+    assert len(places) >= 2
+    (_, here), (far_id, far) = places[0], places[1]
+    robot = FakeRobot()
+    robot.base_pose = lambda: here
+    seen = {"x": far.x + 0.3 * math.cos(far.yaw), "y": far.y + 0.3 * math.sin(far.yaw), "z": 0.9}
+    s = make(NavigateTo, demo_world, robot,
+             inputs={"target": "oven", "parking": "nearest", "near": seen})
+    assert tick(s) == S.RUNNING
+    goal = robot.calls[0][1]
+    assert (goal.x, goal.y) == pytest.approx((far.x, far.y))
+    assert far_id.id in s.describe()
+    # without ``near``: the one the robot is at
+    robot2 = FakeRobot()
+    robot2.base_pose = lambda: here
+    s = make(NavigateTo, demo_world, robot2, inputs={"target": "oven", "parking": "nearest"})
+    assert tick(s) == S.RUNNING
+    assert (robot2.calls[0][1].x, robot2.calls[0][1].y) == pytest.approx((here.x, here.y))
+
+
 def test_navigate_to_the_knobs_stands_straight_in_front_of_the_panel_facing_it(demo_world):
     knobs = [demo_world.T_world(k.id) for k in demo_world.knobs("oven")]
     centre = sum(T[:3, 3] for T in knobs) / len(knobs)
