@@ -230,8 +230,9 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
                 continue
             window = measured[rows:rows + th, cols:cols + tw]
             seen = valid[rows:rows + th, cols:cols + tw]
-            if seen[top].mean() < 0.5:
-                continue                                    # out of view or no reading
+            if not top.any() or seen[top].mean() < 0.5:
+                # out of view or no reading (or a face too small for the canvas' pixels)
+                continue
             missing += float((window[top & seen] > 0.3 * p.depth).mean()) < 0.5
         return local, missing
 
