@@ -44,7 +44,8 @@ def hypothesis_dict(h) -> dict:
                 normal_agreement=round(h.normal_agreement, 4),
                 color_agreement=round(h.color_agreement, 4),
                 unexplained=round(h.unexplained, 4), conflict=round(h.conflict, 4),
-                visible_fraction=round(h.visible_fraction, 4))
+                visible_fraction=round(h.visible_fraction, 4),
+                worst_part_color=round(h.worst_part_color, 4), taller=round(h.taller, 4))
 
 
 def _T(pose) -> np.ndarray:

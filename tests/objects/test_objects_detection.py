@@ -216,3 +216,56 @@ def test_a_model_mostly_hidden_behind_furniture_of_its_colour_is_not_accepted():
                                   and h.object_id in ("blue_bottle", "navy_bottle"))
     assert not wrong, wrong
     assert would_pass >= 1      # what the gate is for, seen in this home
+
+
+def _cylinder(oid, radius, height, color, pose):
+    from worldmodel.nodes import Model, SmallObject, Visual
+    vis = Visual("cylinder", Pose(0, 0, height / 2), radius=radius, length=height,
+                 color=tuple(color), name="body")
+    return SmallObject(oid, "clutter", pose, model=Model(visuals=[vis]))
+
+
+def test_a_taller_lookalike_is_not_taken_for_the_cup(demo_world):
+    # The red cup is not in the home; where it stood, a red tin of its radius and no handle,
+    # 2.5 cm taller (the handle can hide behind a cup's body, its height cannot).
+    truth = demo_world.copy()
+    pose = truth.get("red_cup").pose
+    truth.remove_small_object("red_cup")
+    truth.add_small_object(_cylinder("tin", 0.04, 0.125, (0.8, 0.1, 0.1), pose), "kitchen_table")
+    T = truth.T_world("kitchen_table")
+    # from a head 1.1 m up, so that the tin's top shows little and its side much
+    T_wc = look_at(T[:3, 3] + (0.0, -1.2, 1.1), T[:3, 3] + (0.0, 0.0, 0.75))
+    at = truth.T_world("tin")[:2, 3]
+    for seed in (4, 5):
+        depth, color, _ = observe(truth, T_wc, np.random.default_rng(seed), K)
+        det = detect_objects(demo_world, depth, color, K, T_wc)
+        there = [h for h in det.hypotheses if h.object_id == "red_cup"
+                 and np.linalg.norm(h.position[:2] - at) < 0.03]
+        assert there and max(h.taller for h in there) > 0.1
+        assert not [h for h in det.accepted if np.linalg.norm(h.position[:2] - at) < 0.03]
+        # the other objects on the table are found as before
+        assert {"bowl", "sugar", "blue_cup"} <= {h.object_id for h in det.accepted}
+
+
+def test_a_lookalike_without_the_lid_colour_is_not_taken_for_the_jar(demo_world):
+    # The map's sugar jar has a blue lid; a yellow box of the jar's size whose top is yellow
+    # too agrees in colour on most of its points, but on none of the lid's.
+    from worldmodel.nodes import Visual
+    belief = demo_world.copy()
+    body = belief.get("sugar").model.visuals[0]
+    body.size, body.pose = (0.08, 0.08, 0.10), Pose(0, 0, 0.05)
+    belief.get("sugar").model.visuals.append(
+        Visual("box", Pose(0, 0, 0.11), size=(0.08, 0.08, 0.02), color=(0.1, 0.2, 0.8), name="lid"))
+    T_wc = _south_view(belief)
+    at = belief.T_world("sugar")[:2, 3]
+    for truth, accepted in ((belief, True), (demo_world, False)):
+        depth, color, _ = observe(truth, T_wc, np.random.default_rng(6), K)
+        det = detect_objects(belief, depth, color, K, T_wc)
+        found = [h for h in det.accepted if h.object_id == "sugar"
+                 and np.linalg.norm(h.position[:2] - at) < 0.03]
+        assert bool(found) is accepted, [(h.object_id, h.confidence, h.worst_part_color)
+                                         for h in det.hypotheses if h.object_id == "sugar"]
+        if not accepted:
+            there = [h for h in det.hypotheses if h.object_id == "sugar"
+                     and np.linalg.norm(h.position[:2] - at) < 0.03]
+            assert there and max(h.worst_part_color for h in there) < 0.5
