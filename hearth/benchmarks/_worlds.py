@@ -157,8 +157,13 @@ def head_camera(base_pose, point) -> np.ndarray:
 def extent(world, object_id: str) -> tuple[float, float]:
     """(radius, height) of a small object's model in its own frame (m): the largest distance
     of its vertices from its vertical axis, and its top above its origin."""
+    return extent_of_model(world, world.get(object_id))
+
+
+def extent_of_model(world, obj) -> tuple[float, float]:
+    """``extent`` of a SmallObject ``obj`` that need not be in ``world`` (whose folder its
+    mesh files are found from)."""
     from worldmodel.geometry import small_object_meshes
-    obj = world.get(object_id)
     meshes = small_object_meshes(world, obj, T_world_object=np.eye(4))
     v = np.vstack([np.asarray(lm.mesh.vertices) for lm in meshes]) if meshes else np.zeros((1, 3))
     return float(np.hypot(v[:, 0], v[:, 1]).max()), float(v[:, 2].max())

@@ -20,6 +20,15 @@ at (as a mission's DetectObject gets the level it searches), and tries every sma
 the map as a candidate. ``auto_surface_agreement``: the share of scenes where the detector,
 not told the surface, would pick that one (``perception.objects.expected_surfaces``).
 
+Look-alikes (``lookalike`` in the JSON): a quarter as many scenes again per world, each with
+one of the map's objects taken away and, at a spot the camera sees, a look-alike of it the map
+does not know: the object 2-4 cm taller (``taller``: every visual stretched upwards), or, for
+an object of two colours or more, painted all in the colour of its biggest visual
+(``one_colour``: a jar without its red lid). Every accepted hypothesis of that object within
+3 cm of the look-alike is a false positive: ``lookalike.false_positive_rate`` is the share of
+those scenes (the look-alike at least half in view) with one, per variant in ``per_variant``.
+The main figures leave these scenes out.
+
 Scoring: an object counts when at most 50 % of it is hidden (the occlusion is measured by
 rendering it alone); an accepted hypothesis is a true positive when its object is in the scene
 and its position is within 3 cm (x, y), else a false positive; objects hidden more than 50 %
@@ -319,6 +328,88 @@ def scenes_for(spec: str, args) -> int:
     return SCENES[("demo" if spec == "demo" else "other") + q]
 
 
+def lookalike(obj, variant: str, rng):
+    """A copy of SmallObject ``obj`` made into a look-alike the map does not know (module
+    docstring): ``taller`` (every visual stretched upwards so that it stands 2-4 cm taller;
+    None for a model with a tilted visual) or ``one_colour`` (every visual in the colour of
+    the biggest; None for a model of one colour)."""
+    from dataclasses import replace as _replace
+    vis = obj.model.visuals
+    if variant == "taller":
+        if any(abs(v.pose.roll) > 1e-6 or abs(v.pose.pitch) > 1e-6 for v in vis):
+            return None
+        top = max(_visual_top(v) for v in vis)
+        s = (top + rng.uniform(0.02, 0.04)) / top
+        out = [_replace(v, pose=_replace(v.pose, z=v.pose.z * s),
+                        size=(v.size[0], v.size[1], v.size[2] * s), length=v.length * s,
+                        scale=(v.scale[0], v.scale[1], v.scale[2] * s)) for v in vis]
+    elif variant == "one_colour":
+        if len({tuple(np.round(v.color, 3)) for v in vis}) < 2:
+            return None
+        big = max(vis, key=_visual_size)
+        out = [_replace(v, color=big.color) for v in vis]
+    else:
+        raise ValueError(variant)
+    new = copy.deepcopy(obj)
+    new.model.visuals = out
+    return new
+
+
+def _visual_top(v) -> float:
+    """The top of an upright visual above its model's origin (m; a mesh: its scaled half
+    height taken as 0: its pose's z)."""
+    half = {"box": v.size[2] / 2, "cylinder": v.length / 2, "sphere": v.radius}.get(v.shape, 0.0)
+    return v.pose.z + half
+
+
+def _visual_size(v) -> float:
+    """A visual's volume (m^3; a mesh: 0), to find a model's biggest."""
+    return {"box": v.size[0] * v.size[1] * v.size[2],
+            "cylinder": math.pi * v.radius ** 2 * v.length,
+            "sphere": 4 / 3 * math.pi * v.radius ** 3}.get(v.shape, 0.0)
+
+
+def lookalike_scene(rng, place, base, K) -> Optional[dict]:
+    """One look-alike scene of ``place`` (module docstring): a record with the variant,
+    whether the look-alike was at least half in view and how many hypotheses of the object
+    it stands for were accepted within ``MATCH_M`` of it; None when no object of the place
+    has the variant drawn."""
+    from types import SimpleNamespace
+
+    from perception.errors import PerceptionError
+    from perception.objects import detect_objects
+    variant = ("taller", "one_colour")[int(rng.integers(2))]
+    fits = fitting_objects(base, place)
+    order = [fits[i] for i in rng.permutation(len(fits))]
+    for oid in order:
+        fake = lookalike(base.get(oid), variant, rng)
+        if fake is not None and _worlds.extent_of_model(base, fake)[1] + 0.015 <= place.headroom:
+            break
+    else:
+        return None
+    staged = base.copy()
+    parent = staged.parent(oid).id
+    staged.remove_small_object(oid)
+    staged.add_small_object(fake, parent)
+    sc = cluttered_scene(rng, place, staged, n_objects=(1, 1), n_clutter=(0, 2), occlude=False,
+                         objects=[oid])
+    if not sc.ids:
+        return None
+    belief = base.copy()
+    if place.inside:
+        _worlds.opened(belief, place.object_id)
+    depth, color, r = observe(sc.truth, sc.T_world_camera, rng, K)
+    vis = visible_fractions(sc.truth, r, sc.T_world_camera, K, sc.ids)[oid]
+    try:
+        det = detect_objects(belief, depth, color, K, sc.T_world_camera, surface=place.name)
+    except PerceptionError:
+        det = SimpleNamespace(accepted=[])
+    at = sc.truth.T_world(oid)[:2, 3]
+    taken = sum(1 for h in det.accepted
+                if h.object_id == oid and np.linalg.norm(h.position[:2] - at) < MATCH_M)
+    return dict(variant=variant, object=oid, visible=vis, taken=taken)
+
+
 def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], str]:
     """Per-scene records of ``n`` scenes of one world, and a note when it has no place."""
     from types import SimpleNamespace
@@ -366,13 +457,45 @@ def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], str]:
                         errs=errs, swaps=sw, ms=ms, cpu=cpu, objects=len(ids),
                         occlusion=[1 - v for v in vis.values() if v > 0], per_object=per_obj,
                         types={oid: truth.get(oid).type for oid in ids}))
+    for i in range(max(1, n // 4)):
+        place = ps[int(rng.integers(len(ps)))]
+        rec = lookalike_scene(rng, place, base, K)
+        if rec is not None:
+            rec["world"] = spec
+            out.append(dict(rec, lookalike=True))
     return out, ""
 
 
 def summarise(records: list[dict]) -> dict:
-    """The benchmark's figures over a list of scene records."""
+    """The benchmark's figures over a list of scene records (the look-alike scenes apart,
+    in ``lookalike``)."""
+    looks = [r for r in records if r.get("lookalike")]
+    records = [r for r in records if not r.get("lookalike")]
     if not records:
-        return dict(scenes=0)
+        return dict(scenes=0, lookalike=summarise_lookalikes(looks))
+    out = _summarise(records)
+    out["lookalike"] = summarise_lookalikes(looks)
+    return out
+
+
+def summarise_lookalikes(records: list[dict]) -> dict:
+    """``scenes`` (the look-alike at least half in view), ``false_positives`` (scenes where
+    it was taken for the object) and their ratio, in all and ``per_variant``."""
+    def one(rs):
+        rs = [r for r in rs if r["visible"] >= 0.5]
+        fp = sum(1 for r in rs if r["taken"])
+        return dict(scenes=len(rs), false_positives=fp,
+                    false_positive_rate=round(fp / len(rs), 4) if rs else None)
+    out = one(records)
+    out["per_variant"] = {v: one([r for r in records if r["variant"] == v])
+                          for v in sorted({r["variant"] for r in records})}
+    out["taken_for"] = sorted({f"{r['world']}:{r['object']} ({r['variant']})"
+                               for r in records if r["visible"] >= 0.5 and r["taken"]})
+    return out
+
+
+def _summarise(records: list[dict]) -> dict:
+    """The detection figures over the scene records."""
     TP = sum(r["tp"] for r in records)
     FP = sum(r["fp"] for r in records)
     FN = sum(r["fn"] for r in records)

@@ -26,6 +26,30 @@ def test_objects_bench_reports_pooled_and_per_world_figures_on_a_generated_home(
     assert set(out["per_type_f1"]) <= {o.type for o in world.small_objects()}
     assert _in(out["ms_per_view_median"], 0, 60_000)
     assert out["targets"] == {"detection_f1": 0.95, "ms_per_view_median": 300}
+    look = out["lookalike"]                 # apart from the figures above
+    assert set(look) == {"scenes", "false_positives", "false_positive_rate", "per_variant",
+                         "taken_for"}
+    assert set(look["per_variant"]) <= {"taller", "one_colour"}
+    assert 0 <= look["false_positives"] <= look["scenes"]
+    assert look["false_positive_rate"] is None or _in(look["false_positive_rate"], 0, 1)
+
+
+def test_lookalikes_are_taller_or_lack_a_colour(demo_world):
+    import numpy as np
+    from hearth.benchmarks._worlds import extent, extent_of_model
+    from hearth.benchmarks.objects import lookalike
+    rng = np.random.default_rng(0)
+    cup = demo_world.get("red_cup")                 # body and handle of one colour
+    assert lookalike(cup, "one_colour", rng) is None
+    tall = lookalike(cup, "taller", rng)
+    grown = extent_of_model(demo_world, tall)[1] - extent(demo_world, "red_cup")[1]
+    assert 0.02 - 1e-9 <= grown <= 0.04 + 1e-9
+    assert [v.color for v in tall.model.visuals] == [v.color for v in cup.model.visuals]
+    box = demo_world.get("pill_box")                # a white box with a red lid
+    plain = lookalike(box, "one_colour", rng)
+    assert len({v.color for v in plain.model.visuals}) == 1
+    assert [v.size for v in plain.model.visuals] == [v.size for v in box.model.visuals]
+    assert len({v.color for v in box.model.visuals}) == 2     # the map's own is untouched
 
 
 def test_nbv_bench_reports_pooled_and_per_world_figures_on_a_generated_home(capsys, tiny_home):
