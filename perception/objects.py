@@ -75,13 +75,21 @@ class DetectionConfig:
     #: 82 % of the inliers agree, none of the lid's).
     min_part_points: int = 8
     part_agreement: float = 0.5
-    #: Scene points over the model's outline seen from above (within ``taller_outline``)
-    #: standing more than ``taller_margin`` over its top: a share of ``max_taller`` of them
+    #: Scene points over the model's outline seen from above (within ``taller_outline``, and
+    #: ``taller_depth`` inside its edge) standing more than ``taller_margin`` over its top:
+    #: a share of ``max_taller`` of them
     #: takes the confidence to 0 (an amber tin 2 cm taller than the amber cup taken for it:
     #: 15 %; on 463 objects found right, none).
     taller_margin: float = 0.015
     taller_outline: float = 0.005
+    taller_depth: float = 0.02      #: ... and this far inside the outline's edge
     max_taller: float = 0.10
+    #: Hypotheses of two of the map's objects on the same points whose confidences lie within
+    #: ``prior_tie``: the one the map puts within ``prior_radius`` (m) claims them first
+    #: (``_resolve``; a navy and a blue cup differ in brightness only, which the colour test
+    #: leaves out: shading changes it).
+    prior_tie: float = 0.05
+    prior_radius: float = 1.0
 
 
 # -- models -----------------------------------------------------------------------------------
@@ -540,7 +548,8 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
                     T = _planar_T(x1, y1, height0, yaw1)
                     hyps.append(_verify(model, T, ci, pts, hsv, normals, tree_xy, tree_xyz, d,
                                         K, T_cw, color is not None, config))
-    hyps = _resolve(hyps)
+    believed = {oid: world.T_world(oid)[:2, 3] for oid in models if oid in world}
+    hyps = _resolve(hyps, believed, config)
     for h in hyps:
         if h.confidence >= config.accept_confidence and h.visible_fraction < config.min_visible_fraction:
             h.hidden_by_furniture = _hidden_by_furniture(world, name.split("/")[0],
@@ -784,9 +793,10 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
                     worst_part = min(worst_part, float(agree[on].mean()))
     else:
         normal_agreement, color = 0.0, 0.0
-    # over the outline itself (not the 1.5 cm around it, where a taller neighbour standing
-    # close may reach): a point standing over the model's top there is not this object
-    within = d_foot < config.taller_outline
+    # well inside the outline (not near its edge, where a taller neighbour standing against
+    # the object reaches once the pose is a centimetre or two off): a point standing over the
+    # model's top there is not this object
+    within = _deep_inside(model, local[:, :2], d_foot, config)
     n_within = int(within.sum())
     taller = float((within & (local[:, 2] > model.height + config.taller_margin)).sum()
                    / n_within) if n_within else 0.0
@@ -801,11 +811,45 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
                       worst_part_color=worst_part, taller=taller)
 
 
-def _resolve(hyps: list[Hypothesis]) -> list[Hypothesis]:
+def _deep_inside(model: ObjectModel, xy: np.ndarray, d_foot: np.ndarray,
+                 config: DetectionConfig) -> np.ndarray:
+    """Which of the points ``xy`` (object frame) lie over the model's outline seen from above
+    (within ``taller_outline`` of it) and ``taller_depth`` or more inside its edge: the
+    outline reached from each in 8 directions ``taller_depth`` away (an erosion of the
+    footprint; scipy's KD-tree of the model's footprint). An outline too small for any:
+    the points over it."""
+    over = d_foot < config.taller_outline
+    if not over.any():
+        return over
+    tree = _footprint_tree(model)
+    deep = over.copy()
+    for a in np.linspace(0.0, 2 * math.pi, 8, endpoint=False):
+        step = config.taller_depth * np.array([math.cos(a), math.sin(a)])
+        idx = np.flatnonzero(deep)
+        if not len(idx):
+            break
+        d = tree.query(xy[idx] + step, distance_upper_bound=config.taller_outline)[0]
+        deep[idx[d >= config.taller_outline]] = False
+    return deep if deep.any() else over
+
+
+def _resolve(hyps: list[Hypothesis], believed: Optional[dict] = None,
+             config: DetectionConfig = DetectionConfig()) -> list[Hypothesis]:
     """Keep the best pose per object and place; penalise hypotheses whose inliers a stronger
     one already claims (two models cannot explain the same points) and second places of the
-    same object; best first."""
-    hyps.sort(key=lambda h: h.confidence, reverse=True)
+    same object; best first. ``believed``: object id -> (x, y) where the map has it; of
+    hypotheses within ``config.prior_tie`` of each other, those the map puts within
+    ``config.prior_radius`` claim their points first (two objects of the map alike in shape
+    and hue, a navy and a blue cup, fit the same points equally: where the map has one of them
+    and not the other, that one is there)."""
+    believed = believed or {}
+
+    def at_home(h: Hypothesis) -> bool:
+        xy = believed.get(h.object_id)
+        return xy is not None and float(np.hypot(*(h.position[:2] - xy))) <= config.prior_radius
+
+    hyps.sort(key=lambda h: h.confidence + (config.prior_tie if at_home(h) else 0.0),
+              reverse=True)
     kept: list[Hypothesis] = []
     for h in hyps:
         if any(k.object_id == h.object_id and np.linalg.norm(k.position[:2] - h.position[:2]) < 0.05

@@ -269,3 +269,29 @@ def test_a_lookalike_without_the_lid_colour_is_not_taken_for_the_jar(demo_world)
             there = [h for h in det.hypotheses if h.object_id == "sugar"
                      and np.linalg.norm(h.position[:2] - at) < 0.03]
             assert there and max(h.worst_part_color for h in there) < 0.5
+
+
+def test_of_two_cups_alike_in_hue_the_one_the_map_puts_here_is_found(demo_world):
+    # A navy and a blue cup of one shape differ in brightness only, which the colour test
+    # leaves out (shading changes it): on the same points they tie, and the map decides.
+    import copy
+    truth = demo_world
+    T_wc = _south_view(truth)
+    depth, color, _ = observe(truth, T_wc, np.random.default_rng(7), K)
+    at = truth.T_world("blue_cup")[:2, 3]
+    far = demo_world.get("glass_jar").pose
+    for here in ("blue_cup", "navy_cup"):
+        belief = demo_world.copy()
+        navy = copy.deepcopy(belief.get("blue_cup"))
+        navy.id, navy.color = "navy_cup", "navy"
+        for v in navy.model.visuals:
+            v.color = (0.08, 0.12, 0.45)
+        belief.add_small_object(navy, "kitchen_table")
+        away = "navy_cup" if here == "blue_cup" else "blue_cup"
+        belief.move_object(here, "kitchen_table", truth.get("blue_cup").pose)
+        belief.move_object(away, "cupboard", far)
+        det = detect_objects(belief, depth, color, K, T_wc)
+        found = [h.object_id for h in det.accepted if np.linalg.norm(h.position[:2] - at) < 0.03]
+        assert found == [here], (here, [(h.object_id, round(h.confidence, 3))
+                                        for h in det.hypotheses
+                                        if np.linalg.norm(h.position[:2] - at) < 0.03])
