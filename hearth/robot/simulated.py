@@ -8,6 +8,12 @@ an arm whose actions change the truth, on a (simulated) clock.
 - Localisation: the believed base pose is the true pose composed with a body-frame error,
   ``T_believed = T_true @ T_error``. Driving to a believed goal therefore ends at
   ``T_goal @ inv(T_error)`` in truth; ``apply_correction`` replaces the error.
+- The arm moves relative to the base: a pose given in the (believed) world frame to
+  ``grasp`` or ``place`` is where the robot believes it is from where it believes it stands,
+  ``T_true @ inv(T_believed) @ T`` in truth (``_physical``). An object seen a moment ago is
+  grasped wherever the robot believes it stands; one whose pose was taken before the error
+  changed (a correction applied, the base turned: the error is in the base's frame) or from
+  the map is missed by as much as the error moves it.
 - Time: every action takes simulated time on the injected clock (driving: path length over
   speed plus turning over turn speed; arm motions: approach time plus joint travel over joint
   speed). Actions are evaluated lazily from the clock, so a SimClock runs as fast as the CPU
@@ -247,7 +253,8 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
             return self._refuse("grasp", far, object=object_id)
         if pose is not None:
             p = pose.position if isinstance(pose, Pose) else np.asarray(pose, float)[:3]
-            off = float(np.linalg.norm(self.truth.T_world(object_id)[:3, 3] - p))
+            reached = self._physical(np.r_[p, 1.0])[:3]
+            off = float(np.linalg.norm(self.truth.T_world(object_id)[:3, 3] - reached))
             if off > self.grasp_tolerance:
                 return self._timed_failure("grasp", f"the gripper closed on nothing at "
                                            f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})",
@@ -279,7 +286,8 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         parent = self._node(parent_id)
         if not isinstance(parent, LargeObject):
             return self._refuse("place", f"{parent_id} is not a large object", parent=parent_id)
-        T_world = pose.matrix() if isinstance(pose, Pose) else np.asarray(pose, float)
+        T_world = self._physical(pose.matrix() if isinstance(pose, Pose)
+                                 else np.asarray(pose, float))
         far = self._out_of_reach(None, point=T_world[:3, 3])
         if far:
             return self._refuse("place", far, parent=parent_id)
@@ -356,6 +364,11 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
 
     def _node(self, node_id: str):
         return self.truth.get(node_id) if node_id in self.truth else None
+
+    def _physical(self, T: np.ndarray) -> np.ndarray:
+        """Where a pose (4 x 4) or point (4,) the robot gives in its believed world frame lies
+        in truth: the arm moves relative to the base, placed by the believed pose."""
+        return self._true.matrix() @ np.linalg.inv(self._believed().matrix()) @ T
 
     def _out_of_reach(self, node_id: Optional[str], point=None) -> Optional[str]:
         p = self.truth.T_world(node_id)[:3, 3] if point is None else np.asarray(point, float)

@@ -81,6 +81,24 @@ def test_door_opens_over_time_a_locked_door_does_not_and_far_handles_are_refused
     assert r2.truth.get("fridge_door").joint.state == 0.0
 
 
+def test_the_arm_reaches_from_where_the_robot_believes_it_stands(sim):
+    # With the localisation 10 cm and 3 degrees off, the robot sees the cup where it believes
+    # it is from its believed pose: grasped there, the arm reaches the cup; at the truth's own
+    # coordinates (a pose from a map the error does not apply to) it closes on nothing.
+    r, clock, world = sim
+    parent = world.parent("blue_cup").id
+    assert wait(r.navigate_to(world.parking_positions("blue_cup")[0][1]), clock) == "succeeded"
+    true_cup = r.truth.T_world("blue_cup")
+    seen = r.base_pose().matrix() @ np.linalg.inv(r.true_pose().matrix()) @ true_cup
+    assert np.linalg.norm(seen[:3, 3] - true_cup[:3, 3]) > r.grasp_tolerance
+    miss = r.grasp("blue_cup", Pose.from_matrix(true_cup))
+    assert wait(miss, clock) == "failed" and "closed on nothing" in miss.reason
+    assert wait(r.grasp("blue_cup", Pose.from_matrix(seen)), clock) == "succeeded"
+    # put back where it was seen: in truth, where it stood
+    assert wait(r.place(parent, Pose.from_matrix(seen)), clock) == "succeeded"
+    assert np.allclose(r.truth.T_world("blue_cup")[:3, 3], true_cup[:3, 3], atol=1e-9)
+
+
 def test_grasped_object_moves_with_the_robot_and_stop_cancels(sim):
     r, clock, world = sim
     r.apply_correction(r.true_pose())
