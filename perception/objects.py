@@ -782,13 +782,16 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     if sel.any():
         n_scene = normals[inliers]
         n_model = mn_w[jj[sel]]
-        normal_agreement = float(np.mean(np.abs(np.einsum("ij,ij->i", n_scene, n_model)) > 0.8))
+        facing = np.abs(np.einsum("ij,ij->i", n_scene, n_model)) > 0.8
+        normal_agreement = float(np.mean(facing))
         agree = color_agreement(hsv[inliers], model.hsv[jj[sel]]) if use_color else None
         color = float(agree.mean()) if use_color else 1.0
         if use_color:
+            # only inliers whose normal agrees with the model's: a thin part (a pill box's
+            # 2 mm lid) seen edge-on is matched to the points of the face beside it
             part = model.colour_part[jj[sel]]
-            for p in np.unique(part):
-                on = part == p
+            for p in np.unique(part[facing]):
+                on = (part == p) & facing
                 if on.sum() >= config.min_part_points:
                     worst_part = min(worst_part, float(agree[on].mean()))
     else:
@@ -857,13 +860,18 @@ def _resolve(hyps: list[Hypothesis], believed: Optional[dict] = None,
             continue  # the same object at the same place from another seed or yaw
         kept.append(h)
     claimed: set[int] = set()
+    placed: set[str] = set()
     for h in kept:
         mine = set(h.inliers.tolist())
         if mine:
             h.conflict = len(mine & claimed) / len(mine)
             h.confidence *= (1 - h.conflict)
-        if h.conflict < 0.5:
+        # an object already placed here claims no second place's points (the map holds it
+        # once; the second place is scaled down below): a brown mug found where it stands does
+        # not also take the amber mug's points beside it
+        if h.conflict < 0.5 and h.object_id not in placed:
             claimed |= mine
+            placed.add(h.object_id)
     kept.sort(key=lambda h: h.confidence, reverse=True)
     # The map holds each small object once: where a stronger hypothesis places the same object
     # elsewhere, this one is at most as likely as that one is wrong.
