@@ -319,7 +319,7 @@ def test_go_to_rest_follows_presence_change_mid_run(make_executive):
     near = sub.made["/follow_presence/choose_rest_place/user_home/near_user/drive_near_user"]
     away = sub.made["/follow_presence/choose_rest_place/user_away/drive_out_of_the_way"]
     assert near.halts == 1 and away.seen_inputs == [{"target": "kitchen_table", "parking": None,
-                                                     "distance": None}]
+                                                     "near": None, "distance": None}]
     assert robot.said == [] and robot.stops == 0
     assert ex.current is None
     # the restart waited for the halted drive to stop, and replay reproduces that too
