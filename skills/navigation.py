@@ -42,13 +42,8 @@ def _knob_distance(distance) -> float:
 def parkings_by_distance(world, robot, target: str, beyond: float = -1.0, near=None) -> list:
     """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
     further than ``beyond`` from the robot, nearest first; with ``near`` (a pose, as
-    ``as_pose`` takes it):
-    ``(metres from it, id, world pose)``, every one, nearest to it first."""
-    if near is not None:
-        at = as_pose(near)
-        return sorted(((math.hypot(pose.x - at.x, pose.y - at.y), p.id, pose)
-                       for p, pose in world.parking_positions(target)), key=lambda f: f[:2])
-    here = robot.base_pose()
+    ``as_pose`` takes it), the metres from it instead of from the robot."""
+    here = as_pose(near) if near is not None else robot.base_pose()
     found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
              for p, pose in world.parking_positions(target))
     return sorted((f for f in found if f[0] > beyond), key=lambda f: f[:2])
@@ -117,13 +112,13 @@ class NavigateTo(RobotActionSkill):
     def _nearest(self, target: str, near=None):
         """The parking position of ``target`` nearest to the robot, or to ``near`` when given
         (ValueError when it has none)."""
-        found = parkings_by_distance(self.world, self.robot, target, near=near)
+        found = self._by_distance(target, near=near)
         if not found:
             raise ValueError(f"{target} has no parking position")
         return found[0][1], found[0][2]
 
-    def _by_distance(self, target: str, beyond: float = -1.0):
-        return parkings_by_distance(self.world, self.robot, target, beyond)
+    def _by_distance(self, target: str, beyond: float = -1.0, near=None):
+        return parkings_by_distance(self.world, self.robot, target, beyond, near)
 
     def describe(self) -> str:
         return f"navigating {getattr(self, '_what', '')}".strip()
