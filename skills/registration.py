@@ -81,7 +81,7 @@ class RefineLocalisation(_PerceptionSkill):
     OUTPUTS = (Port("correction", "dict", required=False), Port("quality", "dict", required=False))
 
     def perceive(self) -> str:
-        from perception.localisation import LocalisationConfig, refine_localisation
+        from perception.localisation import refine_localisation
         depth, K, T_wc = capture(self.robot)
         T_wb = self.robot.base_pose().matrix()
         fix = refine_localisation(self.world, depth, K, T_wc, T_wb,
@@ -103,8 +103,7 @@ class RefineLocalisation(_PerceptionSkill):
             # fails, so that the missions try other landmarks and never say "corrected" on it
             raise PerceptionError(
                 f"localisation moved by {moved}, but not pinned down: a pose "
-                f"{100 * fix.quality.get('ring_m', LocalisationConfig.ring_m):.0f} cm away "
-                f"explains the view nearly as well "
+                f"{100 * fix.quality['ring_m']:.0f} cm away explains the view nearly as well "
                 f"(drop {fix.quality['ring_drop']:.3f})")
         return f"localisation corrected by {moved}"
 
