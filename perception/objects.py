@@ -77,9 +77,8 @@ class DetectionConfig:
     part_agreement: float = 0.5
     #: Scene points over the model's outline seen from above (within ``taller_outline``, and
     #: ``taller_depth`` inside its edge) standing more than ``taller_margin`` over its top:
-    #: a share of ``max_taller`` of them
-    #: takes the confidence to 0 (an amber tin 2 cm taller than the amber cup taken for it:
-    #: 15 %; on 463 objects found right, none).
+    #: a share of ``max_taller`` of them takes the confidence to 0 (an amber tin 2 cm taller
+    #: than the amber cup taken for it; on 463 objects found right, none).
     taller_margin: float = 0.015
     taller_outline: float = 0.005
     taller_depth: float = 0.02      #: ... and this far inside the outline's edge
@@ -221,8 +220,9 @@ class Hypothesis:
     #: the colour agreement of the model's worst-agreeing colour (``ObjectModel.colour_part``)
     #: among those with ``DetectionConfig.min_part_points`` inliers or more (1 with none)
     worst_part_color: float = 1.0
-    #: share of the scene points in its footprint standing over its top by more than
-    #: ``DetectionConfig.taller_margin`` (a taller object is not this one)
+    #: share of the scene points over its outline seen from above, ``taller_depth`` or more
+    #: inside its edge, standing over its top by more than ``DetectionConfig.taller_margin``
+    #: (a taller object is not this one)
     taller: float = 0.0
 
     def mostly_hidden_by_furniture(self, min_visible_fraction: float) -> bool:
@@ -784,11 +784,13 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
         n_model = mn_w[jj[sel]]
         facing = np.abs(np.einsum("ij,ij->i", n_scene, n_model)) > 0.8
         normal_agreement = float(np.mean(facing))
-        agree = color_agreement(hsv[inliers], model.hsv[jj[sel]]) if use_color else None
-        color = float(agree.mean()) if use_color else 1.0
+        color = 1.0
         if use_color:
-            # only inliers whose normal agrees with the model's: a thin part (a pill box's
-            # 2 mm lid) seen edge-on is matched to the points of the face beside it
+            agree = color_agreement(hsv[inliers], model.hsv[jj[sel]])
+            color = float(agree.mean())
+            # each colour of the model apart, on the inliers whose normal agrees with the
+            # model's: a thin part (a pill box's 2 mm lid) seen edge-on is matched to the
+            # points of the face beside it
             part = model.colour_part[jj[sel]]
             for p in np.unique(part[facing]):
                 on = (part == p) & facing
