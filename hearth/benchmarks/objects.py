@@ -369,15 +369,33 @@ def _visual_size(v) -> float:
             "sphere": 4 / 3 * math.pi * v.radius ** 3}.get(v.shape, 0.0)
 
 
+def belief_for(base, place):
+    """The belief map a scene of ``place`` is detected with: the home as the map has it, the
+    doors of the place's furniture open as in truth when the place is inside it."""
+    belief = base.copy()
+    if place.inside:
+        _worlds.opened(belief, place.object_id)
+    return belief
+
+
+def detect_on(belief, place, depth, color, K, T_wc):
+    """``detect_objects`` on the place's surface; no surface found: a detection with nothing
+    accepted (every object missed)."""
+    from types import SimpleNamespace
+
+    from perception.errors import PerceptionError
+    from perception.objects import detect_objects
+    try:
+        return detect_objects(belief, depth, color, K, T_wc, surface=place.name)
+    except PerceptionError:
+        return SimpleNamespace(accepted=[])
+
+
 def lookalike_scene(rng, place, base, K) -> Optional[dict]:
     """One look-alike scene of ``place`` (module docstring): a record with the variant,
     whether the look-alike was at least half in view and how many hypotheses of the object
     it stands for were accepted within ``MATCH_M`` of it; None when no object of the place
     has the variant drawn."""
-    from types import SimpleNamespace
-
-    from perception.errors import PerceptionError
-    from perception.objects import detect_objects
     variant = ("taller", "one_colour")[int(rng.integers(2))]
     fits = fitting_objects(base, place)
     order = [fits[i] for i in rng.permutation(len(fits))]
@@ -395,15 +413,9 @@ def lookalike_scene(rng, place, base, K) -> Optional[dict]:
                          objects=[oid])
     if not sc.ids:
         return None
-    belief = base.copy()
-    if place.inside:
-        _worlds.opened(belief, place.object_id)
     depth, color, r = observe(sc.truth, sc.T_world_camera, rng, K)
     vis = visible_fractions(sc.truth, r, sc.T_world_camera, K, sc.ids)[oid]
-    try:
-        det = detect_objects(belief, depth, color, K, sc.T_world_camera, surface=place.name)
-    except PerceptionError:
-        det = SimpleNamespace(accepted=[])
+    det = detect_on(belief_for(base, place), place, depth, color, K, sc.T_world_camera)
     at = sc.truth.T_world(oid)[:2, 3]
     taken = sum(1 for h in det.accepted
                 if h.object_id == oid and np.linalg.norm(h.position[:2] - at) < MATCH_M)
@@ -434,16 +446,11 @@ def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], str]:
         place = ps[int(rng.integers(len(ps)))]
         sc = cluttered_scene(rng, place, base)
         truth, T_wc, ids = sc.truth, sc.T_world_camera, sc.ids
-        belief = base.copy()
-        if place.inside:
-            _worlds.opened(belief, place.object_id)
+        belief = belief_for(base, place)
         depth, color, r = observe(truth, T_wc, rng, K)
         vis = visible_fractions(truth, r, T_wc, K, ids)
         t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            det = detect_objects(belief, depth, color, K, T_wc, surface=place.name)
-        except PerceptionError:  # no surface found: every object missed
-            det = SimpleNamespace(accepted=[])
+        det = detect_on(belief, place, depth, color, K, T_wc)
         ms = (time.perf_counter() - t0) * 1000
         cpu = (time.process_time() - c0) * 1000
         tp, fp, fn, errs, sw = score(det, truth, vis, bystanders(truth, r, ids))
