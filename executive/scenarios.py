@@ -557,6 +557,12 @@ def summarise(results: list[dict]) -> dict:
     (the demo home only, when run), ``per_world`` (success per world and mission) and
     ``slowest`` (the five slowest cases by wall time)."""
     out: dict[str, Any] = {}
+    # A case the engine could not deliver (executive.suite.failure "engine") says nothing of
+    # the mission: it is listed apart and left out of every figure below.
+    out["engine_errors"] = [dict(world=r.get("world"), mission=r["mission"], seed=r["seed"],
+                                 target=r.get("target"), reason=r["reason"])
+                            for r in results if r.get("error") == "engine"]
+    results = [r for r in results if r.get("error") != "engine"]
     missions = sorted({r["mission"] for r in results})
     for m in missions:
         out[m] = _mission_summary([r for r in results if r["mission"] == m], m)

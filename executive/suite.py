@@ -147,7 +147,10 @@ def comparable(result: dict) -> dict:
 
 def failure(case: dict, kind: str, reason: str, tb: str = "", wall: float = 0.0) -> dict:
     """The result of a case that did not finish: ``error`` is "exception", "timeout" or
-    "crashed"; ``outcome`` "error" (what ``scenarios.summarise`` counts as errors)."""
+    "crashed" (the mission's own failures: ``outcome`` "error", counted against it by
+    ``scenarios.summarise``), or "engine" (the engine could not deliver the case: a world
+    that arrived incomplete or altered; kept out of the missions' figures, listed in
+    ``engine_errors``, and the run exits 1)."""
     from executive.scenarios import Case, CaseResult
     c = Case(**case)
     r = asdict(CaseResult(mission=c.mission, seed=c.seed, achievable=c.achievable,
@@ -279,6 +282,27 @@ def unpack_world(bundle: dict[str, bytes], directory: Path) -> Path:
         dst.parent.mkdir(parents=True, exist_ok=True)
         _write_atomic(dst, data)
     return directory / WORLD_FILE
+
+
+def arrived_world(bundle: dict[str, bytes], bundle_fp: str, directory: Path):
+    """The world of a bundle as it arrived in a worker, checked: its contents hash to the
+    fingerprint the sender computed (``bundle_fingerprint``), it unpacks under
+    ``directory/<fingerprint>`` and loads (schema, semantics and every file it refers to:
+    ``worldmodel.io.load_world``). A world loaded once per worker process is reused. Raises
+    SuiteError or the world model's errors: the sender loaded the same world before
+    bundling it, so any failure here is the transport's."""
+    from worldmodel.io import load_world
+    cache = _WORKER.setdefault("worlds", {})
+    got = cache.get(bundle_fp)
+    if got is not None:
+        return load_world(got)
+    if bundle_fingerprint(bundle) != bundle_fp:
+        raise SuiteError(f"world bundle {bundle_fp}: contents differ from what was sent "
+                         f"({len(bundle)} files)")
+    world_file = unpack_world(bundle, directory / bundle_fp)
+    world = load_world(world_file)
+    cache[bundle_fp] = world_file
+    return world
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -527,17 +551,13 @@ def _ray_case(case: dict, key: str, runner, timeout: float, bundle_fp: str,
         if _WORKER["models"].get(filename) != len(data):
             _write_atomic(Path(os.environ["HEARTH_MODEL_DIR"]) / filename, data)
             _WORKER["models"][filename] = len(data)
-    world_file = _WORKER["worlds"].get(bundle_fp)
-    if world_file is None:
-        world_file = unpack_world(bundle, d / "worlds" / bundle_fp)
-        _WORKER["worlds"][bundle_fp] = world_file
     runs_dir = case.get("runs_dir")
     run = dict(case, runs_dir=str(d / "runs" / key)) if runs_dir else case
     try:
-        from worldmodel.io import load_world
-        world = load_world(world_file)
-    except Exception as err:  # noqa: BLE001
-        res = failure(case, "exception", f"{type(err).__name__}: {err}", traceback.format_exc())
+        world = arrived_world(bundle, bundle_fp, d / "worlds")
+    except Exception as err:  # noqa: BLE001 - reported as the engine's fault, not the mission's
+        res = failure(case, "engine", f"world {case.get('world')!r} did not arrive whole: "
+                      f"{type(err).__name__}: {err}", traceback.format_exc())
     else:
         res = execute(run, runner, world, timeout)
     res["worker"] = f"{os.uname().nodename}:{os.getpid()}"

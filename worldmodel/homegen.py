@@ -1670,14 +1670,8 @@ def _ensure_table(ctx: _Ctx, rooms, pieces, layouts, scratch) -> None:
 
 def _mesh_files(apartment: Apartment) -> set[str]:
     """Every mesh file the apartment references."""
-    from worldmodel.validate import iter_nodes
-    models = list(apartment.library.values())
-    for node, _ in iter_nodes(apartment):
-        for role in ("model", "base", "grip", "marker"):     # knobs: their shape's models
-            m = getattr(node, role, None)
-            if isinstance(m, Model):
-                models.append(m)
-    return {v.file for m in models for v in m.visuals if v.shape == "mesh"}
+    from worldmodel.validate import file_references
+    return {getattr(h, a) for _, h, a in file_references(apartment) if a == "file"}
 
 
 def make_home(seed: int, out_dir, config: HomeConfig = HomeConfig()) -> Path:

@@ -65,6 +65,27 @@ def _iter_fittings(node) -> Iterator[tuple[object, object]]:
             yield from _iter_fittings(child)
 
 
+def file_references(apartment: Apartment) -> Iterator[tuple[str, object, str]]:
+    """Every file a world refers to, as (owner id, holder, attribute): ``getattr(holder,
+    attribute)`` is the path relative to the world's folder. Mesh visuals of the library's
+    models, of every node's model and of every knob's base, grip and marker; room point
+    clouds. The one list of a world's files: bundling a world for another process (a suite
+    worker, a saved scenario) and writing a generated home's meshes both go through it, so a
+    file kind added here travels everywhere."""
+    for mid, model in apartment.library.items():
+        for v in model.visuals:
+            if v.shape == "mesh" and v.file:
+                yield mid, v, "file"
+    for node, _ in iter_nodes(apartment):
+        for role in ("model", "base", "grip", "marker"):
+            model = getattr(node, role, None)
+            for v in (model.visuals if isinstance(model, Model) else ()):
+                if v.shape == "mesh" and v.file:
+                    yield node.id, v, "file"
+        if getattr(node, "kind", "") == "Room" and node.pointcloud:
+            yield node.id, node, "pointcloud"
+
+
 # -- numbers and text ------------------------------------------------------------------------
 
 def _is_real(v) -> bool:

@@ -4,7 +4,9 @@ A benchmark module defines ``run(args) -> dict`` and optionally ``add_arguments(
 (its own options, given after the name: ``hearth bench api --clients 10``) and a module
 docstring. It prints one JSON object on stdout; progress goes to stderr: a line as each
 benchmark starts and ends, and one per case where a benchmark reports cases (its own
-``--verbose``, turned on here unless ``--no-progress``).
+``--verbose``, turned on here unless ``--no-progress``). A module may define
+``incomplete(result) -> str | None``: a sentence when its figures leave cases out (an engine
+that could not deliver them); the command then says so on stderr and exits 1.
 """
 from __future__ import annotations
 
@@ -75,6 +77,7 @@ def _progress(args: argparse.Namespace, text: str) -> None:
 def _run(args: argparse.Namespace) -> int:
     names = available() if args.name == "all" else [args.name]
     out = {}
+    failed: list[str] = []    # benchmarks whose figures do not cover every case: exit 1
     for i, name in enumerate(names, 1):
         if name not in available():
             print(f"hearth bench: unknown benchmark {name!r}; known: {', '.join(available())}",
@@ -91,6 +94,11 @@ def _run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         out[name] = module.run(args)
         _progress(args, f"{name}{of} done in {time.perf_counter() - t0:.1f} s")
+        why = module.incomplete(out[name]) if hasattr(module, "incomplete") else None
+        if why:
+            failed.append(f"{name}: {why}")
     result = out[names[0]] if len(names) == 1 else out
     print(json.dumps(result, indent=None if args.json else 2, sort_keys=True))
-    return 0
+    for line in failed:
+        print(f"hearth bench: {line}", file=sys.stderr)
+    return 1 if failed else 0

@@ -25,7 +25,10 @@ work shares the CPU.
 finishes; ``--missions`` picks missions; ``--warmup`` sets the warm-up searches.
 
 Engines: ``engine``, ``scenarios_per_s`` (cases over the wall time, the engine's start
-included: a Ray start costs seconds) and ``errors_by_kind`` (exception / timeout / crashed).
+included: a Ray start costs seconds) and ``errors_by_kind`` (exception / timeout / crashed,
+the mission's own; engine: a case the engine could not deliver, such as a world that
+arrived incomplete on a worker). Engine errors are listed in ``engine_errors``, left out of
+every mission figure, and make the command exit 1.
 ``--engine local,ray`` runs the same cases on both, one after the other: the summary is the
 first engine's, and ``engines`` gives each one's ``scenarios_per_s``, ``total_wall_s`` and
 ``startup_s`` (until its first result), ``ray_over_local`` the ratio of their wall times, and
@@ -103,6 +106,18 @@ def run(args) -> dict:
         out["differing"] = differing
     out.update(summarise(results))
     return out
+
+
+def incomplete(result: dict) -> str | None:
+    """Why the figures leave cases out: cases an engine could not deliver
+    (``engine_errors``: a world that arrived incomplete on a worker)."""
+    bad = {k: v["errors_by_kind"].get("engine", 0)
+           for k, v in result.get("engines", {"": result}).items()}
+    if any(bad.values()):
+        return ("the engine could not deliver " + ", ".join(
+            f"{n} case(s){' on ' + k if k else ''}" for k, n in bad.items() if n)
+            + "; they are left out of the figures (engine_errors)")
+    return None
 
 
 def _run_on(name: str, cases, jobs: int, args, verbose: bool) -> dict:

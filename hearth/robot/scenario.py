@@ -261,21 +261,10 @@ def copy_world_files(worlds, directory) -> None:
 
 
 def _file_refs(world):
-    """(node id, object, attribute) for every file reference of a world: mesh visuals of the
-    library and of every node, and room point clouds."""
-    from worldmodel.validate import iter_nodes
-    ap = world.apartment
-    for mid, model in ap.library.items():
-        for v in model.visuals:
-            if v.shape == "mesh" and v.file:
-                yield mid, v, "file"
-    for node, _ in iter_nodes(ap):
-        model = getattr(node, "model", None)
-        for v in (model.visuals if model is not None else []):
-            if v.shape == "mesh" and v.file:
-                yield node.id, v, "file"
-        if getattr(node, "kind", "") == "Room" and node.pointcloud:
-            yield node.id, node, "pointcloud"
+    """(node id, object, attribute) for every file reference of a world
+    (worldmodel.validate.file_references)."""
+    from worldmodel.validate import file_references
+    return file_references(world.apartment)
 
 
 def _check_usable(world) -> None:

@@ -2,6 +2,8 @@
 that raises, kills its worker or hangs is reported and the others finish."""
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import pytest
 
 import standins
@@ -9,12 +11,50 @@ from executive import suite
 from executive.scenarios import Case, suite_cases
 
 
+MESH_KNOBS = "home:4"     # a generated home whose oven knobs are mesh files
+
+
+def test_a_world_travels_with_its_knob_meshes_and_loads_where_it_arrives(tmp_path):
+    bundle = suite.world_bundle(MESH_KNOBS)
+    knob_meshes = [name for name in bundle if name.startswith("meshes/knob-")]
+    assert knob_meshes, sorted(bundle)
+    world = suite.arrived_world(bundle, suite.bundle_fingerprint(bundle), tmp_path)
+    assert world.knobs() and all((tmp_path / suite.bundle_fingerprint(bundle) / n).is_file()
+                                 for n in knob_meshes)
+
+
+def test_a_world_that_arrives_without_a_mesh_is_an_engine_error_kept_out_of_the_figures(
+        tmp_path, ray_instance, monkeypatch):
+    monkeypatch.setitem(suite._WORKER, "worlds", {})     # nothing this process unpacked before
+    bundle = suite.world_bundle(MESH_KNOBS)
+    fp = suite.bundle_fingerprint(bundle)
+    lost = dict(bundle)
+    del lost[next(n for n in bundle if n.startswith("meshes/knob-"))]
+    with pytest.raises(suite.SuiteError, match="contents differ"):
+        suite.arrived_world(lost, fp, tmp_path)
+    # the same loss on a Ray worker: an engine error, not a mission's failure
+    import ray
+    case = suite_cases(1, missions=("refine_localisation",), worlds=(MESH_KNOBS,))[0]
+    task = ray.remote(suite._ray_case).remote(asdict(case), suite.case_key(case), None, 60.0,
+                                              fp, lost)
+    res = ray.get(task)
+    assert res["error"] == "engine" and "did not arrive whole" in res["reason"]
+    from executive.scenarios import summarise
+    from hearth.benchmarks.missions import incomplete
+    summary = summarise([res])
+    assert summary["engine_errors"][0]["world"] == MESH_KNOBS
+    assert "refine_localisation" not in summary          # no mission figure from it
+    assert "could not deliver 1 case" in incomplete(
+        {"errors_by_kind": {"engine": 1}, **summary})
+
+
 def six_cases() -> list[Case]:
     """Two scenarios of each named mission: the oven on the demo home (its knob models are
-    what `make models` trains), localisation and a fetch on a generated home."""
+    what `make models` trains), localisation and a fetch on a generated home whose knobs are
+    meshes (home 4: the world must travel with its mesh files)."""
     oven = suite_cases(2, missions=("turn_off_oven",), worlds=("demo",))
-    home = suite_cases(2, missions=("refine_localisation",), worlds=("home:0",))
-    fetch = suite_cases(1, missions=("fetch_object",), worlds=("home:0",), warmup=5,
+    home = suite_cases(2, missions=("refine_localisation",), worlds=(MESH_KNOBS,))
+    fetch = suite_cases(1, missions=("fetch_object",), worlds=(MESH_KNOBS,), warmup=5,
                         fetch_every_type=False)
     cases = oven[:2] + home[:2] + fetch[:2]
     assert len(cases) == 6 and len({suite.case_key(c) for c in cases}) == 6
