@@ -2,7 +2,7 @@
 
 Pipeline for one RGB-D view (all points in the world frame, metres):
 
-1. ``find_support_plane``: RANSAC plane (open3d ``segment_plane``) among the points near the
+1. ``find_support_plane``: RANSAC plane (``ransac_plane``, seeded) among the points near the
    height the map expects for a surface (e.g. the kitchen table's ``top``).
 2. Points above the plane and inside the surface's extent; Euclidean clusters (connected
    components of a scipy KD-tree radius graph).
@@ -337,14 +337,9 @@ def find_support_plane(points_world: np.ndarray, expected_height: float,
         return None
     if len(near) > 4000:  # RANSAC needs far fewer points than a view has
         near = near[np.random.default_rng(rng_seed).choice(len(near), 4000, replace=False)]
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(near))
-    o3d.utility.random.seed(rng_seed)
-    plane, inl = pc.segment_plane(config.plane_distance, 3, 200)
-    plane = np.asarray(plane, dtype=float)
-    if plane[2] < 0:
-        plane = -plane
-    n = np.linalg.norm(plane[:3])
-    plane /= n
+    plane, inl = ransac_plane(near, config.plane_distance, 200, rng_seed)
+    if plane is None:
+        return None
     # Supporting surfaces are horizontal and the camera's tilt is known, so a plane tilted by
     # more than a few degrees is not the surface but a mix of what lies near its height (a
     # shelf's front edge, a cabinet's back wall): no plane then, the map's height is used.
@@ -353,6 +348,41 @@ def find_support_plane(points_world: np.ndarray, expected_height: float,
     # The height: the median of the inliers (RANSAC's plane is from three points).
     z = near[inl, 2]
     return np.array([0.0, 0.0, 1.0, -float(np.median(z))])
+
+
+def ransac_plane(points: np.ndarray, distance: float, trials: int,
+                 rng_seed: int = 0) -> tuple[Optional[np.ndarray], np.ndarray]:
+    """RANSAC plane (a, b, c, d) with a unit normal, c >= 0, and the indices of its inliers
+    (points within ``distance``), from ``trials`` planes through three points drawn with
+    ``rng_seed``; (None, []) when every draw is degenerate. The same points and seed give the
+    same plane on every run.
+
+    Written here rather than calling open3d's ``segment_plane``: that runs its trials on
+    threads and, for the same points and seed, returns planes that differ from run to run
+    (a different inlier set, so a support height 0.1 mm off, and a detection that flips
+    near a threshold: the next-best-view benchmark moved by 0.07 between identical runs).
+    scikit-learn's RANSACRegressor is deterministic but fits one trial at a time; all
+    trials here are scored at once with one matrix product."""
+    n = len(points)
+    if n < 3:
+        return None, np.zeros(0, dtype=int)
+    rng = np.random.default_rng(rng_seed)
+    idx = np.stack([rng.choice(n, 3, replace=False) for _ in range(trials)])
+    p0, p1, p2 = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
+    normals = np.cross(p1 - p0, p2 - p0)
+    norm = np.linalg.norm(normals, axis=1)
+    ok = norm > 1e-12
+    if not ok.any():
+        return None, np.zeros(0, dtype=int)
+    normals = normals[ok] / norm[ok, None]
+    d = -np.einsum("ij,ij->i", normals, p0[ok])
+    counts = (np.abs(points @ normals.T + d) <= distance).sum(axis=0)
+    best = int(np.argmax(counts))                # the first of equals: deterministic
+    plane = np.append(normals[best], d[best])
+    if plane[2] < 0:
+        plane = -plane
+    inliers = np.flatnonzero(np.abs(points @ plane[:3] + plane[3]) <= distance)
+    return plane, inliers
 
 
 def euclidean_clusters(points: np.ndarray, radius: float, min_points: int) -> list[np.ndarray]:

@@ -176,9 +176,10 @@ def scenes_for(spec: str, args) -> int:
     return SCENES[("demo" if spec == "demo" else "other") + q]
 
 
-def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], int, str]:
+def run_world(spec: str, n: int, seed, K) -> tuple[list[dict], int, str]:
     """Per-scene records of ``n`` NBV scenes of one world, scenes tried, and a note when it
-    has no place for one."""
+    has no place for one. Scene ``t`` draws from its own generator seeded with
+    ``(*seed, t)``, so what one scene's detection decides never changes the scenes after it."""
     from perception.errors import PerceptionError
     from perception.nbv import plan_next_best_view
     from perception.objects import detect_objects
@@ -189,6 +190,7 @@ def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], int, str]:
     out, tried, blocked = [], 0, 0
     while len(out) < n and tried < 20 * n:
         tried += 1
+        rng = np.random.default_rng([*seed, tried])
         place = ps[int(rng.integers(len(ps)))]
         made = occluded_scene(rng, place, base)
         if made is None:
@@ -277,13 +279,12 @@ def summarise(records: list[dict]) -> dict:
 
 
 def run(args) -> dict:
-    rng = np.random.default_rng(args.seed)
     K = Intrinsics.kinect()
     specs = _worlds.world_specs(args, homes=2)
     tried = []
 
     def one(i, spec):
-        recs, t, why = run_world(spec, scenes_for(spec, args), rng, K)
+        recs, t, why = run_world(spec, scenes_for(spec, args), (args.seed, i), K)
         tried.append(t)
         return recs, why or (None if recs else f"no NBV scene in {t} tries")
     out = _worlds.run_worlds("nbv", specs, one, summarise)
