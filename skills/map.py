@@ -1,7 +1,6 @@
 """Skills that read and write the semantic map (no robot, no perception)."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import py_trees
@@ -11,6 +10,7 @@ from skills.values import as_pose
 from worldmodel.nodes import LargeArticulatedObject, SmallObject
 from worldmodel.pose import Pose
 from worldmodel.search import SearchWeights, search_order
+from worldmodel.world import best_matches
 
 S = py_trees.common.Status
 
@@ -46,8 +46,7 @@ class ResolveObject(Skill):
             if not matches:
                 self.feedback_message = f"I don't know any {words!r} in this home"
                 return S.FAILURE
-            top = matches[0].score
-            best = [m.node for m in matches if math.isclose(m.score, top)]
+            best = [m.node for m in best_matches(matches)]
         if len(best) > 1:
             labels = [f"the {self.world.label(n.id)} {self.world.describe_location(n.id)}"
                       for n in best]

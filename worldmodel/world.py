@@ -90,6 +90,25 @@ class Match:
     score: float
 
 
+#: Words fit two nodes "about equally" when their ``World.find`` scores differ by less than
+#: this. A score counts the words a node holds (1 each: every match holds them all), less
+#: 0.01 for each other word of its description, plus 0.5 for a small object; between two
+#: nodes of one kind that both hold every word only the 0.01s differ, and a fuller
+#: description does not make a node the one a person meant ("mug": a blue mug described in
+#: three words and a navy mug in four). Half a word: anything short of a word more decides
+#: nothing.
+AMBIGUITY_MARGIN = 0.5
+
+
+def best_matches(matches: list[Match]) -> list[Match]:
+    """The matches that fit about as well as the best (``AMBIGUITY_MARGIN``), best first:
+    one when the words decide, several when the person must be asked which."""
+    if not matches:
+        return []
+    top = matches[0].score
+    return [m for m in matches if m.score > top - AMBIGUITY_MARGIN]
+
+
 class World:
     def __init__(self, apartment: Apartment, path=None, base_dir=None, clock=None):
         self.apartment = apartment

@@ -69,8 +69,8 @@ def resolve_slot(world: Any, words: str, cls: str, param: str) -> _Resolution:
     kinds = SLOT_CLASSES[cls] or None
     matches = world.find(words, kinds=kinds) if world is not None else []
     if matches:
-        best = matches[0].score
-        top = [m.node for m in matches if m.score >= best - 1e-9]
+        from worldmodel.world import best_matches
+        top = [m.node for m in best_matches(matches)]
         if len(top) == 1:
             return _Resolution(value=top[0].id)
         cands = [_describe(world, n) for n in top]

@@ -85,6 +85,28 @@ def test_resolve_ambiguous_cup_asks_which_one(demo_world):
     assert "red cup" in s.feedback_message and "blue cup" in s.feedback_message
 
 
+def test_words_that_fit_two_objects_about_equally_ask_which_one(tmp_path):
+    """A fuller description of one mug does not make it the mug a person meant."""
+    import shutil
+    from tests.conftest import DEMO_WORLD
+    from worldmodel import load_world
+    home = tmp_path / "home"
+    shutil.copytree(DEMO_WORLD.parent, home)
+    xml = (home / "world.xml").read_text()
+    (home / "world.xml").write_text(xml.replace("<description>red ceramic mug</description>",
+                                                "<description>red ceramic mug with a chipped "
+                                                "rim</description>"))
+    world = load_world(home / "world.xml")
+    assert world.find("mug")[0].score != world.find("mug")[1].score      # not an exact tie
+    s = make(ResolveObject, world, inputs={"object": "mug"}, outputs={"object_id": "/oid"})
+    assert tick(s) == S.FAILURE
+    assert s.feedback_message.startswith("which mug do you mean: the ")
+    assert "red cup" in s.feedback_message and "blue cup" in s.feedback_message
+    from executive.command.commands import resolve_slot
+    asked = resolve_slot(world, "mug", "thing", "object").problem
+    assert asked.text_id == "T_CLARIFY_WHICH" and len(asked.candidates) == 2
+
+
 def test_resolve_unknown_object_says_so(demo_world):
     s = make(ResolveObject, demo_world, inputs={"object": "purple elephant"})
     assert tick(s) == S.FAILURE and "don't know" in s.feedback_message
