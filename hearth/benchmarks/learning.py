@@ -1,0 +1,221 @@
+"""Objects learned from views (perception/object_learning.py) against the models they were
+rendered from.
+
+``hearth bench learning --json [--homes N] [--seed S] [--world W ...] [--scenarios K]``.
+Worlds as the other perception benches (hearth/benchmarks/_worlds.py; by default 3
+generated homes, no demo home). In each world, for every kind of small object it holds
+(``type``), up to ``--scenarios`` objects (default 2; 1 with ``--quick``) standing on a
+surface open above: the simulated head camera looks at the object from bases around it, on
+each of 16 bearings the nearest of 0.6-1.3 m that stands on free floor of its room (clear
+of furniture by the robot's radius) and sees at least 40 % of it; at most 8 views spread
+around it, rendered
+with the simulated Kinect's noise. Each view's believed camera pose is the true one moved
+by a localisation error of its own (1 cm and 0.5 degree sigma): the views must be
+registered to each other. The learned model is compared with the true one:
+
+- ``chamfer_mm``: symmetric chamfer distance (the median of both ways' nearest-neighbour
+  distances, mm) between the learned mesh's surface and the true model's (base left out:
+  no camera sees it), after aligning the learned model to the truth by ICP (the shape's
+  error, not where it was put; ``placement_mm``: the alignment's translation);
+- ``completeness``: share of the true surface within 5 mm of the learned one (an object's
+  back against a wall is never seen);
+- ``size_err_mm``: the largest error of the footprint box's long and short side and the
+  height, the truth measured the same way from its own surface;
+- ``colour_right``: the learned dominant colour names the object's colour (the nearest of
+  the generator's colour words, judged on hue and, for greys, brightness);
+- ``learn_s``: wall time of segmentation, registration, fusion and meshing (rendering not
+  included).
+
+Pooled medians at the top (``chamfer_mm_median``, ``size_err_mm_median``,
+``completeness_median``, ``learn_s_median``, ``colour_right_rate``), ``per_kind`` and
+``per_world``. Targets (issue 42): chamfer median <= 3 mm for objects >= 5 cm
+(``chamfer_mm_median_5cm``), size error <= 5 mm.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from hearth.benchmarks import _worlds
+from hearth.benchmarks._worlds import summary_stats
+
+RINGS = (0.6, 0.75, 0.9, 1.1, 1.3)
+ANGLES = 16
+MAX_VIEWS = 8
+LOC_SIGMA_M = 0.01
+LOC_SIGMA_DEG = 0.5
+
+
+def add_arguments(parser) -> None:
+    _worlds.add_arguments(parser, homes=3)
+
+
+def colour_name(rgb) -> str:
+    """The nearest of the generator's colour words (perception.object_learning.colour_name)."""
+    from perception.object_learning import colour_name as name
+    from worldmodel.homegen import COLOURS
+    return name(rgb, COLOURS)
+
+
+def views_of(truth, oid, K, rng):
+    """(true T_world_camera, believed T_world_camera) of up to MAX_VIEWS views around the
+    object (perception.object_learning.views_around, as the learn_object mission plans
+    them), each kept when it sees at least 40 % of the object, spread round it."""
+    from perception.object_learning import spread, views_around
+    from perception.render import Scene
+    from worldmodel.geometry import scene_meshes, small_object_meshes
+    room = truth.room_of(oid)
+    c = truth.T_world(oid)[:3, 3]
+    h = _worlds.extent(truth, oid)[1]
+    Kq = K.scaled(0.25)
+    scene = Scene(scene_meshes(truth, room_ids=[room.id]))
+    alone = Scene(small_object_meshes(truth, truth.get(oid)))
+    good = []
+    for x, y, yaw in views_around(truth, c, room.id, radii=RINGS, bearings=ANGLES):
+        T = _worlds.head_camera((x, y, yaw), c + (0, 0, h / 2))
+        n_alone = int((alone.render(Kq, T).labels >= 0).sum())
+        if n_alone >= 4 and scene.render(Kq, T).mask([oid]).sum() >= 0.4 * n_alone:
+            good.append((x, y, T))
+    out = []
+    for x, y, T in spread(good, MAX_VIEWS, c):
+        err = np.eye(4)
+        yaw = math.radians(rng.normal(0, LOC_SIGMA_DEG))
+        cz, sz = math.cos(yaw), math.sin(yaw)
+        err[:2, :2] = [[cz, -sz], [sz, cz]]          # turned about the robot, not the origin
+        err[:2, 3] = np.array([x, y]) - err[:2, :2] @ [x, y] + rng.normal(0, LOC_SIGMA_M, 2)
+        out.append((T, err @ T))
+    return out
+
+
+def _surface(world, oid, T_world_object=None, spacing=0.002):
+    from perception.objects import model_from_world
+    m = model_from_world(world, oid, spacing)
+    T = world.T_world(oid) if T_world_object is None else T_world_object
+    return m.points @ T[:3, :3].T + T[:3, 3]
+
+
+def _dims(points_world, support):
+    from perception.object_learning import object_frame
+    T = object_frame(points_world, support)
+    Ti = np.linalg.inv(T)
+    p = points_world @ Ti[:3, :3].T + Ti[:3, 3]
+    e = p.max(axis=0) - p.min(axis=0)
+    return np.array([max(e[0], e[1]), min(e[0], e[1]), p[:, 2].max()])
+
+
+def score(truth, oid, model) -> dict:
+    """The learned ``model`` against the true object ``oid`` (see the module docstring)."""
+    import open3d as o3d
+    from scipy.spatial import cKDTree
+    true_pts = _surface(truth, oid)
+    learned = []
+    o3d.utility.random.seed(0)
+    for V, F, _ in model.meshes:
+        m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F))
+        n = max(200, int(m.get_surface_area() / 0.002 ** 2))
+        learned.append(np.asarray(m.sample_points_uniformly(n).points))
+    L = np.vstack(learned) if learned else model.points
+    L = L[L[:, 2] > 0.003]                              # the base: no camera saw it
+    T = model.T_world_object
+    Lw = L @ T[:3, :3].T + T[:3, 3]
+    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(Lw))
+    dst = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(true_pts))
+    reg = o3d.pipelines.registration.registration_icp(
+        src, dst, 0.02, np.eye(4), o3d.pipelines.registration.TransformationEstimationPointToPoint())
+    A = reg.transformation
+    La = Lw @ A[:3, :3].T + A[:3, 3]
+    d1, _ = cKDTree(true_pts).query(La)
+    d2, _ = cKDTree(La).query(true_pts)
+    support = float(truth.T_world(oid)[2, 3])
+    size_err = np.abs(_dims(Lw, support) - _dims(true_pts, support)).max()
+    obj = truth.get(oid)
+    colour = (obj.color or "").split()[0] if obj.color else None
+    got = colour_name(model.colours[0][0]) if model.colours else None
+    dims = _dims(true_pts, support)
+    return dict(chamfer_mm=round(1000 * float(np.median(np.concatenate([d1, d2]))), 2),
+                completeness=round(float((d2 < 0.005).mean()), 3),
+                size_err_mm=round(1000 * float(size_err), 1),
+                placement_mm=round(1000 * float(np.linalg.norm(A[:3, 3])), 1),
+                colour=colour, colour_learned=got,
+                colour_right=None if colour is None else got == colour,
+                at_least_5cm=bool(max(dims[0], dims[2]) >= 0.05),
+                views=model.views_used)
+
+
+def run_world(spec: str, per_kind: int, seed: int) -> tuple[list[dict], str]:
+    from perception.camera import Intrinsics
+    from perception.errors import PerceptionError
+    from perception.object_learning import learn_object
+    from hearth.benchmarks.objects import observe
+    truth = _worlds.load(spec)
+    K = Intrinsics.kinect()
+    tops = [p for p in _worlds.places(truth) if p.kind == "top"]
+    by_kind: dict[str, list[str]] = {}
+    for o in truth.small_objects():
+        c = truth.T_world(o.id)[:3, 3]
+        for p in tops:
+            u, v = p.local_xy(c[:2])[0]
+            if abs(u) < p.size[0] / 2 and abs(v) < p.size[1] / 2 and abs(c[2] - p.height) < 0.03:
+                by_kind.setdefault(o.type, []).append(o.id)
+                break
+    out = []
+    for kind in sorted(by_kind):
+        for j, oid in enumerate(sorted(by_kind[kind])[:per_kind]):
+            rng = np.random.default_rng([seed, len(out), j])
+            views = views_of(truth, oid, K, rng)
+            rec = dict(world=spec, kind=kind, object=oid, views_given=len(views))
+            if len(views) < 2:
+                rec.update(failure="fewer than two views see it")
+                out.append(rec)
+                continue
+            frames = []
+            for T_true, T_believed in views:
+                depth, color, _ = observe(truth, T_true, rng, K)
+                frames.append((depth, color, K, T_believed))
+            c = truth.T_world(oid)[:3, 3]
+            t0 = time.perf_counter()
+            try:
+                model = learn_object(frames, float(c[2]), c[:2])
+            except PerceptionError as err:
+                rec.update(failure=str(err), learn_s=time.perf_counter() - t0)
+                out.append(rec)
+                continue
+            rec["learn_s"] = round(time.perf_counter() - t0, 2)
+            rec.update(score(truth, oid, model), failure=None)
+            out.append(rec)
+    return out, "" if out else "no small object on a surface open above"
+
+
+def summarise(records: list[dict]) -> dict:
+    ok = [r for r in records if not r.get("failure")]
+    big = [r for r in ok if r["at_least_5cm"]]
+    colour = [r for r in ok if r["colour_right"] is not None]
+    out = dict(objects=len(records), learned=len(ok),
+               failures=[f"{r['object']}: {r['failure']}" for r in records if r.get("failure")],
+               chamfer_mm_median=summary_stats([r["chamfer_mm"] for r in ok], 2),
+               chamfer_mm_median_5cm=summary_stats([r["chamfer_mm"] for r in big], 2),
+               size_err_mm_median=summary_stats([r["size_err_mm"] for r in ok], 1),
+               completeness_median=summary_stats([r["completeness"] for r in ok], 3),
+               placement_mm_median=summary_stats([r["placement_mm"] for r in ok], 1),
+               learn_s_median=summary_stats([r["learn_s"] for r in ok], 2),
+               colour_right_rate=round(sum(r["colour_right"] for r in colour) / len(colour), 3)
+               if colour else None)
+    return out
+
+
+def run(args) -> dict:
+    specs = _worlds.world_specs(args, homes=3)
+    n = args.scenarios or (1 if args.quick else 2)
+    records: list[dict] = []
+
+    def one(i, spec):
+        recs, why = run_world(spec, n, args.seed + i)
+        records.extend(recs)
+        return recs, why or None
+    out = _worlds.run_worlds("learning", specs, one, summarise)
+    out["per_kind"] = {k: summarise([r for r in records if r["kind"] == k])
+                       for k in sorted({r["kind"] for r in records})}
+    out["targets"] = dict(chamfer_mm_median_5cm=3.0, size_err_mm_median=5.0)
+    return out
