@@ -39,6 +39,8 @@ class LearnObject(Skill):
               Port("views", "integer", required=False, default=6,
                    description="views to take around it (2-12)"))
     OUTPUTS = (Port("object_id", "node_id", required=False),
+               Port("summary", "string", required=False,
+                    description="what was learned, in a sentence for the person"),
                Port("problem", "string", required=False,
                     description="why it could not learn the object, for a person"))
 
@@ -161,8 +163,12 @@ class LearnObject(Skill):
             return self._fail(str(err))
         self.set_output("object_id", obj.id)
         a, b, h = (100 * v for v in model.size)
+        self.set_output("summary", f"I know your {name} now: {a:.0f} by {b:.0f} cm and "
+                                   f"{h:.0f} cm high, mostly {colour or 'one colour'}. Ask me to "
+                                   "bring it to you.")
         self.feedback_message = (f"learned the {name}: {a:.0f} x {b:.0f} x {h:.0f} cm, mostly "
-                                 f"{colour or 'one colour'}, from {model.views_used} views")
+                                 f"{colour or 'one colour'}, from {model.views_used} of "
+                                 f"{model.views_given} views")
         return S.SUCCESS
 
     def _fail(self, why: str) -> S:
