@@ -11,11 +11,12 @@ configuration, arrays in and out.
    pitch when the views are registered.
 2. ``register_views``: each view's points are in the world frame through the robot's
    believed camera pose, which is off by the localisation error of wherever the robot stood.
-   Consecutive views are registered pairwise with open3d's coloured ICP (point-to-plane
-   plus colour: a symmetric cup is pinned in yaw by its colours), every pair that overlaps
-   enough is an edge of open3d's pose graph, and ``global_optimization`` (Levenberg-
-   Marquardt, line-process pruning of wrong edges) gives every view's correction; the first
-   view anchors the graph.
+   The error is planar (x, y, yaw: the camera's height, roll and pitch come from the robot's
+   joints), so consecutive views are registered pairwise with Hearth's x-y-yaw ICP
+   (perception.registration.register_planar) on the object's points, a correction larger
+   than a localisation error could be refused, every pair that overlaps enough is an edge of
+   open3d's pose graph, and ``global_optimization`` (Levenberg-Marquardt, line-process
+   pruning of wrong edges) gives every view's correction; the first view anchors it.
 3. ``fuse``: the corrected views merged on a voxel grid; a voxel is kept when at least
    ``min_views`` views saw it (view consistency: a speckle of one frame's noise is not the
    object) or, for surfaces only one view faces, it survives open3d's statistical outlier
@@ -57,16 +58,22 @@ class LearnConfig:
     min_points: int = 150            #: fewer object points in a view: the view is not used
     max_range: float = 2.0           #: depth readings beyond this are too noisy to model
     voxel: float = 0.003             #: fused grid
-    icp_distances: tuple = (0.02, 0.01, 0.005)   #: coarse to fine, coloured ICP
+    icp_distances: tuple = (0.02, 0.01, 0.005)   #: coarse to fine, planar ICP gates
     icp_iterations: int = 30
     min_fitness: float = 0.3         #: a pair registered with less overlap is no edge
-    max_correction: float = 0.06     #: a pairwise correction larger than this is refused
+    #: A pairwise correction moving the object by more than this, or turning it by more than
+    #: ``max_turn_deg``, is refused: the views differ by the robot's localisation error (a
+    #: few centimetres and a degree or two); a larger "correction" is a box's flat face slid
+    #: along itself or a symmetric object turned by ICP.
+    max_correction: float = 0.04
+    max_turn_deg: float = 3.0
     min_views: int = 2               #: a voxel seen by fewer views is kept only if not an outlier
     poisson_depth: int = 7
     density_quantile: float = 0.04   #: Poisson vertices of the lowest density are cut
     max_colours: int = 3
     colour_tolerance: float = 0.12   #: RGB distance one more colour must explain away
     min_object_size: float = 0.02    #: smaller than this across: too small to model
+    known_margin: float = 0.025      #: around the boxes of objects the map knows
 
 
 @dataclass
@@ -107,10 +114,13 @@ class LearnedModel:
 
 def segment_view(depth: np.ndarray, color: Optional[np.ndarray], K: Intrinsics,
                  T_world_camera: np.ndarray, support_height: float, centre_xy,
-                 config: LearnConfig = LearnConfig()) -> Optional[ObjectView]:
+                 config: LearnConfig = LearnConfig(),
+                 known: Sequence[tuple[np.ndarray, np.ndarray]] = ()) -> Optional[ObjectView]:
     """The object standing near ``centre_xy`` (world, m) on the support the map puts at
     ``support_height`` (world z), as one view shows it; None when the view shows too little
-    of it (fewer than ``min_points`` points) or no support."""
+    of it (fewer than ``min_points`` points) or no support. ``known``: world boxes (lo, hi
+    corners) of the objects the map already has there: their points are not the new
+    object's, even where they touch it."""
     from perception.objects import euclidean_clusters, ransac_plane
     depth = np.asarray(depth, dtype=np.float64)
     valid = np.isfinite(depth) & (depth > 0) & (depth < config.max_range)
@@ -132,6 +142,9 @@ def segment_view(depth: np.ndarray, color: Optional[np.ndarray], K: Intrinsics,
     z0 = float(np.median(pw[near][inl, 2]))
     height = pw[:, 2] - z0
     above = (height > config.min_height) & (height < config.max_height) & (r < config.region_radius)
+    for lo, hi in known:      # grown by the localisation error and the sensor's edge noise
+        lo, hi = np.asarray(lo) - config.known_margin, np.asarray(hi) + config.known_margin
+        above &= ~np.all((pw > lo) & (pw < hi), axis=1)
     idx = np.flatnonzero(above)
     if len(idx) < config.min_points:
         return None
@@ -169,38 +182,54 @@ def _cloud(points: np.ndarray, colors: np.ndarray, voxel: float,
     return pc
 
 
-def _view_cloud(v: ObjectView, voxel: float) -> o3d.geometry.PointCloud:
-    """The object and its support ring: the ring is static and pins z, roll and pitch."""
-    return _cloud(np.vstack([v.points_world, v.ring_world]),
-                  np.vstack([v.colors, v.ring_colors]), voxel, v.T_world_camera[:3, 3])
+def _object_cloud(v: ObjectView, voxel: float, centre: np.ndarray) -> o3d.geometry.PointCloud:
+    """The view's object points about ``centre`` (a correction's translation is then its
+    displacement at the object, not a lever arm from the world's origin), normals towards
+    its camera."""
+    return _cloud(v.points_world - centre, v.colors, voxel, v.T_world_camera[:3, 3] - centre)
 
 
 def _pairwise(source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud,
               config: LearnConfig) -> tuple[np.ndarray, np.ndarray, float]:
-    """(T_target_source correction, 6x6 information, fitness) by coloured ICP, coarse to
-    fine; the identity with fitness 0 when it does not converge."""
-    T = np.eye(4)
-    res = None
-    for d in config.icp_distances:
-        try:
-            res = o3d.pipelines.registration.registration_colored_icp(
-                source, target, d, T,
-                o3d.pipelines.registration.TransformationEstimationForColoredICP(),
-                o3d.pipelines.registration.ICPConvergenceCriteria(
-                    relative_fitness=1e-6, relative_rmse=1e-6,
-                    max_iteration=config.icp_iterations))
-        except RuntimeError:        # too few correspondences at this distance
-            return np.eye(4), np.zeros((6, 6)), 0.0
-        T = res.transformation
-    info = o3d.pipelines.registration.get_information_matrix_from_point_clouds(
-        source, target, config.icp_distances[-1], T)
-    return T, info, float(res.fitness)
+    """(T_target_source, 6x6 information in open3d's (rx, ry, rz, tx, ty, tz) order,
+    fitness): Hearth's x-y-yaw ICP (perception.registration.register_planar) between the
+    object points of two views. The views differ by the robot's localisation error, which
+    is planar (the camera's height, roll and pitch come from the robot's own joints): a
+    six-degree ICP, or one that lets the support ring in, slides along the table top, whose
+    flat, even-coloured points pin nothing in x, y and yaw. Height, roll and pitch are held
+    fixed by a stiff information. The identity with fitness 0 when it fails."""
+    from perception.registration import ICPConfig, RegistrationFailed, register_planar
+    cfg = ICPConfig(voxel=config.voxel, gates=config.icp_distances, iterations=(12, 10, 8),
+                    robust_scale=config.icp_distances[-1] / 2, min_fitness=config.min_fitness,
+                    min_points=30, point_weight=0.3)
+    P, Q = np.asarray(source.points), np.asarray(target.points)
+    try:
+        res = register_planar(P, Q, np.asarray(target.normals), cfg=cfg)
+    except (RegistrationFailed, PerceptionError):
+        return np.eye(4), np.zeros((6, 6)), 0.0
+    c = Q.mean(axis=0)
+    radius = float(np.sqrt(np.mean(np.sum((Q[:, :2] - c[:2]) ** 2, axis=1)))) or 0.05
+    S = np.diag([1.0, 1.0, radius])
+    info3 = S.T @ np.asarray(res.information) @ S * max(len(res.inliers), 1)
+    info = np.zeros((6, 6))
+    idx = [3, 4, 2]                                    # x, y, yaw in open3d's order
+    info[np.ix_(idx, idx)] = info3
+    stiff = 1e3 * max(float(np.trace(info3)), 1.0)
+    for k in (0, 1, 5):                                # roll, pitch, z: known
+        info[k, k] = stiff
+    return res.T, info, float(res.fitness)
+
+
+def _plausible(T: np.ndarray, config: LearnConfig) -> bool:
+    """A correction the robot's localisation error could make (object-centred ``T``)."""
+    turn = math.degrees(abs(math.atan2(T[1, 0], T[0, 0])))
+    return np.linalg.norm(T[:3, 3]) <= config.max_correction and turn <= config.max_turn_deg
 
 
 def register_views(views: Sequence[ObjectView],
                    config: LearnConfig = LearnConfig()) -> list[np.ndarray]:
     """Per view, the correction ``C`` (world -> world) that moves its points onto the
-    others (``C @ p``); the first view's is the identity. Pairwise coloured ICP between
+    others (``C @ p``); the first view's is the identity. Pairwise planar ICP between
     every two views whose cameras stand within 90 degrees of each other around the object,
     then open3d's pose graph optimisation over those edges (consecutive views as the
     odometry chain, the rest as loop closures that may be pruned)."""
@@ -208,15 +237,15 @@ def register_views(views: Sequence[ObjectView],
     n = len(views)
     if n == 0:
         return []
-    clouds = [_view_cloud(v, config.voxel) for v in views]
     centre = np.vstack([v.points_world for v in views]).mean(axis=0)
+    clouds = [_object_cloud(v, config.voxel, centre) for v in views]
     bearings = [math.atan2(*(v.T_world_camera[[1, 0], 3] - centre[[1, 0]])) for v in views]
     graph = reg.PoseGraph()
     graph.nodes.append(reg.PoseGraphNode(np.eye(4)))
     chain = np.eye(4)     # the world-to-world correction of view i (node pose) so far
     for i in range(1, n):
         T, info, fit = _pairwise(clouds[i], clouds[i - 1], config)
-        if fit < config.min_fitness or np.linalg.norm(T[:3, 3]) > config.max_correction:
+        if fit < config.min_fitness or not _plausible(T, config):
             T, info = np.eye(4), np.eye(6) * 1e-3     # keep the chain, trust it little
         chain = chain @ T
         graph.nodes.append(reg.PoseGraphNode(chain.copy()))
@@ -226,7 +255,7 @@ def register_views(views: Sequence[ObjectView],
             if abs(math.remainder(bearings[i] - bearings[j], 2 * math.pi)) > math.pi / 2:
                 continue
             T, info, fit = _pairwise(clouds[j], clouds[i], config)
-            if fit >= config.min_fitness and np.linalg.norm(T[:3, 3]) <= config.max_correction:
+            if fit >= config.min_fitness and _plausible(T, config):
                 graph.edges.append(reg.PoseGraphEdge(j, i, T, info, uncertain=True))
     if n > 1:
         option = reg.GlobalOptimizationOption(
@@ -235,7 +264,9 @@ def register_views(views: Sequence[ObjectView],
         with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
             reg.global_optimization(graph, reg.GlobalOptimizationLevenbergMarquardt(),
                                     reg.GlobalOptimizationConvergenceCriteria(), option)
-    return [np.asarray(node.pose) for node in graph.nodes]
+    to, back = np.eye(4), np.eye(4)
+    to[:3, 3], back[:3, 3] = -centre, centre
+    return [back @ np.asarray(node.pose) @ to for node in graph.nodes]
 
 
 # -- 3. fusion ---------------------------------------------------------------------------------
@@ -363,9 +394,11 @@ def poisson_mesh(points: np.ndarray, normals: np.ndarray,
 
 
 def build_model(views: Sequence[ObjectView], config: LearnConfig = LearnConfig(),
-                given: Optional[int] = None) -> LearnedModel:
+                given: Optional[int] = None, reference_rgb=None) -> LearnedModel:
     """The learned model of an object from its segmented views (see the module docstring).
-    PerceptionError when no view shows it, or it is smaller than ``min_object_size``."""
+    ``reference_rgb``: the support's colour as the map has it (RGB in [0, 1]): the views'
+    colours are corrected by the light's gain measured on the support ring. PerceptionError
+    when no view shows it, or it is smaller than ``min_object_size``."""
     views = [v for v in views if v is not None]
     given = len(views) if given is None else given
     if not views:
@@ -386,6 +419,12 @@ def build_model(views: Sequence[ObjectView], config: LearnConfig = LearnConfig()
     if max(size[0], size[1]) < config.min_object_size or size[2] < config.min_object_size / 2:
         raise PerceptionError(f"the object is too small to model ({100 * max(size[:2]):.1f} cm "
                               f"across, {100 * size[2]:.1f} cm high)")
+    if reference_rgb is not None:
+        # The support's colour in the map against its colour in the views: the light's gain
+        # per channel (a white box under the simulated lamp reads 0.47 grey otherwise).
+        ring = np.vstack([v.ring_colors for v in views])
+        gain = np.median(ring, axis=0) / np.maximum(np.asarray(reference_rgb, float), 0.05)
+        Co = np.clip(Co / np.maximum(gain, 0.05), 0, 1)
     centres, label = dominant_colours(Co, config)
     shares = np.bincount(label, minlength=len(centres)) / len(label)
     V, F = poisson_mesh(Po, No, config)
@@ -408,13 +447,14 @@ def build_model(views: Sequence[ObjectView], config: LearnConfig = LearnConfig()
 
 
 def learn_object(frames, support_height: float, centre_xy,
-                 config: LearnConfig = LearnConfig()) -> LearnedModel:
+                 config: LearnConfig = LearnConfig(), known=(), reference_rgb=None) -> LearnedModel:
     """``build_model`` over ``frames``: (depth m, colour uint8 RGB or None, Intrinsics,
     believed T_world_camera) of views around the object standing near ``centre_xy`` on the
-    support at ``support_height``."""
+    support at ``support_height``; ``known`` as ``segment_view``."""
     frames = list(frames)
-    views = [segment_view(d, c, K, T, support_height, centre_xy, config) for d, c, K, T in frames]
-    return build_model(views, config, given=len(frames))
+    views = [segment_view(d, c, K, T, support_height, centre_xy, config, known)
+             for d, c, K, T in frames]
+    return build_model(views, config, given=len(frames), reference_rgb=reference_rgb)
 
 
 # -- where to look from, and what colour it is ------------------------------------------------

@@ -143,7 +143,10 @@ class LearnObject(Skill):
         from perception.object_learning import segment_view
         self.robot.look_at(self.centre + np.array([0.0, 0.0, 0.05]))
         depth, color, K, T = capture(self.robot)
-        self.views.append(segment_view(depth, color, K, T, float(self.centre[2]), self.centre[:2]))
+        known = [tuple(self.world.bounds_world(o.id)) for o in self.world.small_objects()
+                 if np.hypot(*(self.world.T_world(o.id)[:2, 3] - self.centre[:2])) < 0.5]
+        self.views.append(segment_view(depth, color, K, T, float(self.centre[2]),
+                                       self.centre[:2], known=known))
 
     def _finish(self) -> S:
         from perception.errors import PerceptionError
@@ -153,7 +156,9 @@ class LearnObject(Skill):
         from worldmodel.learned import add_learned_object
         name = str(self.input("name"))
         try:
-            model = build_model(self.views, given=len(self.views))
+            from worldmodel.learned import support_colour
+            model = build_model(self.views, given=len(self.views),
+                                reference_rgb=support_colour(self.world, self.parent, self.centre))
             colour = colour_name(model.colours[0][0], COLOURS) if model.colours else ""
             obj = add_learned_object(self.world, model, name, self.parent,
                                      kind=str(self.input("kind") or ""),

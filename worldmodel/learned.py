@@ -98,3 +98,22 @@ def add_learned_object(world, model, name: str, parent_id: str, *,
                       color=colour, graspable=True, model=Model(visuals=visuals))
     world.add_small_object(obj, parent_id, source=source)
     return obj
+
+
+def support_colour(world, furniture_id: str, point) -> Optional[tuple]:
+    """The colour (RGB in [0, 1]) of the furniture's visual whose top face holds the world
+    ``point`` (within 1.5 cm of its top, over its extent), or None: a reference a camera's
+    colours can be corrected against."""
+    from worldmodel.geometry import object_meshes
+    p = np.asarray(point, dtype=float)
+    best = None
+    for lm in object_meshes(world, world.get(furniture_id)):
+        v = np.asarray(lm.mesh.vertices)
+        if not len(v):
+            continue
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        if np.all(p[:2] >= lo[:2]) and np.all(p[:2] <= hi[:2]) and abs(hi[2] - p[2]) < 0.015:
+            area = float(np.prod(hi[:2] - lo[:2]))
+            if best is None or area > best[0]:
+                best = (area, tuple(float(c) for c in lm.color))
+    return None if best is None else best[1]

@@ -137,7 +137,7 @@ def score(truth, oid, model) -> dict:
     return dict(chamfer_mm=round(1000 * float(np.median(np.concatenate([d1, d2]))), 2),
                 completeness=round(float((d2 < 0.005).mean()), 3),
                 size_err_mm=round(1000 * float(size_err), 1),
-                placement_mm=round(1000 * float(np.linalg.norm(A[:3, 3])), 1),
+                placement_mm=round(1000 * float(np.linalg.norm(La.mean(axis=0) - Lw.mean(axis=0))), 1),
                 colour=colour, colour_learned=got,
                 colour_right=None if colour is None else got == colour,
                 at_least_5cm=bool(max(dims[0], dims[2]) >= 0.05),
@@ -176,8 +176,12 @@ def run_world(spec: str, per_kind: int, seed: int) -> tuple[list[dict], str]:
                 frames.append((depth, color, K, T_believed))
             c = truth.T_world(oid)[:3, 3]
             t0 = time.perf_counter()
-            try:
-                model = learn_object(frames, float(c[2]), c[:2])
+            known = [tuple(truth.bounds_world(o.id)) for o in truth.small_objects()
+                     if o.id != oid and np.hypot(*(truth.T_world(o.id)[:2, 3] - c[:2])) < 0.5]
+            try:       # the map knows the objects around it (as LearnObject's belief does)
+                from worldmodel.learned import support_colour
+                model = learn_object(frames, float(c[2]), c[:2], known=known,
+                                     reference_rgb=support_colour(truth, truth.parent(oid).id, c))
             except PerceptionError as err:
                 rec.update(failure=str(err), learn_s=time.perf_counter() - t0)
                 out.append(rec)
