@@ -1861,6 +1861,7 @@ def live_tree(mission: Mission) -> LiveTree:
             sid = subtree_id(spec)
             inst = spec.path.lstrip("/")
             el.set("ID", sid)
+            el.set("name", spec.name)       # viewers label a SubTree node by its name
             el.set("_fullpath", inst)
             uid[spec.path] = new_uid(el)
             instances[inst] = spec.path
