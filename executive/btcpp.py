@@ -801,6 +801,14 @@ def custom_model(tag: str) -> etree._Element:
     return el
 
 
+def nodes_header() -> str:
+    """The C++ header with Hearth's node types for BehaviorTree.CPP (Check, Guard, Watch,
+    ForEach, StateMachine/State, Succeed, Fail and the generic SetValue and Wait skills), so
+    that an exported mission runs in a BT.CPP application as it is."""
+    from importlib import resources
+    return resources.files("executive").joinpath("cpp/hearth_nodes.hpp").read_text("utf-8")
+
+
 def export_mission(path: str | Path, skills: dict[str, type] | None = None,
                    palette: bool = False) -> str:
     """The mission at ``path`` (checked first) as BT.CPP v4 XML text. ``palette``: put
