@@ -32,9 +32,9 @@ def _btcpp() -> Path | None:
     return prefix
 
 
-pytestmark = pytest.mark.skipif(_btcpp() is None or shutil.which("g++") is None,
-                                reason="no BehaviorTree.CPP installation (HEARTH_BTCPP_PREFIX) "
-                                       "or no g++")
+needs_btcpp = pytest.mark.skipif(_btcpp() is None or shutil.which("g++") is None,
+                                 reason="no BehaviorTree.CPP installation "
+                                        "(HEARTH_BTCPP_PREFIX) or no g++")
 
 
 def test_the_header_is_the_one_export_ships():
@@ -44,6 +44,7 @@ def test_the_header_is_the_one_export_ships():
         assert f'registerNodeType<{node}>("{node}")' in nodes_header()
 
 
+@needs_btcpp
 def test_an_exported_mission_runs_in_btcpp_with_the_cpp_nodes_as_in_hearth(tmp_path):
     prefix = _btcpp()
     mission = HERE / "nodes_mission.yaml"
