@@ -89,3 +89,28 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     T = np.eye(4)
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, eye
     return T
+
+
+def register_depth(depth_depth: np.ndarray, K_depth: Intrinsics, K_color: Intrinsics,
+                   T_color_depth: np.ndarray) -> np.ndarray:
+    """A depth image (metres, 0 = no reading) of the depth camera, as the colour camera sees
+    it: each reading back-projected with ``K_depth``, moved into the colour frame by
+    ``T_color_depth`` and projected with ``K_color`` into a ``K_color``-sized image, the
+    nearest reading kept where several land on one pixel (what a RealSense driver's
+    aligned_depth_to_color does). Pixels no reading lands on are 0."""
+    points_depth = depth_to_points(depth_depth, K_depth)
+    out = np.zeros((K_color.height, K_color.width), dtype=np.float32)
+    if not len(points_depth):
+        return out
+    T = np.asarray(T_color_depth, dtype=float)
+    points_color = points_depth @ T[:3, :3].T + T[:3, 3]
+    uv, front = project(points_color, K_color)
+    u = np.rint(uv[:, 0]).astype(np.int64)
+    v = np.rint(uv[:, 1]).astype(np.int64)
+    ok = front & (u >= 0) & (u < K_color.width) & (v >= 0) & (v < K_color.height)
+    z = points_color[ok, 2].astype(np.float32)
+    idx = v[ok] * K_color.width + u[ok]
+    flat = np.full(out.size, np.inf, dtype=np.float32)
+    np.minimum.at(flat, idx, z)                    # the nearest surface wins a pixel
+    flat[~np.isfinite(flat)] = 0.0
+    return flat.reshape(out.shape)

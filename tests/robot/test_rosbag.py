@@ -151,8 +151,10 @@ def test_a_small_bag_with_16uc1_depth_reads_in_metres(tmp_path):
     ("missing_topic", "no color topic: none of /camera/color/image_raw"),
     ("unknown_encoding", "topic /camera/depth/image_raw: depth encoding '8UC1' is not supported"),
     ("no_tf", "no tf between map and base_link"),
-    ("unregistered", "is not registered to colour /camera/color/image_raw"),
-    ("distorted", "topic /camera/color/camera_info: the images are distorted"),
+    ("unregistered", "is not registered to colour /camera/color/image_raw (frame cam, 8x6) and "
+                     "the bag has no depth camera_info"),
+    ("distortion", "topic /camera/color/camera_info: distortion model 'plumb_bob' with 3 "
+                   "coefficients is not one OpenCV undistorts"),
     ("nan_tf", "the transform odom -> base_link at 1.000 s has numbers that are not finite"),
     ("truncated", "not a readable ROS 2 bag"),
 ])
@@ -163,7 +165,7 @@ def test_a_bad_bag_is_one_line_naming_the_topic_or_frame_and_exit_2(case, words,
         "unknown_encoding": dict(depth_encoding="8UC1"),
         "no_tf": dict(base_parent="odom2"),
         "unregistered": dict(depth_frame="depth_cam"),
-        "distorted": dict(d=(0.1, 0.0, 0.0, 0.0, 0.0)),
+        "distortion": dict(d=(0.1, 0.0, 0.0)),
         "nan_tf": dict(tf_nan=True),
         "truncated": {}}[case])
     if case == "truncated":
