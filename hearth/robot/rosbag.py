@@ -11,8 +11,10 @@ docs/ros2-foxglove.md for the topics, the mapping and what is refused.
 - ``BagRecording``: a bag read and checked whole when opened, shaped like
   ``hearth.robot.recording.Recording`` so that ``ReplayRobot`` serves it. Every depth image
   (``16UC1`` millimetres or ``32FC1`` metres) is paired with the colour image (``rgb8`` or
-  ``bgr8``) nearest in stamp; colour and depth must be registered (same frame and size).
-  Its camera and base poses are looked up in tf at the image's stamp, interpolated.
+  ``bgr8``, or ``CompressedImage`` jpeg/png and compressedDepth) nearest in stamp; depth
+  not registered to colour is registered from both camera_infos and tf, distortion is
+  undone with OpenCV. Its camera and base poses are looked up in tf at the image's stamp,
+  interpolated.
 - ``BagWriter``: what ``RecordingRobot(..., format="mcap")`` writes: the standard topics
   (``sensor_msgs/msg/Image``, ``CameraInfo``, ``tf2_msgs/msg/TFMessage``) and Hearth's extras
   on their own topics with their own message definitions (``hearth_msgs/msg/...``).
