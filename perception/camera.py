@@ -97,8 +97,8 @@ def register_depth(depth_depth: np.ndarray, K_depth: Intrinsics, K_color: Intrin
     it: each reading back-projected with ``K_depth``, moved into the colour frame by
     ``T_color_depth`` and projected with ``K_color`` into a ``K_color``-sized image. As a
     RealSense driver's aligned_depth_to_color does (librealsense's align), a depth pixel
-    covers the colour pixels between the projections of its two corners, so a depth camera
-    of coarser pixels leaves no holes; the nearest reading wins a pixel. Pixels no reading
+    covers the colour pixels whose centres lie between the projections of its two corners,
+    so a depth camera of coarser pixels leaves no holes; the nearest reading wins a pixel. Pixels no reading
     reaches are 0."""
     d = np.asarray(depth_depth, dtype=np.float64)
     v, u = np.nonzero(np.isfinite(d) & (d > 0))
@@ -113,10 +113,14 @@ def register_depth(depth_depth: np.ndarray, K_depth: Intrinsics, K_color: Intrin
                       (v + off - K_depth.cy) * z / K_depth.fy, z], axis=1)
         pc = p @ T[:3, :3].T + T[:3, 3]
         uv, front = project(pc, K_color)
-        corners.append((np.rint(uv).astype(np.int64), front, pc[:, 2]))
+        corners.append((uv, front, pc[:, 2]))
     (a, fa, za), (b, fb, zb) = corners
-    x0, x1 = np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 0], b[:, 0])
-    y0, y1 = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    # The colour pixels whose centres lie in the footprint [low, high): footprints of
+    # neighbouring depth pixels share their corners, so they tile without gaps or overlaps.
+    x0 = np.ceil(np.minimum(a[:, 0], b[:, 0])).astype(np.int64)
+    x1 = np.ceil(np.maximum(a[:, 0], b[:, 0])).astype(np.int64) - 1
+    y0 = np.ceil(np.minimum(a[:, 1], b[:, 1])).astype(np.int64)
+    y1 = np.ceil(np.maximum(a[:, 1], b[:, 1])).astype(np.int64) - 1
     zc = (0.5 * (za + zb)).astype(np.float32)
     ok = fa & fb & (x1 >= 0) & (x0 < K_color.width) & (y1 >= 0) & (y0 < K_color.height)
     # A footprint is a few colour pixels wide at most: wider ones (a reading seen edge-on, or
