@@ -487,7 +487,9 @@ public:
   }
   BT::NodeStatus tick() override
   {
-    const std::string raw(getRawPortValue("value"));
+    // value is optional (Hearth's default: nothing, written here as empty text)
+    const std::string raw =
+        config().input_ports.count("value") ? std::string(getRawPortValue("value")) : "";
     const std::string out(getRawPortValue("output"));
     if(!isBlackboardPointer(out))
       throw BT::RuntimeError("SetValue: output must be a {key}");
@@ -732,6 +734,8 @@ public:
   {
     if(st == BT::NodeStatus::FAILURE)
       return "failure";
+    if(config().input_ports.count("outcome") == 0)   // optional: not in the XML
+      return "success";
     const std::string raw(getRawPortValue("outcome"));
     if(isBlackboardPointer(raw))
     {

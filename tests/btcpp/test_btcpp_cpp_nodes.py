@@ -44,31 +44,46 @@ def test_the_header_is_the_one_export_ships():
         assert f'registerNodeType<{node}>("{node}")' in nodes_header()
 
 
-@needs_btcpp
-def test_an_exported_mission_runs_in_btcpp_with_the_cpp_nodes_as_in_hearth(tmp_path):
+@pytest.fixture(scope="module")
+def program(tmp_path_factory) -> tuple[Path, Path]:
+    """The exported mission and the BT.CPP program compiled with the shipped header."""
     prefix = _btcpp()
-    mission = HERE / "nodes_mission.yaml"
-    xml = tmp_path / "mission.xml"
-    xml.write_text(export_mission(mission))
-    (tmp_path / "hearth_nodes.hpp").write_text(nodes_header())
-    exe = tmp_path / "run_mission"
+    d = tmp_path_factory.mktemp("cpp")
+    xml = d / "mission.xml"
+    xml.write_text(export_mission(HERE / "nodes_mission.yaml"))
+    (d / "hearth_nodes.hpp").write_text(nodes_header())
+    exe = d / "run_mission"
     lib = prefix / "lib"
-    subprocess.run(["g++", "-std=c++17", "-O0", "-I", str(tmp_path), "-I",
+    subprocess.run(["g++", "-std=c++17", "-O0", "-Wall", "-I", str(d), "-I",
                     str(prefix / "include"), str(HERE / "run_mission.cpp"), "-o", str(exe),
                     "-L", str(lib), f"-Wl,-rpath,{lib}", "-lbehaviortree_cpp", "-pthread"],
-                   check=True, capture_output=True, text=True, timeout=600)
-    out = subprocess.run([str(exe), str(xml), "mode=fast"], capture_output=True, text=True,
+                   check=True, capture_output=True, text=True, timeout=900)
+    return exe, xml
+
+
+#: mode -> (status, what Say says): slow lets the condition through, stop ends the guard.
+RUNS = {"fast": ("SUCCESS", ["kitchen", "hall", "bedroom", "not slow", "watched",
+                             "second state"]),
+        "slow": ("SUCCESS", ["kitchen", "hall", "bedroom", "watched", "second state"]),
+        "stop": ("FAILURE", ["kitchen", "hall", "bedroom", "not slow"])}
+
+
+@needs_btcpp
+@pytest.mark.parametrize("mode", sorted(RUNS))
+def test_an_exported_mission_runs_in_btcpp_with_the_cpp_nodes_as_in_hearth(program, mode):
+    exe, xml = program
+    out = subprocess.run([str(exe), str(xml), f"mode={mode}"], capture_output=True, text=True,
                          timeout=60, check=True).stdout.splitlines()
     said_btcpp = [line[5:] for line in out if line.startswith("say: ")]
-    assert out[-1] == "status: SUCCESS"
+    status, said = RUNS[mode]
+    assert (out[-1], said_btcpp) == (f"status: {status}", said)
 
     sub = Substitution([Script("Say")])
     ex = Executive(clock=SimClock(), make_skill=sub, background=False, runs_dir=None)
-    handle = ex.submit(str(mission))
+    handle = ex.submit(str(HERE / "nodes_mission.yaml"), mode=mode)
     ex.run_until_idle(2000)
     said_hearth = [i["text"] for n in sub.made.values() if hasattr(n, "seen_inputs")
                    for i in n.seen_inputs]
     ex.shutdown()
-    assert handle.result.outcome == "succeeded"
-    assert said_btcpp == ["kitchen", "hall", "bedroom", "not slow", "watched", "second state"]
+    assert handle.result.outcome == ("succeeded" if status == "SUCCESS" else "failed")
     assert Counter(said_hearth) == Counter(said_btcpp)
