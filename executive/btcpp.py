@@ -8,10 +8,17 @@ for (``ForEach``, ``Watch``, ``Guard``, ``Check``, ``StateMachine``/``State``, `
 ``Fail``) and one ``<SubTree>`` model per tree carrying its parameters.
 
 ``import_tree(path)`` reads BT.CPP v4 XML back into a mission (YAML text) that is then
-checked like any other mission. Every problem is a :class:`~executive.errors.MissionError`
-with the XML file and line: a leaf that is no registered skill, a port the skill does not
-declare, a BT.CPP or Nav2 node Hearth does not map (each has its reason in ``REFUSED``), an
-XML entity or DTD, a syntax error.
+checked like any other mission. BT.CPP idioms with no Hearth node of their own are rewritten
+into Hearth nodes (``LOWERED_PORTS``: Script and ScriptCondition for the script subset
+Hearth's conditions carry, SetBlackboard, Precondition, Delay, Sleep, RunOnce, IfThenElse,
+Switch2..6; the pre/post-condition attributes; ``_autoremap``). Every problem is a
+:class:`~executive.errors.MissionError` with the XML file and line: a leaf that is no
+registered skill, a port the skill does not declare (in the tree or in its Groot2 model), a
+BT.CPP or Nav2 node Hearth does not map (each has its reason in ``REFUSED``), a script beyond
+the subset, an XML entity or DTD, a syntax error.
+
+``nodes_header()`` is the C++ header (executive/cpp/hearth_nodes.hpp) with Hearth's node
+types for BT.CPP, which ``hearth export --nodes-header`` writes beside a mission.
 
 The mapping is the table in docs/missions.md, "From and to BehaviorTree.CPP". Inside one
 ``<BehaviorTree>``, ``{name}`` is a port of that tree (a Hearth ``$parameter``) when the
