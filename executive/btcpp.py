@@ -8,10 +8,17 @@ for (``ForEach``, ``Watch``, ``Guard``, ``Check``, ``StateMachine``/``State``, `
 ``Fail``) and one ``<SubTree>`` model per tree carrying its parameters.
 
 ``import_tree(path)`` reads BT.CPP v4 XML back into a mission (YAML text) that is then
-checked like any other mission. Every problem is a :class:`~executive.errors.MissionError`
-with the XML file and line: a leaf that is no registered skill, a port the skill does not
-declare, a BT.CPP or Nav2 node Hearth does not map (each has its reason in ``REFUSED``), an
-XML entity or DTD, a syntax error.
+checked like any other mission. BT.CPP idioms with no Hearth node of their own are rewritten
+into Hearth nodes (``LOWERED_PORTS``: Script and ScriptCondition for the script subset
+Hearth's conditions carry, SetBlackboard, Precondition, Delay, Sleep, RunOnce, IfThenElse,
+Switch2..6; the pre/post-condition attributes; ``_autoremap``). Every problem is a
+:class:`~executive.errors.MissionError` with the XML file and line: a leaf that is no
+registered skill, a port the skill does not declare (in the tree or in its Groot2 model), a
+BT.CPP or Nav2 node Hearth does not map (each has its reason in ``REFUSED``), a script beyond
+the subset, an XML entity or DTD, a syntax error.
+
+``nodes_header()`` is the C++ header (executive/cpp/hearth_nodes.hpp) with Hearth's node
+types for BT.CPP, which ``hearth export --nodes-header`` writes beside a mission.
 
 The mapping is the table in docs/missions.md, "From and to BehaviorTree.CPP". Inside one
 ``<BehaviorTree>``, ``{name}`` is a port of that tree (a Hearth ``$parameter``) when the
@@ -40,6 +47,7 @@ import yaml
 from lxml import etree
 
 from executive.errors import MissionError, MissionValidationError
+from executive.missionfile import KINDS as _KINDS_ALL
 from executive.missionfile import (IDENT, BBKey, Lit, LineDict, LineList, Mission, NodeSpec,
                                    Param, compile_mission, load_mission, load_yaml,
                                    load_yaml_text, plain, skill_registry)
@@ -118,26 +126,11 @@ REFUSED: dict[str, str] = {
     "SingleTrigger": "Nav2's SingleTrigger is not supported",
     "PathLongerOnApproach": "Nav2's PathLongerOnApproach is not supported",
     # BehaviorTree.CPP built-ins without a Hearth mapping
-    "IfThenElse": "IfThenElse is not supported; write a state_machine",
     "WhileDoElse": "WhileDoElse is not supported; write a guard or a reactive selector",
-    "Switch2": "Switch nodes are not supported; write a selector of conditions",
-    "Switch3": "Switch nodes are not supported; write a selector of conditions",
-    "Switch4": "Switch nodes are not supported; write a selector of conditions",
-    "Switch5": "Switch nodes are not supported; write a selector of conditions",
-    "Switch6": "Switch nodes are not supported; write a selector of conditions",
     "ManualSelector": "ManualSelector is not supported",
     "TryCatch": "TryCatch is not supported; write a selector",
     "ParallelAll": "ParallelAll is not supported; use Parallel",
     "AsyncSequence": "AsyncSequence is not supported; use Sequence",
-    "Delay": "Delay is not supported; write a skill that waits",
-    "Sleep": "Sleep is not supported; write a skill that waits",
-    "RunOnce": "RunOnce is not supported",
-    "Precondition": "Precondition (BT.CPP scripting) is not supported; use Check or a guard",
-    "Script": "Script (BT.CPP scripting) is not supported: Hearth conditions are not a "
-              "scripting language",
-    "ScriptCondition": "ScriptCondition (BT.CPP scripting) is not supported; use Check",
-    "SetBlackboard": "SetBlackboard is not supported; use the mission's blackboard: section "
-                     "or a skill output",
     "UnsetBlackboard": "UnsetBlackboard is not supported",
     "LoopInt": "Loop nodes are not supported; use ForEach (for_each)",
     "LoopDouble": "Loop nodes are not supported; use ForEach (for_each)",
@@ -149,13 +142,27 @@ REFUSED: dict[str, str] = {
     "WasEntryUpdated": "WasEntryUpdated is not supported",
     "SubTreePlus": "SubTreePlus is BT.CPP v3; write <SubTree> with port remapping (v4)",
 }
-#: BT.CPP pre/post-condition attributes (scripting): refused.
-SCRIPT_ATTRS = ("_skipIf", "_successIf", "_failureIf", "_while", "_onSuccess", "_onFailure",
-                "_onHalted", "_post")
+#: BT.CPP pre/post-condition attributes (scripts), in the order BT.CPP checks them.
+PRE_ATTRS = ("_failureIf", "_successIf", "_skipIf", "_while")
+POST_ATTRS = ("_onSuccess", "_onFailure", "_post", "_onHalted")
+SCRIPT_ATTRS = PRE_ATTRS + POST_ATTRS
+#: BT.CPP nodes import rewrites into Hearth nodes (docs/missions.md, "The mapping"), with
+#: their ports.
+LOWERED_PORTS: dict[str, tuple[str, ...]] = {
+    "Script": ("code",), "ScriptCondition": ("code",), "SetBlackboard": ("value", "output_key"),
+    "Precondition": ("if", "else"), "Delay": ("delay_msec",), "Sleep": ("msec",),
+    "RunOnce": ("then_skip",), "IfThenElse": (),
+    **{f"Switch{n}": ("variable",) + tuple(f"case_{i}" for i in range(1, n + 1))
+       for n in range(2, 7)},
+}
+#: Parents under which BT.CPP's SKIPPED has a Hearth reading: a sequence passes over a
+#: skipped child as over a success, a fallback as over a failure.
+SKIP_AS = {"Sequence": "success", "ReactiveSequence": "success", "SequenceWithMemory": "success",
+           "Fallback": "failure", "ReactiveFallback": "failure"}
 #: Attributes that never are ports: Groot2's metadata and Hearth's comment.
 META_ATTRS = ("_uid", "_fullpath", "_description")
 
-BT_NAMES = set(BUILTIN_PORTS) | set(REFUSED) | {"SubTree", "Action", "Condition", "Control",
+BT_NAMES = set(BUILTIN_PORTS) | set(REFUSED) | set(LOWERED_PORTS) | {"SubTree", "Action", "Condition", "Control",
                                                 "Decorator", "BehaviorTree", "root"}
 
 
@@ -206,6 +213,134 @@ def decode_literal(text: str, type_name: str = "any") -> Any:
         return plain(yaml.safe_load(text))
     except yaml.YAMLError:
         raise ValueError(f"cannot read {text!r} as {type_name}") from None
+
+
+# ---------------------------------------------------------------------------------------
+# BT.CPP scripts (Script, ScriptCondition, pre/post conditions): the subset Hearth reads
+# ---------------------------------------------------------------------------------------
+# BT.CPP's scripting language (docs "Introduction to Scripting") is read as far as Hearth's
+# own nodes can carry it: assignments of a literal or of another entry (SetValue), and
+# conditions made of comparisons, ! and the && / || joins (Check). Arithmetic, parentheses,
+# the ternary operator, enums and root-blackboard entries (@key) are refused with the line.
+_SCRIPT_TOKEN = re.compile(r"""\s*(?:(?P<str>'[^']*'|"[^"]*")"""
+                           r"""|(?P<num>-?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+))"""
+                           r"""|(?P<id>@?[A-Za-z_][A-Za-z0-9_]*)"""
+                           r"""|(?P<op>:=|==|!=|<=|>=|&&|\|\||[-+*/]=|[=<>!;()+\-*/?:~^&|]))""")
+_COMPARE = ("==", "!=", "<", "<=", ">", ">=")
+
+
+@dataclass(frozen=True)
+class _Tok:
+    kind: str       # str, num, id, op
+    text: str
+
+
+def _script_tokens(code: str) -> list[_Tok]:
+    out, pos = [], 0
+    code = code.rstrip()
+    while pos < len(code):
+        m = _SCRIPT_TOKEN.match(code, pos)
+        if not m or m.end() == pos:
+            raise ValueError(f"cannot read {code[pos:].strip()[:20]!r}")
+        kind = m.lastgroup
+        out.append(_Tok(kind, m.group(kind)))
+        pos = m.end()
+    return out
+
+
+def _script_literal(tok: _Tok) -> Any:
+    if tok.kind == "str":
+        return tok.text[1:-1]
+    if tok.kind == "num":
+        value = float(tok.text)
+        return int(value) if value.is_integer() and not any(c in tok.text for c in ".eE") \
+            else value
+    return tok.text == "true"
+
+
+def _is_literal(tok: _Tok) -> bool:
+    return tok.kind in ("str", "num") or (tok.kind == "id" and tok.text in ("true", "false"))
+
+
+def _no_root(tok: _Tok) -> None:
+    if tok.kind == "id" and tok.text.startswith("@"):
+        raise ValueError(f"{tok.text}: root-blackboard entries have no Hearth equivalent; "
+                         "pass the value through the subtree's ports")
+
+
+def script_assignments(code: str) -> list[tuple[str, Any]]:
+    """``a := 1; b = 'x'; c := d`` -> [(key, value)], a value being a Python literal or
+    ``{key}`` for another entry. ValueError (what cannot be read) otherwise."""
+    out = []
+    for stmt in _statements(_script_tokens(code)):
+        if len(stmt) == 3 and stmt[0].kind == "id" and stmt[1].text in (":=", "="):
+            target, value = stmt[0], stmt[2]
+            _no_root(target)
+            _no_root(value)
+            if _is_literal(value):
+                out.append((target.text, _script_literal(value)))
+                continue
+            if value.kind == "id":
+                out.append((target.text, "{" + value.text + "}"))
+                continue
+        text = " ".join(t.text for t in stmt)
+        raise ValueError(f"cannot read {text!r}: Hearth reads assignments of a literal or of "
+                         "another entry (key := 1; key := 'text'; key := other)")
+    if not out:
+        raise ValueError("an empty script")
+    return out
+
+
+def _statements(tokens: list[_Tok]) -> list[list[_Tok]]:
+    out: list[list[_Tok]] = [[]]
+    for t in tokens:
+        if t.text == ";" and t.kind == "op":
+            out.append([])
+        else:
+            out[-1].append(t)
+    return [s for s in out if s]
+
+
+def script_condition(code: str) -> str:
+    """A BT.CPP boolean script (``A == 1 && name != 'john' || !done``) as a Hearth condition
+    (``{A} == 1 && {name} != 'john' || not {done}``). ValueError beyond that subset."""
+    stmts = _statements(_script_tokens(code))
+    if len(stmts) != 1:
+        raise ValueError("a condition is one expression (no ';')")
+    parts: list[list[_Tok]] = [[]]
+    joins: list[str] = []
+    for t in stmts[0]:
+        if t.kind == "op" and t.text in ("&&", "||"):
+            parts.append([])
+            joins.append(t.text)
+        else:
+            parts[-1].append(t)
+
+    def operand(tok: _Tok) -> str:
+        _no_root(tok)
+        if tok.kind == "id" and tok.text not in ("true", "false"):
+            return "{" + tok.text + "}"
+        if tok.kind == "str":
+            return "'" + tok.text[1:-1] + "'" if "'" not in tok.text[1:-1] else tok.text
+        return tok.text
+
+    out = []
+    for part in parts:
+        text = " ".join(t.text for t in part)
+        if len(part) == 1 and part[0].kind in ("id", "str", "num"):
+            out.append(operand(part[0]))
+        elif len(part) == 2 and part[0].text == "!" and part[1].kind == "id":
+            out.append("not " + operand(part[1]))
+        elif len(part) == 3 and part[1].kind == "op" and part[1].text in _COMPARE \
+                and part[0].kind != "op" and part[2].kind != "op":
+            out.append(f"{operand(part[0])} {part[1].text} {operand(part[2])}")
+        else:
+            raise ValueError(f"cannot read {text or code!r}: Hearth reads comparisons "
+                             "(== != < <= > >=), ! and && / || (no arithmetic, no parentheses)")
+    text = out[0]
+    for j, o in zip(joins, out[1:]):
+        text += f" {j} {o}"
+    return text
 
 
 # ---------------------------------------------------------------------------------------
@@ -673,6 +808,14 @@ def custom_model(tag: str) -> etree._Element:
     return el
 
 
+def nodes_header() -> str:
+    """The C++ header with Hearth's node types for BehaviorTree.CPP (Check, Guard, Watch,
+    ForEach, StateMachine/State, Succeed, Fail and the generic SetValue and Wait skills), so
+    that an exported mission runs in a BT.CPP application as it is."""
+    from importlib import resources
+    return resources.files("executive").joinpath("cpp/hearth_nodes.hpp").read_text("utf-8")
+
+
 def export_mission(path: str | Path, skills: dict[str, type] | None = None,
                    palette: bool = False) -> str:
     """The mission at ``path`` (checked first) as BT.CPP v4 XML text. ``palette``: put
@@ -694,6 +837,9 @@ def _xml_parser() -> etree.XMLParser:
                            remove_pis=True)
 
 
+_BARE_AMP = re.compile(rb"&(?!(?:[A-Za-z_][\w.-]*|#[0-9]+|#x[0-9A-Fa-f]+);)")
+
+
 def parse_xml(data: bytes, name: str) -> etree._Element:
     """Parse untrusted BT.CPP XML: no DTD, no entities, no network; MissionError with line."""
     if len(data) > MAX_XML_BYTES:
@@ -703,6 +849,10 @@ def parse_xml(data: bytes, name: str) -> etree._Element:
         if idx >= 0:
             raise MissionError("DOCTYPE declarations (DTDs and entities) are not allowed",
                                file=name, line=data.count(b"\n", 0, idx) + 1)
+    # BT.CPP reads its XML with tinyxml2, which keeps a bare '&' as text, and its own
+    # examples write scripts as code="a && b"; read them the same way (a real entity
+    # reference such as &amp; or &x; is left to the parser).
+    data = _BARE_AMP.sub(b"&amp;", data)
     try:
         root = etree.fromstring(data, _xml_parser())
     except etree.XMLSyntaxError as err:
@@ -734,12 +884,54 @@ _Dumper.add_representer(dict, lambda d, v: d.represent_mapping(
     "tag:yaml.org,2002:map", v.items(), flow_style=False))
 
 
+def _entries(element: etree._Element) -> set[str]:
+    """Every blackboard entry a BT.CPP tree names: {key} in attributes and the variables
+    of its scripts (what _autoremap shares with the caller)."""
+    out: set[str] = set()
+    for el in element.iter():
+        if not isinstance(el.tag, str):
+            continue
+        for a, v in el.attrib.items():
+            v = v.strip()
+            if _pointer_like(v) and _IDENT.match(v[1:-1]):
+                out.add(v[1:-1])
+            elif a in SCRIPT_ATTRS or (a == "code" and el.tag in ("Script", "ScriptCondition")) \
+                    or (a == "if" and el.tag == "Precondition"):
+                try:
+                    out |= {t.text for t in _script_tokens(v)
+                            if t.kind == "id" and t.text not in ("true", "false")
+                            and not t.text.startswith("@")}
+                except ValueError:
+                    pass
+    return out
+
+
+def _case_literal(text: str) -> str:
+    """A Switch case as an operand of a Hearth condition: a number as a number (BT.CPP
+    compares a case with the variable as numbers when both read as numbers), else text."""
+    try:
+        float(text)
+        return text.strip()
+    except ValueError:
+        return "'" + text.replace("'", "") + "'"
+
+
+def _yaml_default(node: dict) -> str:
+    kind = next((k for k in node if k in _KINDS_ALL), "node")
+    if kind == "skill":
+        return str(node["skill"])
+    if kind == "include":
+        return str(node["include"])
+    return kind
+
+
 @dataclass
 class _TreeInfo:
     id: str
     element: etree._Element
     params: dict[str, dict]             # name -> Hearth parameter spec
     description: str = ""
+    pointer_defaults: dict[str, str] = field(default_factory=dict)   # port -> "{key}"
     meta: dict[str, Any] = field(default_factory=dict)
 
 
@@ -771,6 +963,8 @@ class _Importer:
                 for m in el:
                     if m.tag == "SubTree" and m.get("ID"):
                         self.models[m.get("ID")] = m
+                    elif m.tag in ("Action", "Condition", "Decorator", "Control"):
+                        self.check_model(m)
         elements = [el for el in root if el.tag == "BehaviorTree"]
         for el in root:
             if el.tag not in ("BehaviorTree", "TreeNodesModel", "include"):
@@ -806,7 +1000,9 @@ class _Importer:
         if main is None and len(elements) == 1:
             main = "main"
         if main is None:
-            raise MissionError("several <BehaviorTree> elements and no main_tree_to_execute",
+            raise MissionError("several <BehaviorTree> elements and no main_tree_to_execute "
+                               "(a BT.CPP application names it in code, createTree(ID); "
+                               "write <root main_tree_to_execute=\"ID\">)",
                                file=self.file, line=root.sourceline)
         if main not in self.trees:
             if self.errors:
@@ -842,6 +1038,33 @@ class _Importer:
             raise MissionValidationError(self.errors)
         return doc
 
+    def check_model(self, model: etree._Element) -> None:
+        """A Groot2 model of a skill or a Hearth node must declare only ports it has, each
+        in its direction: a model written for another version of the skill is an error
+        here, not a surprise in the middle of a mission."""
+        nid = model.get("ID")
+        if nid in self.skills:
+            cls = self.skills[nid]
+            have = {p.name: "input_port" for p in cls.INPUTS}
+            have.update({output_port_name(cls, p.name): "output_port" for p in cls.OUTPUTS})
+            what = f"skill {nid}"
+        elif nid in CUSTOM:
+            have = {name: direction for direction, name, *_ in CUSTOM[nid][1]}
+            what = f"Hearth node {nid}"
+        else:
+            return
+        for port in model:
+            if port.tag not in ("input_port", "output_port", "inout_port"):
+                continue
+            pname = port.get("name")
+            if pname not in have:
+                known = ", ".join(have) or "none"
+                self.error(f"the model of {nid} declares port {pname!r}, which {what} lacks "
+                           f"(ports: {known})", port.sourceline)
+            elif port.tag != have[pname] and port.tag != "inout_port":
+                self.error(f"the model of {nid} declares {pname!r} as {port.tag}; {what} has "
+                           f"it as {have[pname]}", port.sourceline)
+
     # -- tree parameters ----------------------------------------------------------------
     def collect_params(self, main: str) -> None:
         calls: dict[str, list[etree._Element]] = {}
@@ -853,6 +1076,12 @@ class _Importer:
             if model is not None:
                 for port in model:
                     if port.tag in ("input_port", "output_port", "inout_port"):
+                        default = (port.get("default") or "").strip()
+                        if _pointer_like(default):
+                            info.pointer_defaults[port.get("name")] = default
+                            port = etree.Element(port.tag, {k: v for k, v in port.attrib.items()
+                                                            if k != "default"})
+                            port.text = None
                         spec = self.param_spec(port)
                         if spec is not None:
                             info.params[port.get("name")] = spec
@@ -864,11 +1093,15 @@ class _Importer:
                                 except ValueError as err:
                                     self.error(f"metadata {k}: {err}", m.sourceline)
             elif tid != main:
-                # No model: the ports are what the callers remap (BT.CPP's own reading).
+                # No model: the ports are what the callers remap (BT.CPP's own reading),
+                # and with _autoremap every entry the subtree names.
                 for call in calls.get(tid, []):
                     for attr in call.attrib:
                         if attr != "ID" and attr != "name" and not attr.startswith("_"):
                             info.params.setdefault(attr, {"type": "any"})
+                    if call.get("_autoremap", "false").strip().lower() in ("true", "1"):
+                        for key in sorted(_entries(info.element)):
+                            info.params.setdefault(key, {"type": "any"})
 
     def param_spec(self, port: etree._Element) -> dict | None:
         name = port.get("name")
@@ -876,6 +1109,9 @@ class _Importer:
             self.error(f"port name {name!r} is not an identifier", port.sourceline)
             return None
         ptype = port.get("type") or "any"
+        # A port without a type (BT.CPP's AnyTypeAllowed: text converted where it is read)
+        # keeps a number default a number, so that scripts compare it as BT.CPP does.
+        read_as = ptype if port.get("type") else "number|boolean|list|dict"
         from executive.missionfile import TYPES
         if any(t not in TYPES for t in _alts(ptype)):
             ptype = "any"   # a C++ type name written by BT.CPP or Groot2
@@ -884,7 +1120,8 @@ class _Importer:
             spec["items"] = port.get("items")
         if port.get("default") is not None:
             try:
-                spec["default"] = decode_literal(port.get("default"), ptype)
+                spec["default"] = decode_literal(port.get("default"),
+                                                 read_as if ptype == "any" else ptype)
             except ValueError as err:
                 self.error(f"port {name}: default {err}", port.sourceline)
         if port.get("required") == "false":
@@ -938,7 +1175,119 @@ class _Importer:
         return _EXPR_TOKEN.sub(sub, text)
 
     # -- nodes --------------------------------------------------------------------------
-    def node(self, el: etree._Element, info: _TreeInfo, root_default: str | None) -> dict:
+    def node(self, el: etree._Element, info: _TreeInfo, root_default: str | None,
+             parent: str | None = None) -> dict:
+        """The Hearth node for ``el`` (a child of a ``parent`` element), its BT.CPP
+        pre/post-condition scripts rewritten around it."""
+        out = self._node(el, info, root_default)
+        scripts = {a: el.get(a) for a in SCRIPT_ATTRS if el.get(a) is not None}
+        if scripts and isinstance(el.tag, str):
+            base = str(out.get("name") or root_default or _yaml_default(out))
+            out = self.conditions(out, scripts, parent, info, el.sourceline, base)
+        self.mark(out, el.sourceline or 0, top=True)
+        return out
+
+    def mark(self, data: Any, line: int, top: bool = False) -> None:
+        """Give the nodes import generated (wrappers, SetValue steps) the XML line of the
+        element they came from."""
+        if isinstance(data, dict):
+            if id(data) in self.lines and not top:
+                return
+            if any(k in data for k in _KINDS_ALL):
+                self.lines.setdefault(id(data), line)
+            for v in data.values():
+                self.mark(v, line)
+        elif isinstance(data, list):
+            for v in data:
+                self.mark(v, line)
+
+    # -- BT.CPP scripts -----------------------------------------------------------------
+    def condition(self, code: str, info: _TreeInfo, line: int, what: str) -> dict:
+        try:
+            return {"condition": self.expr(script_condition(code), info)}
+        except ValueError as err:
+            self.error(f"{what}: {err}", line)
+            return {"succeed": None}
+
+    def assignments(self, code: str, info: _TreeInfo, line: int, what: str) -> list[dict]:
+        try:
+            pairs = script_assignments(code)
+        except ValueError as err:
+            self.error(f"{what}: {err}", line)
+            return []
+        return [self.set_value(key, value, info, line) for key, value in pairs]
+
+    def set_value(self, key: str, value: Any, info: _TreeInfo, line: int) -> dict:
+        """``key := value`` as Hearth's SetValue skill (BT.CPP's SetBlackboard)."""
+        if "SetValue" not in self.skills:
+            self.error("scripts and SetBlackboard need the SetValue skill", line)
+            return {"fail": None}
+        target = self.pointer("{" + key + "}", info, line) or "{" + key + "}"
+        if isinstance(value, str) and _pointer_like(value):
+            value = self.pointer(value, info, line)
+        out = {"skill": "SetValue", "name": f"set_{key}", "inputs": _Flow({"value": value}),
+               "outputs": _Flow({"output": target if target.startswith("$") else key})}
+        self.lines[id(out)] = line
+        return out
+
+    def conditions(self, node: dict, scripts: dict[str, str], parent: str | None,
+                   info: _TreeInfo, line: int, base: str) -> dict:
+        """BT.CPP's pre-conditions (checked when the node starts: _failureIf, _successIf,
+        _skipIf, then _while, which is also checked every tick while it runs) and
+        post-conditions (scripts run when it, or a pre-condition, returns success or
+        failure) as Hearth nodes around ``node``."""
+        if "_onHalted" in scripts:
+            self.error("_onHalted: Hearth runs no node when a branch is halted (a skill's "
+                       "terminate stops what it started); no equivalent", line)
+        if ("_skipIf" in scripts or "_while" in scripts) and parent not in SKIP_AS:
+            which = "_skipIf" if "_skipIf" in scripts else "_while"
+            self.error(f"{which}: BT.CPP's SKIPPED has a Hearth reading only for a child of a "
+                       f"Sequence or a Fallback (here under <{parent or 'BehaviorTree'}>)", line)
+            return node
+        n = node
+        if "_successIf" in scripts:
+            n = {"selector": [self.condition(scripts["_successIf"], info, line, "_successIf"),
+                              n], "name": f"{base}_successIf"}
+        if "_failureIf" in scripts:
+            n = {"sequence": [{"inverter": self.condition(scripts["_failureIf"], info, line,
+                                                          "_failureIf")}, n],
+                 "name": f"{base}_failureIf"}
+        post = scripts.get("_post")
+        on_s = [s for c in (scripts.get("_onSuccess"), post) if c
+                for s in self.assignments(c, info, line, "_onSuccess" if c != post else "_post")]
+        on_f = [s for c in (scripts.get("_onFailure"), post) if c
+                for s in self.assignments(c, info, line, "_onFailure" if c != post else "_post")]
+        if on_s and on_f:
+            n = {"selector": [{"sequence": [n, *on_s], "name": f"{base}_onSuccess"},
+                              {"sequence": [*on_f, {"fail": None}], "name": f"{base}_onFailure"}],
+                 "name": f"{base}_post"}
+        elif on_s:
+            n = {"sequence": [n, *on_s], "name": f"{base}_onSuccess"}
+        elif on_f:
+            n = {"selector": [n, {"sequence": [*on_f, {"fail": None}], "name": "onFailure"}],
+                 "name": f"{base}_onFailure"}
+        skipped = SKIP_AS.get(parent or "")
+        if "_skipIf" in scripts:
+            # Skipped only when no earlier pre-condition triggers (BT.CPP's order).
+            checks = [{"inverter": self.condition(scripts[a], info, line, a)}
+                      for a in ("_failureIf", "_successIf") if a in scripts]
+            checks.append(self.condition(scripts["_skipIf"], info, line, "_skipIf"))
+            skip = checks[0] if len(checks) == 1 else {"sequence": checks, "name": "skip"}
+            if skipped == "success":
+                n = {"selector": [skip, n], "name": f"{base}_skipIf"}
+            else:
+                n = {"sequence": [{"inverter": skip}, n], "name": f"{base}_skipIf"}
+        if "_while" in scripts:
+            held = self.condition(scripts["_while"], info, line, "_while")
+            if "condition" in held:
+                n = {"guard": n, "while": held["condition"], "name": f"{base}_while"}
+                if skipped == "success":
+                    # A guard fails when its condition stops holding: a skip, read as a
+                    # success under a sequence; the child's own failure stays a failure.
+                    n = {"selector": [n, {"inverter": dict(held)}], "name": f"{base}_whileSkip"}
+        return n
+
+    def _node(self, el: etree._Element, info: _TreeInfo, root_default: str | None) -> dict:
         line = el.sourceline
         tag = el.tag
         if not isinstance(tag, str):
@@ -946,11 +1295,6 @@ class _Importer:
         attrs = dict(el.attrib)
         if tag in ("Action", "Condition", "Decorator", "Control") and "ID" in attrs:
             tag = attrs.pop("ID")
-        for a in list(attrs):
-            if a in SCRIPT_ATTRS:
-                self.error(f"<{tag}> {a}: BT.CPP pre/post-condition scripts are not supported; "
-                           "use Check, guard or a selector", line)
-                attrs.pop(a)
         comment = attrs.get("_description")
         for a in [a for a in attrs if a.startswith("_")]:
             attrs.pop(a)
@@ -991,9 +1335,10 @@ class _Importer:
                 return None
 
         def children() -> list:
-            return [self.node(k, info, None) for k in kids]
+            return [self.node(k, info, None, tag) for k in kids]
 
         default = root_default
+        own: str | None = None      # the name of a node import rewrites (Script, Switch...)
         if tag in ("Sequence", "ReactiveSequence", "SequenceWithMemory", "Fallback",
                    "ReactiveFallback"):
             ports(())
@@ -1092,6 +1437,109 @@ class _Importer:
             ports(("expr",), ("expr",))
             want(0, 0)
             out = {"condition": self.expr(attrs.get("expr", ""), info)}
+        elif tag == "Script":
+            ports(("code",), ("code",))
+            want(0, 0)
+            steps = self.assignments(attrs.get("code", ""), info, line, "<Script> code")
+            if len(steps) == 1:
+                out = steps[0]
+            else:
+                out = {"sequence": steps or [{"succeed": None}], "name": "script"}
+            own = out.pop("name")
+        elif tag == "ScriptCondition":
+            ports(("code",), ("code",))
+            want(0, 0)
+            out = self.condition(attrs.get("code", ""), info, line, "<ScriptCondition> code")
+        elif tag == "SetBlackboard":
+            ports(("value", "output_key"), ("value", "output_key"))
+            want(0, 0)
+            key = attrs.get("output_key", "").strip()
+            key = key[1:-1] if _pointer_like(key) else key
+            if not _IDENT.match(key):
+                self.error(f"<SetBlackboard> output_key={key!r}: expected a key name", line)
+                return {"fail": None}
+            text = attrs.get("value", "")
+            value = text if _pointer_like(text.strip()) else self.value(text, info, "any", line,
+                                                                        "SetBlackboard value")
+            out = self.set_value(key, value, info, line)
+            own = out.pop("name")
+        elif tag == "Precondition":
+            ports(("if", "else"), ("if", "else"))
+            want(1, 1)
+            cond = self.condition(attrs.get("if", ""), info, line, "<Precondition> if")
+            other = attrs.get("else", "").strip().upper()
+            kid = children()[0] if kids else {"succeed": None}
+            if other == "FAILURE":
+                out = {"sequence": [cond, kid]}
+            elif other == "SUCCESS":
+                out = {"selector": [{"inverter": cond}, kid]}
+            else:
+                self.error(f"<Precondition> else={attrs.get('else')!r}: Hearth reads SUCCESS or "
+                           "FAILURE", line)
+                return {"fail": None}
+            own = "precondition"
+        elif tag in ("Delay", "Sleep"):
+            port = "delay_msec" if tag == "Delay" else "msec"
+            ports((port,), (port,))
+            want(1, 1) if tag == "Delay" else want(0, 0)
+            msec = integer(port) if port in attrs else None
+            wait = {"skill": "Wait", "inputs": _Flow({"seconds": (msec or 0) / 1000.0})}
+            if tag == "Delay":
+                out = {"sequence": [wait, *children()]}
+                own = "delay"
+            else:
+                out = wait
+        elif tag == "RunOnce":
+            ports(("then_skip",))
+            want(1, 1)
+            skip = attrs.get("then_skip", "true").strip().lower() not in ("false", "0")
+            kid = children()[0] if kids else {"succeed": None}
+            out = self.run_once(kid, skip, el, info, line)
+            own = "run_once"
+        elif tag == "IfThenElse":
+            ports(())
+            if len(kids) not in (2, 3):
+                self.error(f"<IfThenElse> must have 2 or 3 children (it has {len(kids)})", line)
+            parts = children()
+            if len(parts) in (2, 3):
+                states = {"if": {"do": parts[0], "transitions": _Flow(
+                    {"success": "then", "failure": "else" if len(parts) == 3 else "failed"})},
+                    "then": {"do": parts[1], "transitions": _Flow(
+                        {"success": "succeeded", "failure": "failed"})}}
+                if len(parts) == 3:
+                    states["else"] = {"do": parts[2], "transitions": _Flow(
+                        {"success": "succeeded", "failure": "failed"})}
+                out = {"state_machine": {"initial": "if", "states": states, "outcomes": _Flow(
+                    {"succeeded": "success", "failed": "failure"})}}
+            else:
+                out = {"fail": None}
+            own = "if_then_else"
+        elif tag in LOWERED_PORTS and tag.startswith("Switch"):
+            n = int(tag[len("Switch"):])
+            ports(LOWERED_PORTS[tag], LOWERED_PORTS[tag])
+            if len(kids) != n + 1:
+                self.error(f"<{tag}> must have {n + 1} children ({n} cases and the default; it "
+                           f"has {len(kids)})", line)
+                return {"fail": None}
+            var = attrs.get("variable", "").strip()
+            ref = self.pointer(var, info, line) if _pointer_like(var) else None
+            if ref is None:
+                if not _pointer_like(var):
+                    self.error(f"<{tag}> variable={var!r}: expected a {{key}}", line)
+                return {"fail": None}
+            operand = ref if ref.startswith("$") else ref
+            branches = []
+            cases = [_case_literal(attrs.get(f"case_{i}", "")) for i in range(1, n + 1)]
+            for i, kid in enumerate(children()):
+                checks = [{"condition": f"{operand} != {c}"} for c in cases[:i]]
+                if i < n:
+                    checks.append({"condition": f"{operand} == {cases[i]}"})
+                branches.append({"sequence": [*checks, kid], "reactive": True,
+                                 "name": f"case_{i + 1}" if i < n else "default"})
+            # Reactive, as BT.CPP's Switch reads the variable every tick and halts the running
+            # case when another one matches.
+            out = {"selector": branches, "reactive": True}
+            own = "switch"
         elif tag == "StateMachine":
             ports(("initial", "outcomes"), ("initial", "outcomes"))
             want(1, None)
@@ -1130,6 +1578,9 @@ class _Importer:
                        f"registered skill{hint}", line)
             return {"fail": None}
         kind = next(iter(out))
+        if own is not None:
+            name = name or own
+            default = _yaml_default(out)
         if default is None:
             default = kind
         if name is not None and name != default:
@@ -1138,6 +1589,31 @@ class _Importer:
             out["comment"] = comment
         self.lines[id(out)] = line
         return out
+
+    def run_once(self, kid: dict, then_skip: bool, el: etree._Element, info: _TreeInfo,
+                 line: int) -> dict:
+        """BT.CPP's RunOnce: the child runs to its end once per run of the mission; after
+        that the node is skipped (``then_skip``) or returns the child's status again. The
+        memory is a blackboard key named after the line (unset reads false)."""
+        key = f"run_once_{line}"
+        done = self.set_value(key + "_ok", True, info, line)
+        failed = self.set_value(key + "_failed", True, info, line)
+        run = {"selector": [{"sequence": [kid, done]},
+                            {"sequence": [failed, {"fail": None}]}]}
+        ran = {"condition": "{%s_ok} || {%s_failed}" % (key, key)}
+        if then_skip:
+            parent = el.getparent()
+            skipped = SKIP_AS.get(parent.tag if parent is not None else "")
+            if skipped is None:
+                self.error("<RunOnce then_skip=true>: BT.CPP's SKIPPED has a Hearth reading "
+                           "only for a child of a Sequence or a Fallback", line)
+                return run
+            if skipped == "success":
+                return {"selector": [ran, run]}
+            return {"sequence": [{"inverter": ran}, run]}
+        return {"selector": [{"condition": "{%s_ok}" % key},
+                             {"sequence": [{"inverter": {"condition": "{%s_failed}" % key}},
+                                           run]}]}
 
     def state(self, el: etree._Element, info: _TreeInfo) -> dict | None:
         line = el.sourceline
@@ -1180,9 +1656,7 @@ class _Importer:
             self.error(f"<SubTree ID={tid!r}>: no <BehaviorTree> with that ID in this file",
                        line)
             return {"fail": None}, "fail"
-        if el.get("_autoremap", "false").lower() in ("true", "1"):
-            self.error(f"<SubTree ID={tid!r}> _autoremap: Hearth subtrees see only the ports "
-                       "they are given; remap each port", line)
+        autoremap = el.get("_autoremap", "false").strip().lower() in ("true", "1")
         if tid == self.root.get("main_tree_to_execute"):
             self.error(f"<SubTree ID={tid!r}>: the main tree cannot also be a subtree", line)
         params: dict[str, Any] = {}
@@ -1198,6 +1672,16 @@ class _Importer:
             if value == "" and target.params[a].get("default") == "":
                 continue   # the explicit "" export writes for BT.CPP
             params[a] = value
+        for a in target.params:
+            if a in params or a in attrs:
+                continue
+            if a in target.pointer_defaults:
+                # A model port whose default is a {key}: BT.CPP remaps it to that key.
+                params[a] = self.pointer(target.pointer_defaults[a], info, line)
+            elif autoremap:
+                # _autoremap: every port not remapped reads and writes the caller's entry
+                # of the same name.
+                params[a] = self.pointer("{" + a + "}", info, line)
         out: dict[str, Any] = {"include": tid}
         if params:
             out["params"] = _Flow(params)
@@ -1392,6 +1876,7 @@ def live_tree(mission: Mission) -> LiveTree:
             sid = subtree_id(spec)
             inst = spec.path.lstrip("/")
             el.set("ID", sid)
+            el.set("name", spec.name)       # viewers label a SubTree node by its name
             el.set("_fullpath", inst)
             uid[spec.path] = new_uid(el)
             instances[inst] = spec.path

@@ -18,7 +18,9 @@ capture and base pose is published too. Times are the robot clock's wall time.
 """
 from __future__ import annotations
 
+import logging
 import math
+import sys
 import threading
 from typing import Any, Optional
 
@@ -92,6 +94,39 @@ class _Listener:
             self.changed.notify_all()
 
 
+#: The subprotocol foxglove-sdk's server speaks; it refuses a client that offers only the
+#: older one (docs/ros2-foxglove.md, "Which clients connect").
+SUBPROTOCOL = "foxglove.sdk.v1"
+OLD_SUBPROTOCOL = "foxglove.websocket.v1"
+REFUSED_HANDSHAKE = (f"foxglove: a client could not connect (handshake failed): this server "
+                     f"speaks {SUBPROTOCOL} (the Foxglove app); a client that offers only "
+                     f"{OLD_SUBPROTOCOL} (older Foxglove Studio, Lichtblick) cannot connect: "
+                     "open the run's MCAP log in it instead (--foxglove-mcap; "
+                     "docs/ros2-foxglove.md)")
+
+
+class _ServerLog(logging.Handler):
+    """foxglove-sdk's server lines (Python logger ``foxglove``) go to the /hearth/log channel
+    and the process's logging at DEBUG, not to the mission's output; a refused handshake
+    prints the one documented line above, once per server."""
+
+    def __init__(self, sink: "FoxgloveSink", stream: Any = None):
+        super().__init__(level=logging.INFO)
+        self.sink = sink
+        self.stream = stream
+        self.told = False
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = record.getMessage()
+            if "handshake failed" in text and not self.told:
+                self.told = True
+                print(REFUSED_HANDSHAKE, file=self.stream or sys.stderr, flush=True)
+            self.sink.server_line(record.levelno, record.name, text)
+        except Exception:       # noqa: BLE001 - a log handler must never raise
+            self.handleError(record)
+
+
 class FoxgloveSink:
     """Foxglove channels fed by a run; written to ``mcap`` (a new file) and/or served live on
     ``host``:``port`` (0: any free port; ``self.port`` says which)."""
@@ -121,10 +156,27 @@ class FoxgloveSink:
         self.listener = _Listener()
         self.server = None
         self.port = None
+        self._server_log = None
         if port is not None:
+            self._server_log = _ServerLog(self)
+            logger = logging.getLogger("foxglove")
+            logger.addHandler(self._server_log)
+            logger.propagate = False        # not Python's last-resort handler on stderr
+            if logger.level == logging.NOTSET or logger.level > logging.INFO:
+                logger.setLevel(logging.INFO)
             self.server = fg.start_server(name="hearth", host=host, port=int(port),
                                           context=self.ctx, server_listener=self.listener)
             self.port = self.server.port
+
+    def server_line(self, level: int, name: str, text: str) -> None:
+        """One line of foxglove-sdk's server, on /hearth/log (and logging at DEBUG)."""
+        from foxglove.messages import Log, LogLevel
+        logging.getLogger("hearth.foxglove").debug("%s: %s", name, text)
+        lv = (LogLevel.Error if level >= logging.ERROR else LogLevel.Warning
+              if level >= logging.WARNING else LogLevel.Info)
+        ns = self._ns()
+        self.log.log(Log(timestamp=_ts(ns), level=lv, message=text, name=name, file="",
+                         line=0), log_time=ns)
 
     # ---- time
     def _ns(self, t: Optional[float] = None) -> int:
@@ -172,6 +224,9 @@ class FoxgloveSink:
         if self.server is not None:
             self.server.stop()
             self.server = None
+        if self._server_log is not None:
+            logging.getLogger("foxglove").removeHandler(self._server_log)
+            self._server_log = None
 
     # ---- events
     def on_event(self, ev) -> None:

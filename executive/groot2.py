@@ -119,6 +119,20 @@ class Groot2Publisher:
         raise Groot2Error(f"groot2: cannot listen on {self.host}:{port} and the next port: "
                           f"{last}")
 
+    def show(self, mission: Any) -> None:
+        """Serve ``mission``'s tree (every node idle) until a run of the executive starts:
+        a viewer that attaches while the run is still being set up sees the tree at once,
+        not "no mission has run yet"."""
+        from executive.btcpp import live_tree
+        live = live_tree(mission)
+        with self._lock:
+            if self._run is not None:
+                return
+            self._live = live
+            self._mission_name = mission.name
+            self._uuid = os.urandom(16)
+            self._status = {u: 0 for u in live.order}
+
     def close(self) -> None:
         """Stop serving and unsubscribe (idempotent)."""
         if self._closed.is_set():

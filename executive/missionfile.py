@@ -443,14 +443,21 @@ Ref = Lit | BBKey | Param
 
 @dataclass(frozen=True)
 class Expr:
-    """A condition: ``left`` alone (truthiness), or ``left op right``; ``negate`` for ``not``."""
+    """A condition: ``left`` alone (truthiness), or ``left op right``; ``negate`` for ``not``.
+
+    A compound condition (``a && b || c``) has ``either``: groups of simple conditions, the
+    whole true when every condition of some group holds (``&&`` binds tighter than ``||``,
+    as in C and BehaviorTree.CPP's scripts); its ``left`` is None."""
     text: str
-    left: Ref
+    left: Ref | None
     op: str | None = None
     right: Ref | None = None
     negate: bool = False
+    either: tuple[tuple["Expr", ...], ...] = ()
 
     def refs(self) -> list[Ref]:
+        if self.either:
+            return [r for group in self.either for e in group for r in e.refs()]
         return [r for r in (self.left, self.right) if r is not None]
 
 
@@ -470,12 +477,43 @@ def parse_operand(token: str) -> Ref:
     return Lit(plain(load_yaml_text(token, "<condition>")))
 
 
+# ``&&`` and ``||`` outside quoted literals (they never occur inside a simple condition).
+_JOIN_RE = re.compile(r"""'[^']*'|"[^"]*"|(&&|\|\|)""")
+
+
+def _split_joins(text: str) -> list[str]:
+    """``text`` cut at every ``&&`` / ``||`` outside quotes: [part, op, part, op, part...]."""
+    out, start = [], 0
+    for m in _JOIN_RE.finditer(text):
+        if m.group(1):
+            out += [text[start:m.start()], m.group(1)]
+            start = m.end()
+    return out + [text[start:]]
+
+
 def parse_expression(text: str) -> Expr:
-    """Parse ``{key} OP value`` / ``$param OP value`` / ``[not] {key}``; ValueError if not."""
+    """Parse ``{key} OP value`` / ``$param OP value`` / ``[not] {key}``, joined by ``&&``
+    and ``||``; ValueError if not."""
+    pieces = _split_joins(text)
+    if len(pieces) == 1:
+        return _parse_simple(text)
+    groups: list[list[Expr]] = [[]]
+    for i, piece in enumerate(pieces):
+        if i % 2:
+            if piece == "||":
+                groups.append([])
+            continue
+        if not piece.strip():
+            raise ValueError(f"condition {text!r}: && and || join two conditions")
+        groups[-1].append(_parse_simple(piece.strip(), whole=text))
+    return Expr(text=text, left=None, either=tuple(tuple(g) for g in groups))
+
+
+def _parse_simple(text: str, whole: str | None = None) -> Expr:
     m = _EXPR_RE.match(text)
     if not m:
         raise ValueError(f"cannot read condition {text!r}: use '{{key}} OP value' with OP one of "
-                         f"{', '.join(OPERATORS)}, or '[not] {{key}}'")
+                         f"{', '.join(OPERATORS)}, or '[not] {{key}}', joined by && and ||")
     negate, left, op, right = m.groups()
     if op is not None and negate:
         raise ValueError(f"condition {text!r}: 'not' only applies to a single operand")
@@ -485,7 +523,8 @@ def parse_expression(text: str) -> Expr:
     except MissionError as err:
         raise ValueError(f"cannot read a value in condition {text!r}: {err.message}") from None
     if isinstance(lref, Lit) and (rref is None or isinstance(rref, Lit)):
-        raise ValueError(f"condition {text!r} compares constants only; name a {{key}} or $param")
+        raise ValueError(f"condition {(whole or text)!r} compares constants only; name a "
+                         "{key} or $param")
     op = " ".join(op.split()) if op else None
     return Expr(text=text, left=lref, op=op, right=rref, negate=bool(negate))
 
@@ -1144,6 +1183,17 @@ class _Compiler:
         except ValueError as err:
             self.error(str(err), spec.file, line)
             return None
+        if not expr.either:
+            return self._resolve(expr, spec, text, scope, line)
+        groups = []
+        for group in expr.either:
+            done = [self._resolve(e, spec, text, scope, line) for e in group]
+            if any(e is None for e in done):
+                return None
+            groups.append(tuple(done))
+        return Expr(text=text, left=None, either=tuple(groups))
+
+    def _resolve(self, expr: Expr, spec, text, scope, line) -> Expr | None:
         resolved = []
         for r in (expr.left, expr.right):
             if r is None:
@@ -1164,7 +1214,7 @@ class _Compiler:
                     self.error(f"condition {text!r}: {expr.op} compares numbers, not {r.value!r}",
                                spec.file, line)
                     return None
-        return Expr(text=text, left=resolved[0], op=expr.op, right=resolved[1],
+        return Expr(text=expr.text, left=resolved[0], op=expr.op, right=resolved[1],
                     negate=expr.negate)
 
     def node_condition(self, spec, data, scope):

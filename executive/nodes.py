@@ -262,7 +262,19 @@ _OPS: dict[str, Callable[[Any, Any], bool]] = {
 
 
 def evaluate(expr: Expr, read: Reader) -> tuple[bool, str]:
-    """Evaluate a parsed condition; an unset key or an impossible comparison is False."""
+    """Evaluate a parsed condition; an unset key or an impossible comparison is False.
+    ``&&`` and ``||`` short-circuit left to right; the message is the part that decided."""
+    if expr.either:
+        message = ""
+        for group in expr.either:
+            ok = True
+            for part in group:
+                ok, message = evaluate(part, read)
+                if not ok:
+                    break
+            if ok:
+                return True, message
+        return False, message
     left = read(expr.left)
     if left is MISSING:
         return False, f"{expr.text}: not set"

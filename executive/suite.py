@@ -956,6 +956,9 @@ def report(results: list[dict], cases: Optional[list] = None) -> dict:
     return {
         "scenarios": len(cases) if cases is not None else len(rs),
         "results": len(rs),
+        # Warm-up runs (learned: false) fill the learned search order; the tables count
+        # the others.
+        "warmup_runs": len(rs) - len(main),
         "per_mission": per_mission,
         "per_home": dict(per_home),
         "wrong_success": {
@@ -986,6 +989,15 @@ def _counts(rs: list[dict]) -> dict:
             "unachievable": len(una), "unachievable_correct": sum(bool(r["correct"]) for r in una),
             "wrong_success": sum(bool(r.get("wrong_success")) for r in rs),
             "errors": sum(bool(r.get("error")) or r["outcome"] == "error" for r in rs)}
+
+
+def headline(rep: dict, ran: int, wall_s: float, resumed: int = 0) -> str:
+    """The first line of a suite's report: the scenarios its tables count (warm-up runs
+    apart), how many ran now, where and how long."""
+    warm = rep.get("warmup_runs", 0)
+    return (f"{rep['results'] - warm} scenarios" + (f" and {warm} warm-up runs" if warm else "")
+            + f" ({ran} run now on {rep['engine']} in {wall_s:.1f} s"
+            + (f", {resumed} from the results file" if resumed else "") + ")")
 
 
 def render_text(rep: dict, top: int = 5) -> str:

@@ -89,3 +89,51 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     T = np.eye(4)
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, eye
     return T
+
+
+def register_depth(depth_depth: np.ndarray, K_depth: Intrinsics, K_color: Intrinsics,
+                   T_color_depth: np.ndarray) -> np.ndarray:
+    """A depth image (metres, 0 = no reading) of the depth camera, as the colour camera sees
+    it: each reading back-projected with ``K_depth``, moved into the colour frame by
+    ``T_color_depth`` and projected with ``K_color`` into a ``K_color``-sized image. As a
+    RealSense driver's aligned_depth_to_color does (librealsense's align), a depth pixel
+    covers the colour pixels whose centres lie between the projections of its two corners,
+    so a depth camera of coarser pixels leaves no holes; the nearest reading wins a pixel. Pixels no reading
+    reaches are 0."""
+    d = np.asarray(depth_depth, dtype=np.float64)
+    v, u = np.nonzero(np.isfinite(d) & (d > 0))
+    out = np.full(K_color.height * K_color.width, np.inf, dtype=np.float32)
+    if not len(u):
+        return np.zeros((K_color.height, K_color.width), dtype=np.float32)
+    z = d[v, u]
+    T = np.asarray(T_color_depth, dtype=float)
+    corners = []
+    for off in (-0.5, 0.5):
+        p = np.stack([(u + off - K_depth.cx) * z / K_depth.fx,
+                      (v + off - K_depth.cy) * z / K_depth.fy, z], axis=1)
+        pc = p @ T[:3, :3].T + T[:3, 3]
+        uv, front = project(pc, K_color)
+        corners.append((uv, front, pc[:, 2]))
+    (a, fa, za), (b, fb, zb) = corners
+    # The colour pixels whose centres lie in the footprint [low, high): footprints of
+    # neighbouring depth pixels share their corners, so they tile without gaps or overlaps.
+    x0 = np.ceil(np.minimum(a[:, 0], b[:, 0])).astype(np.int64)
+    x1 = np.ceil(np.maximum(a[:, 0], b[:, 0])).astype(np.int64) - 1
+    y0 = np.ceil(np.minimum(a[:, 1], b[:, 1])).astype(np.int64)
+    y1 = np.ceil(np.maximum(a[:, 1], b[:, 1])).astype(np.int64) - 1
+    zc = (0.5 * (za + zb)).astype(np.float32)
+    ok = fa & fb & (x1 >= 0) & (x0 < K_color.width) & (y1 >= 0) & (y0 < K_color.height)
+    # A footprint is a few colour pixels wide at most: wider ones (a reading seen edge-on, or
+    # a far smaller colour pixel) are clipped to 4 so that one reading cannot paint a wall.
+    span = 4
+    x0, y0, zc = x0[ok], y0[ok], zc[ok]
+    x1 = np.minimum(x1[ok], x0 + span - 1)
+    y1 = np.minimum(y1[ok], y0 + span - 1)
+    for dy in range(span):
+        for dx in range(span):
+            x, y = x0 + dx, y0 + dy
+            m = (x <= x1) & (y <= y1) & (x >= 0) & (x < K_color.width) & (y >= 0) & \
+                (y < K_color.height)
+            np.minimum.at(out, y[m] * K_color.width + x[m], zc[m])
+    out[~np.isfinite(out)] = 0.0
+    return out.reshape(K_color.height, K_color.width)

@@ -16,6 +16,7 @@ Each one reads the map or formats words; none holds an algorithm:
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -250,6 +251,29 @@ class SetValue(Skill):
         return S.SUCCESS
 
 
+class Wait(Skill):
+    """Wait ``seconds`` of clock time (simulated or wall), then succeed: BehaviorTree.CPP's
+    ``Delay`` and ``Sleep`` on import."""
+
+    NAME = "Wait"
+    DESCRIPTION = "wait a number of seconds"
+    INPUTS = (Port("seconds", "number", description="how long, in seconds of clock time"),)
+
+    def initialise(self) -> None:
+        self._until = None
+
+    def update(self) -> S:
+        now = self.clock.now() if self.clock is not None else time.monotonic()
+        if self._until is None:
+            self._until = now + float(self.input("seconds"))
+        left = self._until - now
+        if left > 0:
+            self.feedback_message = f"{left:.1f} s to wait"
+            return S.RUNNING
+        self.feedback_message = "waited"
+        return S.SUCCESS
+
+
 class DescribeCorrection(Skill):
     """A localisation correction {dx, dy, dyaw} in words: "4.2 cm and 1.0 degrees"."""
 
@@ -268,7 +292,7 @@ class DescribeCorrection(Skill):
 
 
 __all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
-           "Remember", "SetValue", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
+           "Remember", "SetValue", "Wait", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
 
 
 def look_target(world, target: Any, focus: str = "centre"):

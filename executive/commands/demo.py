@@ -25,6 +25,9 @@ DEMO_MISSIONS = (
 )
 
 
+#: Map updates that say where an object was seen (not HandOver, which puts it down).
+FOUND_BY = ("UpdateObjectLocation", "DetectObject")
+
 def register(sub) -> None:
     p = add_command(sub, "demo", __doc__,
                     help="run the three named missions on the simulated demo home")
@@ -137,6 +140,16 @@ def _run(args) -> int:
     ex.subscribe(track)
     progress = _Progress(args.quiet)
     ex.subscribe(progress)
+    # Where each object was found, taken when the map learns it: a fetch then carries the
+    # object to the user, and the map's final pose is the hand-over place.
+    found: dict[str, tuple[float, float]] = {}
+
+    def where_found(change) -> None:
+        if change.source in FOUND_BY and change.node in belief:
+            p = belief.T_world(change.node)[:2, 3]
+            found[belief.label(change.node)] = (float(p[0]), float(p[1]))
+    belief.subscribe(where_found)
+
     rows = []
     for file, params, why in DEMO_MISSIONS:
         t_sim, t_wall = clock.now(), time.perf_counter()
@@ -156,12 +169,6 @@ def _run(args) -> int:
 
     # What changed in the map.
     changes = belief.history()[history_start:]
-    found = {}
-    for h in changes:
-        if h.field == "parent" or h.source == "UpdateObjectLocation":
-            if h.node in belief:
-                p = belief.T_world(h.node)[:2, 3]
-                found[belief.label(h.node)] = (float(p[0]), float(p[1]))
     stats = {s.object: {} for s in belief.apartment.search_stats}
     for s in belief.apartment.search_stats:
         stats[s.object][s.place] = f"{s.found}/{s.searched}"

@@ -22,7 +22,7 @@ def register(sub) -> None:
                            description="Draw any world top-down (rooms where their poses put "
                                        "them, large objects, parking positions, small objects).")
     draw.add_argument("world", metavar="WORLD")
-    draw.add_argument("--out", required=True, metavar="PNG", help="the PNG file to write")
+    draw.add_argument("-o", "--out", required=True, metavar="PNG", help="the PNG file to write")
     draw.add_argument("--px-per-m", type=int, default=90, help="pixels per metre (default 90)")
     draw.set_defaults(func=_draw)
 

@@ -43,12 +43,15 @@ def add_groot2_arguments(p) -> None:
                         "has no authentication)")
 
 
-def start_groot2(args, executive):
-    """The Groot2 publisher asked for by --groot2 (None when not asked)."""
+def start_groot2(args, executive, mission=None):
+    """The Groot2 publisher asked for by --groot2 (None when not asked), showing
+    ``mission``'s tree until its run starts."""
     if args.groot2 is None:
         return None
     from executive.groot2 import Groot2Publisher
     pub = Groot2Publisher(executive, port=args.groot2, host=args.groot2_host)
+    if mission is not None:
+        pub.show(mission)
     print(f"groot2: publishing on tcp://{args.groot2_host}:{pub.port} (and {pub.port + 1})",
           file=sys.stderr, flush=True)
     return pub
@@ -63,7 +66,7 @@ def _run(args) -> int:
         sink.attach(ex)
         if simulated:                      # a simulated run is over in seconds: wait for a viewer
             sink.wait_for_viewer(args.foxglove_wait)
-    pub = start_groot2(args, ex)
+    pub = start_groot2(args, ex, mission)
     try:
         result = run_to_end(ex, mission, params, quiet=args.quiet, verbose=args.verbose)
         if pub is not None and args.groot2_linger > 0:

@@ -114,8 +114,7 @@ def _run(args) -> int:
     if args.json:
         print(json.dumps(rep, sort_keys=True, default=str))
     else:
-        print(f"{rep['results']} scenarios ({ran} run now on {rep['engine']} in {wall:.1f} s"
-              + (f", {len(done)} from the results file" if done else "") + ")")
+        print(suite.headline(rep, ran, wall, len(done)))
         print(suite.render_text(rep))
         print(f"\nWrote {results.path}, {out / 'report.json'}, {png}")
     return 1 if rep["problems"] else 0

@@ -88,9 +88,11 @@ def prepare(xml: str) -> tuple[str, dict[str, tuple[str, set[str]]]]:
 
 
 def standin_tree(xml: str, leaf: Callable[[Any], Any] | None = None,
-                 stateful: dict[str, tuple[Callable, Callable]] | None = None) -> StandinTree:
+                 stateful: dict[str, tuple[Callable, Callable]] | None = None,
+                 blackboard: Any = None) -> StandinTree:
     """Load ``xml`` (``hearth export`` output) in BT.CPP's factory with stand-ins from its
-    model. ``leaf(node)`` is what a plain stand-in leaf returns (default SUCCESS);
+    model (on ``blackboard``, a behaviortreepy Blackboard, when given). ``leaf(node)`` is
+    what a plain stand-in leaf returns (default SUCCESS);
     ``stateful`` maps a node ID to (on_start, on_running) for stateful stand-ins. Raises
     RuntimeError (BT.CPP's own message) when the factory refuses the tree."""
     import behaviortreepy as bt
@@ -116,7 +118,7 @@ def standin_tree(xml: str, leaf: Callable[[Any], Any] | None = None,
             factory.register_simple_decorator(tid, lambda status, node: status)
         else:
             raise RuntimeError(f"{tid}: behaviortreepy cannot register a Python control node")
-    out.tree = factory.create_tree_from_text(prepared)
+    out.tree = factory.create_tree_from_text(prepared, blackboard)
     return out
 
 

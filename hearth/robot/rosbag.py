@@ -11,8 +11,10 @@ docs/ros2-foxglove.md for the topics, the mapping and what is refused.
 - ``BagRecording``: a bag read and checked whole when opened, shaped like
   ``hearth.robot.recording.Recording`` so that ``ReplayRobot`` serves it. Every depth image
   (``16UC1`` millimetres or ``32FC1`` metres) is paired with the colour image (``rgb8`` or
-  ``bgr8``) nearest in stamp; colour and depth must be registered (same frame and size).
-  Its camera and base poses are looked up in tf at the image's stamp, interpolated.
+  ``bgr8``, or ``CompressedImage`` jpeg/png and compressedDepth) nearest in stamp; depth
+  not registered to colour is registered from both camera_infos and tf, distortion is
+  undone with OpenCV. Its camera and base poses are looked up in tf at the image's stamp,
+  interpolated.
 - ``BagWriter``: what ``RecordingRobot(..., format="mcap")`` writes: the standard topics
   (``sensor_msgs/msg/Image``, ``CameraInfo``, ``tf2_msgs/msg/TFMessage``) and Hearth's extras
   on their own topics with their own message definitions (``hearth_msgs/msg/...``).
@@ -39,11 +41,21 @@ from worldmodel.pose import Pose
 
 INSTALL = "pip install 'hearth[ros]' (rosbags, mcap, mcap-ros2-support, foxglove-sdk)"
 
-#: Default topics, tried in order when the mapping does not name one (registered depth first).
+#: Default topics, tried in order when the mapping does not name one (registered depth first,
+#: raw before compressed).
 DEPTH_TOPICS = ("/camera/aligned_depth_to_color/image_raw", "/camera/depth_registered/image_raw",
-                "/camera/depth_registered/image_rect", "/camera/depth/image_raw")
-COLOR_TOPICS = ("/camera/color/image_raw", "/camera/rgb/image_raw", "/camera/rgb/image_rect_color")
+                "/camera/depth_registered/image_rect", "/camera/depth/image_raw",
+                "/camera/depth/image_rect_raw",
+                "/camera/aligned_depth_to_color/image_raw/compressedDepth",
+                "/camera/depth/image_rect_raw/compressedDepth")
+COLOR_TOPICS = ("/camera/color/image_raw", "/camera/rgb/image_raw", "/camera/rgb/image_rect_color",
+                "/camera/color/image_raw/compressed", "/camera/color/image_rect_color/compressed")
 INFO_TOPICS = ("/camera/color/camera_info", "/camera/rgb/camera_info")
+#: The depth camera's own info, needed only when depth is not registered to colour.
+DEPTH_INFO_TOPICS = ("/camera/depth/camera_info", "/camera/aligned_depth_to_color/camera_info")
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+#: Distortion models OpenCV undistorts (ROS's plumb_bob is OpenCV's 5 coefficients).
+DISTORTION_MODELS = ("plumb_bob", "rational_polynomial", "")
 #: What Hearth writes (and reads back).
 WRITE = dict(depth="/camera/depth/image_raw", color="/camera/color/image_raw",
              camera_info="/camera/color/camera_info", tf="/tf", tf_static="/tf_static")
@@ -132,6 +144,7 @@ class TopicMap:
     depth: Optional[str] = None
     color: Optional[str] = None
     camera_info: Optional[str] = None
+    depth_info: Optional[str] = None
     map_frame: str = MAP_FRAME
     base_frame: str = BASE_FRAME
     camera_frame: Optional[str] = None
@@ -309,6 +322,47 @@ class _Image:
     width: int
     height: int
     encoding: str
+    compressed: bool = False
+
+
+@dataclass(frozen=True)
+class _Camera:
+    """A camera_info: pinhole intrinsics and the distortion OpenCV undistorts (None: none)."""
+    K: Any
+    D: Optional[np.ndarray]
+    model: str
+
+
+def decode_compressed(msg, what: str) -> np.ndarray:
+    """A ``sensor_msgs/CompressedImage`` as an array: colour (jpeg/png) as RGB uint8; depth
+    as metres (float32, 0 = no reading) from ``compressed_depth_image_transport``'s format
+    (a 12-byte header, then a PNG of 16UC1 millimetres, or of quantised inverse depth for
+    32FC1). ValueError when it does not decode."""
+    import cv2
+    fmt = str(msg.format)
+    data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+    if "compressedDepth" in fmt:
+        if data.size <= 12:
+            raise ValueError("a compressedDepth image shorter than its 12-byte header")
+        quant_a, quant_b = np.frombuffer(data[4:12].tobytes(), dtype="<f4")
+        raw = cv2.imdecode(data[12:], cv2.IMREAD_UNCHANGED)
+        if raw is None or raw.dtype != np.uint16 or raw.ndim != 2:
+            raise ValueError(f"the compressedDepth PNG does not decode ({fmt})")
+        if fmt.split(";")[0].strip() == "32FC1":
+            v = raw.astype(np.float32)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.where(v > 0, quant_a / (v - quant_b), 0.0).astype(np.float32)
+            z[~np.isfinite(z) | (z < 0)] = 0
+            return z
+        return raw.astype(np.float32) * np.float32(0.001)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"the {what} image does not decode ({fmt or 'no format'})")
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    if img.dtype != np.uint8:
+        img = (img >> 8).astype(np.uint8)
+    return np.ascontiguousarray(img[..., 2::-1])      # OpenCV decodes BGR(A)
 
 
 class BagRecording:
@@ -385,20 +439,26 @@ class BagRecording:
         depth_t = self._pick("depth", m.depth, DEPTH_TOPICS, present)
         color_t = self._pick("color", m.color, COLOR_TOPICS, present)
         info_t = self._pick("camera_info", m.camera_info, INFO_TOPICS, present)
-        for topic, want in ((depth_t, "sensor_msgs/msg/Image"), (color_t, "sensor_msgs/msg/Image"),
-                            (info_t, "sensor_msgs/msg/CameraInfo"),
-                            (m.tf, "tf2_msgs/msg/TFMessage"), (m.tf_static, "tf2_msgs/msg/TFMessage")):
-            if topic in present and present[topic] != want:
-                raise _Bad(f"topic {topic} is {present[topic]}; Hearth reads {want} there"
-                           + (" (raw images only, not compressed)" if "Image" in want else ""))
+        depth_info_t = m.depth_info or next((t for t in DEPTH_INFO_TOPICS if t in present
+                                             and t != info_t), None)
+        if m.depth_info is not None and m.depth_info not in present:
+            raise _Bad(f"no depth_info topic {m.depth_info} in the bag")
+        for topic, want in ((depth_t, IMAGE_TYPES), (color_t, IMAGE_TYPES),
+                            (info_t, ("sensor_msgs/msg/CameraInfo",)),
+                            (depth_info_t, ("sensor_msgs/msg/CameraInfo",)),
+                            (m.tf, ("tf2_msgs/msg/TFMessage",)),
+                            (m.tf_static, ("tf2_msgs/msg/TFMessage",))):
+            if topic in present and present[topic] not in want:
+                raise _Bad(f"topic {topic} is {present[topic]}; Hearth reads "
+                           f"{' or '.join(want)} there")
         if m.tf not in present and m.tf_static not in present:
             raise _Bad(f"no tf: neither {m.tf} nor {m.tf_static} is in the bag")
         self._conn = {t: [c for c in r.connections if c.topic == t] for t in (depth_t, color_t)}
         self._topic = dict(depth=depth_t, color=color_t)
-        wanted = {depth_t, color_t, info_t, m.tf, m.tf_static, *EXTRAS.values()}
+        wanted = {depth_t, color_t, info_t, depth_info_t, m.tf, m.tf_static, *EXTRAS.values()}
         conns = [c for c in r.connections if c.topic in wanted]
         tf = TfBuffer(int(m.tf_tolerance * 1e9))
-        depth, color, info = [], [], None
+        depth, color, info, depth_info = [], [], None, None
         extras: dict[str, list] = {k: [] for k in EXTRAS}
         topic_of = {v: k for k, v in EXTRAS.items()}
         for conn, log_ns, raw in r.messages(connections=conns):
@@ -414,12 +474,17 @@ class BagRecording:
                     tf.add(ts.header.frame_id, ts.child_frame_id, _stamp(ts.header),
                            (tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w), topic == m.tf_static)
             elif topic == depth_t:
-                depth.append(self._check_image(msg, log_ns, topic, DEPTH_ENCODINGS, "depth"))
+                depth.append(self._check_image(msg, log_ns, topic, DEPTH_ENCODINGS, "depth",
+                                               depth[0] if depth else None))
             elif topic == color_t:
-                color.append(self._check_image(msg, log_ns, topic, COLOR_ENCODINGS, "colour"))
+                color.append(self._check_image(msg, log_ns, topic, COLOR_ENCODINGS, "colour",
+                                               color[0] if color else None))
             elif topic == info_t:
                 if info is None:
                     info = self._camera_info(msg, topic)
+            elif topic == depth_info_t:
+                if depth_info is None:
+                    depth_info = self._camera_info(msg, topic)
             elif topic in topic_of:
                 extras[topic_of[topic]].append(msg)
         if info is None:
@@ -428,10 +493,27 @@ class BagRecording:
             raise _Bad(f"topic {depth_t} has no image")
         if not color:
             raise _Bad(f"topic {color_t} has no image")
-        self.intrinsics = info
+        self.intrinsics = info.K
+        self._color_camera = info
+        self._depth_camera = depth_info
+        self._depth_info_topic = depth_info_t
+        self._tf = tf
         self._pair(depth, color, tf, extras)
 
-    def _check_image(self, msg, log_ns: int, topic: str, encodings, what: str) -> _Image:
+    def _check_image(self, msg, log_ns: int, topic: str, encodings, what: str,
+                     first: Optional[_Image]) -> _Image:
+        if not hasattr(msg, "encoding"):            # CompressedImage: sizes from the first
+            if first is None:
+                try:
+                    a = decode_compressed(msg, what)
+                except ValueError as err:
+                    raise _Bad(f"topic {topic}: the image at {log_ns * 1e-9:.3f} s: {err}") \
+                        from None
+                h, w = a.shape[:2]
+            else:
+                w, h = first.width, first.height
+            return _Image(log_ns, _stamp(msg.header), str(msg.header.frame_id), w, h,
+                          str(msg.format), compressed=True)
         enc = str(msg.encoding)
         if enc not in encodings:
             raise _Bad(f"topic {topic}: {what} encoding {enc!r} is not supported (Hearth reads "
@@ -452,31 +534,52 @@ class BagRecording:
         except (IndexError, ValueError, OverflowError):
             raise _Bad(f"topic {topic}: camera info has no usable K matrix") from None
         d = np.asarray(msg.d, dtype=float)
-        if d.size and (not np.isfinite(d).all() or np.abs(d).max() > 1e-9):
-            raise _Bad(f"topic {topic}: the images are distorted ({msg.distortion_model} "
-                       f"{np.round(d, 4).tolist()}); Hearth replays rectified images only "
-                       "(e.g. the driver's image_rect topics)")
-        return K
+        model = str(msg.distortion_model)
+        if d.size and not np.isfinite(d).all():
+            raise _Bad(f"topic {topic}: distortion coefficients are not finite")
+        if not d.size or np.abs(d).max() <= 1e-9:
+            return _Camera(K, None, model)
+        if model not in DISTORTION_MODELS or d.size not in (4, 5, 8, 12, 14):
+            raise _Bad(f"topic {topic}: distortion model {model!r} with {d.size} coefficients "
+                       "is not one OpenCV undistorts (plumb_bob, rational_polynomial)")
+        return _Camera(K, d, model)
 
     def _pair(self, depth: list, color: list, tf: TfBuffer, extras: dict) -> None:
         m, K = self.topics, self.intrinsics
         d0, c0 = depth[0], color[0]
-        if d0.frame_id != c0.frame_id or (d0.width, d0.height) != (c0.width, c0.height):
-            raise _Bad(f"depth {self._topic['depth']} (frame {d0.frame_id}, {d0.width}x"
-                       f"{d0.height}) is not registered to colour {self._topic['color']} (frame "
-                       f"{c0.frame_id}, {c0.width}x{c0.height}): Hearth replays depth registered "
-                       "to the colour camera (same frame and size, e.g. the driver's "
-                       "aligned_depth_to_color topic)")
-        for img, topic in ((d0, self._topic["depth"]), (c0, self._topic["color"])):
+        # Depth in the colour camera's frame and size is registered; otherwise it is moved
+        # into the colour camera with both camera_infos and tf (perception.camera.
+        # register_depth), as a RealSense driver's aligned_depth_to_color does.
+        self._registered = d0.frame_id == c0.frame_id and \
+            (d0.width, d0.height) == (c0.width, c0.height)
+        if not self._registered:
+            if self._depth_camera is None:
+                raise _Bad(f"depth {self._topic['depth']} (frame {d0.frame_id}, {d0.width}x"
+                           f"{d0.height}) is not registered to colour {self._topic['color']} "
+                           f"(frame {c0.frame_id}, {c0.width}x{c0.height}) and the bag has no "
+                           f"depth camera_info ({', '.join(DEPTH_INFO_TOPICS)}) to register it "
+                           "with; name it with --topics depth_info=TOPIC")
+            if not tf.connected(c0.frame_id, d0.frame_id):
+                raise _Bad(f"no tf between the colour frame {c0.frame_id} and the depth frame "
+                           f"{d0.frame_id}: depth cannot be registered to colour")
+            Kd = self._depth_camera.K
+            if (d0.width, d0.height) != (Kd.width, Kd.height):
+                raise _Bad(f"topic {self._topic['depth']}: images are {d0.width}x{d0.height}, "
+                           f"the depth camera info says {Kd.width}x{Kd.height}")
+        checks = ((c0, self._topic["color"]),) if not self._registered else \
+            ((d0, self._topic["depth"]), (c0, self._topic["color"]))
+        for img, topic in checks:
             if (img.width, img.height) != (K.width, K.height):
                 raise _Bad(f"topic {topic}: images are {img.width}x{img.height}, the camera "
                            f"info says {K.width}x{K.height}")
-        for imgs, topic in ((depth, self._topic["depth"]), (color, self._topic["color"])):
+        for imgs, topic, i0 in ((depth, self._topic["depth"], d0),
+                                (color, self._topic["color"], c0)):
             for img in imgs:
-                if (img.frame_id, img.width, img.height) != (d0.frame_id, d0.width, d0.height):
+                if (img.frame_id, img.width, img.height) != (i0.frame_id, i0.width, i0.height):
                     raise _Bad(f"topic {topic}: an image at {img.log_ns * 1e-9:.3f} s changes "
                                f"frame or size ({img.frame_id}, {img.width}x{img.height})")
-        camera = m.camera_frame or d0.frame_id
+        camera = m.camera_frame or c0.frame_id
+        self._color_frame, self._depth_frame = c0.frame_id, d0.frame_id
         for frame in (m.map_frame, m.base_frame, camera):
             if frame not in tf.frames():
                 raise _Bad(f"no frame {frame} in tf (tf has: {', '.join(sorted(tf.frames()))})")
@@ -566,6 +669,18 @@ class BagRecording:
         if msg is None:
             raise RobotError(f"topic {topic}: the image at {img.log_ns * 1e-9:.3f} s is gone",
                              file=str(self.path))
+        if img.compressed:
+            try:
+                a = decode_compressed(msg, "depth" if topic == self._topic["depth"] else
+                                      "colour")
+            except ValueError as err:
+                raise RobotError(f"topic {topic}: the image at {img.log_ns * 1e-9:.3f} s: {err}",
+                                 file=str(self.path)) from None
+            if a.shape[:2] != (img.height, img.width):
+                raise RobotError(f"topic {topic}: the image at {img.log_ns * 1e-9:.3f} s is "
+                                 f"{a.shape[1]}x{a.shape[0]}, not {img.width}x{img.height}",
+                                 file=str(self.path))
+            return a
         data = np.asarray(msg.data, dtype=np.uint8)
         h, w, step = img.height, img.width, int(msg.step)
         rows = data.reshape(h, step)
@@ -585,11 +700,50 @@ class BagRecording:
         """Capture ``i`` as a Frame (depth in metres, 0 = no reading; colour RGB)."""
         c = self.captures[i]
         d, col = self._images[i]
-        return Frame(color=self._image(col, self._topic["color"]),
-                     depth=self._image(d, self._topic["depth"]), intrinsics=self.intrinsics,
+        color = self._image(col, self._topic["color"])
+        depth = self._image(d, self._topic["depth"])
+        if not self._registered:
+            cam = self._depth_camera
+            if cam.D is not None:
+                depth = _undistort(depth, cam, nearest=True)
+            T_color_depth = self._tf.lookup(self._color_frame, self._depth_frame, d.stamp_ns)
+            from perception.camera import register_depth
+            depth = register_depth(depth, cam.K, self.intrinsics, T_color_depth)
+            if self._color_camera.D is not None:
+                # register_depth projected with the pinhole model: move it to where the
+                # distorted colour pixels are, so that both are undistorted alike below.
+                depth = _distort(depth, self._color_camera)
+        if self._color_camera.D is not None:
+            color = _undistort(color, self._color_camera, nearest=False)
+            depth = _undistort(depth, self._color_camera, nearest=True)
+        return Frame(color=color, depth=depth, intrinsics=self.intrinsics,
                      T_world_camera=c.T_world_camera.copy(), timestamp=c.timestamp, pan=c.pan,
                      tilt=c.tilt, base_pose=c.base_pose, T_world_camera_true=c.T_world_camera_true,
                      base_pose_true=c.base_pose_true, parking=c.parking)
+
+
+def _undistort(img: np.ndarray, cam: _Camera, nearest: bool) -> np.ndarray:
+    """``img`` as the pinhole camera ``cam.K`` sees it (OpenCV's undistortion maps; nearest
+    neighbour for depth, so that no reading is blended with another or with a hole)."""
+    import cv2
+    K = cam.K.matrix()
+    mx, my = cv2.initUndistortRectifyMap(K, cam.D, None, K, (cam.K.width, cam.K.height),
+                                         cv2.CV_32FC1)
+    return cv2.remap(img, mx, my, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def _distort(img: np.ndarray, cam: _Camera) -> np.ndarray:
+    """The inverse of :func:`_undistort` for a depth image: a pinhole image resampled at the
+    distorted camera's pixels (each distorted pixel undistorted with cv2.undistortPoints)."""
+    import cv2
+    w, h = cam.K.width, cam.K.height
+    u, v = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
+    K = cam.K.matrix()
+    und = cv2.undistortPoints(pts, K, cam.D, P=K).reshape(h, w, 2)
+    return cv2.remap(img, und[..., 0], und[..., 1], cv2.INTER_NEAREST,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
 def _actions(msgs) -> list[dict]:

@@ -215,3 +215,23 @@ def test_serve_and_run_take_groot2_with_a_default_port():
     run = parser.parse_args(["run", "m.yaml", "--groot2", "1800", "--groot2-host", "0.0.0.0"])
     assert (run.groot2, run.groot2_host) == (1800, "0.0.0.0")
     assert parser.parse_args(["run", "m.yaml"]).groot2 is None
+
+
+def test_a_viewer_sees_the_mission_tree_before_its_run_starts_and_subtrees_by_name(tmp_path):
+    from executive.missionfile import load_mission
+    mission = load_mission(MISSIONS / "fetch_object.yaml")
+    ex = Executive(clock=SimClock(), make_skill=Substitution([], Script()), background=False,
+                   runs_dir=None)
+    with Groot2Publisher(ex, port=0) as pub:
+        pub.show(mission)                    # as `hearth run --groot2` does before submitting
+        raw = RawClient(pub.port)
+        reply = raw.ask("T")
+        assert reply[0] != b"error"
+        root = etree.fromstring(reply[1])
+        assert root.get("main_tree_to_execute") == "fetch_object"
+        calls = list(root.iter("SubTree"))
+        assert calls and all(c.get("name") and c.get("name") != "SubTree" for c in calls)
+        status = raw.ask("S")[1]
+        assert set(status[i + 2] for i in range(0, len(status), 3)) == {0}   # all idle
+        raw.close()
+    ex.shutdown()

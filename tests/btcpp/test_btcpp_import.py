@@ -169,8 +169,36 @@ BAD_CASES = {
           <NavigateTo target="kitchen_table"/>
         </RateController>
         """), 3, "Nav2's RateController"),
-    "script precondition": (bad('<Say text="hi" _skipIf="x == 1"/>\n'), 3,
-                            "_skipIf: BT.CPP pre/post-condition scripts are not supported"),
+    "skip at the root": (bad('<Say text="hi" _skipIf="x == 1"/>\n'), 3,
+                         "_skipIf: BT.CPP's SKIPPED has a Hearth reading only for a child of a "
+                         "Sequence or a Fallback"),
+    "script arithmetic": (bad("""\
+        <Sequence>
+          <Script code="x := 1"/>
+          <Script code="y := x + 1"/>
+        </Sequence>
+        """), 5, "<Script> code: cannot read 'y := x + 1': Hearth reads assignments of a "
+                 "literal or of another entry"),
+    "script parentheses": (bad("""\
+        <Sequence>
+          <Script code="x := 1"/>
+          <ScriptCondition code="(x == 1)"/>
+        </Sequence>
+        """), 5, "no arithmetic, no parentheses"),
+    "on halted": (bad("""\
+        <Sequence>
+          <Script code="x := 1"/>
+          <Say text="hi" _onHalted="x := 2"/>
+        </Sequence>
+        """), 5, "_onHalted: Hearth runs no node when a branch is halted"),
+    "model port the skill lacks": (
+        '<root BTCPP_format="4">\n  <BehaviorTree ID="m"><Say text="hi"/></BehaviorTree>\n'
+        '  <TreeNodesModel>\n    <Action ID="Say">\n'
+        '      <input_port name="text" type="string"/>\n'
+        '      <input_port name="volume" type="double"/>\n'
+        '    </Action>\n  </TreeNodesModel>\n</root>\n', 6,
+        "the model of Say declares port 'volume', which skill Say lacks (ports: text, values, "
+        "said)"),
     "key read but never written": (bad('<Say text="{nothing}"/>\n'), 3,
                                    "reads key {nothing} that nothing writes"),
     "literal of the wrong type": (bad('<RetryUntilSuccessful num_attempts="two">\n'

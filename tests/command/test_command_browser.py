@@ -453,3 +453,28 @@ def test_api_docs_load_from_this_server_with_no_network(server, chromium):
     page.call("Page.navigate", url=server.url + "/docs")
     assert page.wait_for('document.querySelectorAll(".opblock").length > 10', True)
     assert page.js('document.querySelector(".info .title")?.textContent').startswith("Hearth command API")
+
+
+def test_the_page_shows_the_running_run_and_autonomy_before_the_mission_catalogue(make_server,
+                                                                                  chromium):
+    """The mission catalogue compiles every mission and may take seconds; the page must not
+    say "no run yet" or autonomy 0 meanwhile while a mission runs."""
+    import threading
+    srv = make_server(granted=2)
+    run_id = srv.client.post("/api/runs", json={"mission": "wait_test"}).json()["run"]["id"]
+    release = threading.Event()
+    catalogue = srv.service.missions
+
+    def slow_catalogue():
+        release.wait(60)                       # held until the page has been checked
+        return catalogue()
+    srv.service.missions = slow_catalogue
+    try:
+        page = chromium(srv.url + "/")
+        assert page.wait_for(TEXT.format("run-mission"), "wait_test") == "wait_test"
+        assert page.js('document.getElementById("autonomy").value') == "2"
+        assert page.js('document.getElementById("autonomy").disabled') is False
+        assert not release.is_set()            # the catalogue has not answered yet
+    finally:
+        release.set()
+    srv.client.post(f"/api/runs/{run_id}/cancel", json={})

@@ -106,3 +106,13 @@ def test_the_installed_cli_shows_help_validates_and_runs_from_another_directory(
     assert ran.returncode == 0, ran.stderr
     assert ran.stdout.startswith("go_to_rest: succeeded") and ran.stderr == ""
     assert list((cwd / "runs").glob("*-go_to_rest-*.jsonl"))     # the log lands where we are
+
+
+def test_the_installed_export_writes_the_cpp_nodes_header(installed):
+    python, _, env, cwd = installed
+    mission = subprocess.run([str(python), "-c", "import hearth; print(hearth.missions_dir())"],
+                             capture_output=True, text=True, env=env, check=True).stdout.strip()
+    done = run(installed, "export", f"{mission}/go_to_rest.yaml", "-o", "rest.xml",
+               "--nodes-header", "hearth_nodes.hpp")
+    assert done.returncode == 0, done.stderr
+    assert "hearth::registerNodes" in (cwd / "hearth_nodes.hpp").read_text()

@@ -85,3 +85,89 @@ def planar(x: float, y: float, yaw: float) -> np.ndarray:
     T[:2, :2] = [[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]
     T[:2, 3] = x, y
     return T
+
+
+class RealSenseBag:
+    """A rosbag2 directory (MCAP storage) written with ``rosbags``' own writer and ROS 2
+    Humble's message types, laid out as a RealSense D4xx driver records: colour as a JPEG
+    ``CompressedImage`` with plumb-bob distortion, depth unregistered (16UC1 millimetres in
+    the depth camera's own frame and intrinsics) with its own camera_info, tf."""
+
+    def __init__(self, path):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_typestore
+        self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self.t = self.ts.types
+        self.w = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.w.open()
+        self.conns: dict = {}
+
+    def _write(self, topic: str, msgtype: str, msg, ns: int) -> None:
+        if topic not in self.conns:
+            self.conns[topic] = self.w.add_connection(topic, msgtype, typestore=self.ts)
+        self.w.write(self.conns[topic], ns, self.ts.serialize_cdr(msg, msgtype))
+
+    def _header(self, ns: int, frame: str):
+        return self.t["std_msgs/msg/Header"](
+            stamp=self.t["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000,
+                                                        nanosec=ns % 1_000_000_000),
+            frame_id=frame)
+
+    def image(self, topic: str, ns: int, frame: str, array: np.ndarray, encoding: str) -> None:
+        a = np.ascontiguousarray(array)
+        h, w = a.shape[:2]
+        self._write(topic, "sensor_msgs/msg/Image", self.t["sensor_msgs/msg/Image"](
+            header=self._header(ns, frame), height=h, width=w, encoding=encoding,
+            is_bigendian=0, step=a.nbytes // h,
+            data=np.frombuffer(a.tobytes(), dtype=np.uint8)), ns)
+
+    def jpeg(self, topic: str, ns: int, frame: str, rgb: np.ndarray, quality: int = 95) -> None:
+        import cv2
+        ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[..., ::-1]),
+                               [cv2.IMWRITE_JPEG_QUALITY, quality])
+        assert ok
+        self._write(topic, "sensor_msgs/msg/CompressedImage",
+                    self.t["sensor_msgs/msg/CompressedImage"](
+                        header=self._header(ns, frame), format="rgb8; jpeg compressed bgr8",
+                        data=buf.ravel().astype(np.uint8)), ns)
+
+    def camera_info(self, topic: str, ns: int, frame: str, K, d=(0.0,) * 5) -> None:
+        f64 = np.float64
+        self._write(topic, "sensor_msgs/msg/CameraInfo", self.t["sensor_msgs/msg/CameraInfo"](
+            header=self._header(ns, frame), height=K.height, width=K.width,
+            distortion_model="plumb_bob", d=np.asarray(d, f64),
+            k=np.array([K.fx, 0, K.cx, 0, K.fy, K.cy, 0, 0, 1], f64),
+            r=np.eye(3).ravel(), p=np.array([K.fx, 0, K.cx, 0, 0, K.fy, K.cy, 0, 0, 0, 1, 0], f64),
+            binning_x=0, binning_y=0, roi=self.t["sensor_msgs/msg/RegionOfInterest"](
+                x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)), ns)
+
+    def tf(self, ns: int, transforms: list, static: bool = False) -> None:
+        msgs = []
+        for tr in transforms:
+            t, q = tr["transform"]["translation"], tr["transform"]["rotation"]
+            stamp = tr["header"]["stamp"]
+            msgs.append(self.t["geometry_msgs/msg/TransformStamped"](
+                header=self._header(stamp["sec"] * 1_000_000_000 + stamp["nanosec"],
+                                    tr["header"]["frame_id"]),
+                child_frame_id=tr["child_frame_id"],
+                transform=self.t["geometry_msgs/msg/Transform"](
+                    translation=self.t["geometry_msgs/msg/Vector3"](x=t["x"], y=t["y"], z=t["z"]),
+                    rotation=self.t["geometry_msgs/msg/Quaternion"](x=q["x"], y=q["y"], z=q["z"],
+                                                                    w=q["w"]))))
+        self._write("/tf_static" if static else "/tf", "tf2_msgs/msg/TFMessage",
+                    self.t["tf2_msgs/msg/TFMessage"](transforms=msgs), ns)
+
+    def close(self) -> None:
+        self.w.close()
+
+
+def distort(img: np.ndarray, K, D) -> np.ndarray:
+    """What a camera with distortion ``D`` sees of the pinhole image ``img`` (intrinsics
+    ``K``): each distorted pixel samples the pinhole image where it undistorts to."""
+    import cv2
+    w, h = K.width, K.height
+    u, v = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
+    und = cv2.undistortPoints(pts, K.matrix(), np.asarray(D, float), P=K.matrix()).reshape(h, w, 2)
+    return cv2.remap(img, und[..., 0], und[..., 1], cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)

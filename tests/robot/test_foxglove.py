@@ -99,3 +99,37 @@ def test_the_run_as_foxglove_mcap_reads_back_with_the_mcap_tools(scenario, tmp_p
     assert trees[-1]["state"] == "succeeded"
     # a scene entity per object of the map, sent whole at the start
     assert counts["/map/objects"] >= 1
+
+
+def test_a_client_offering_only_foxglove_websocket_v1_gets_the_documented_answer(capsys):
+    """foxglove-sdk serves foxglove.sdk.v1 only: an older client (Foxglove Studio,
+    Lichtblick) is refused, and the user reads why in one line; the server's own
+    "Dropping client" line goes to the log, not to the mission's output."""
+    import asyncio
+    import time
+
+    websockets = pytest.importorskip("websockets")
+    from executive.foxglove import OLD_SUBPROTOCOL, REFUSED_HANDSHAKE, FoxgloveSink
+
+    sink = FoxgloveSink(port=0)
+    lines = []
+    sink.server_line = lambda level, name, text: lines.append(text)
+
+    async def connect() -> str:
+        try:
+            async with websockets.connect(f"ws://127.0.0.1:{sink.port}",
+                                          subprotocols=[OLD_SUBPROTOCOL], open_timeout=5):
+                return "connected"
+        except websockets.InvalidStatus as err:
+            return f"refused {err.response.status_code}"
+    try:
+        assert asyncio.run(connect()) == "refused 400"
+        t0 = time.monotonic()
+        while not any("handshake failed" in t for t in lines) and time.monotonic() - t0 < 5:
+            time.sleep(0.05)
+    finally:
+        sink.close()
+    err = capsys.readouterr().err
+    assert any("Dropping client" in t and "handshake failed" in t for t in lines)
+    assert err.strip() == REFUSED_HANDSHAKE
+    assert "Dropping client" not in err

@@ -685,10 +685,19 @@ function onEvent(kind, ev, seq) {
 let stream = null;
 async function start() {
   if (stream) { stream.close(); stream = null; }
-  const [st, missions] = await Promise.all([api("/state"), api("/missions")]);
-  catalogue = Object.fromEntries(missions.map(m => [m.name, m]));
+  // The state first: the mission catalogue (which compiles every mission) can take
+  // seconds, and until the state is here the page must not claim "no run yet" or
+  // autonomy 0 while a mission runs.
+  const missionsP = api("/missions");
+  const st = await api("/state");
   params = st.parameters || {};
   $("autonomy").value = String(st.granted_autonomy);
+  $("autonomy").disabled = false;
+  missionsP.then(missions => {
+    catalogue = Object.fromEntries(missions.map(m => [m.name, m]));
+    renderRun();
+    renderParams();
+  }).catch(e => notice("missions: " + e.message));
   approvals.clear();
   st.approvals.forEach(a => approvals.set(a.id, a));
   renderApprovals();
