@@ -493,3 +493,59 @@ def render_view(world, K: Intrinsics, T_world_camera, rng: Optional[np.random.Ge
                  timestamp=timestamp, T_world_camera_true=T_true.copy(), labels=clean.labels,
                  nodes=clean.nodes, owners=clean.owners, rendering=clean)
 
+
+
+# -- the benches' hooks ----------------------------------------------------------------------
+
+#: What ``--renderer`` of the knob and registration benches chooses from.
+RENDERERS = ("hearth", "mujoco")
+
+
+def add_renderer_argument(parser) -> None:  # pragma: no cover - argparse wiring
+    parser.add_argument("--renderer", choices=RENDERERS, default="hearth",
+                        help="draw the held-out frames with Hearth's ray caster (default) or "
+                             "MuJoCo's OpenGL renderer (the mujoco extra; "
+                             "docs/renderers-and-assets.md)")
+
+
+def scene_for(world, renderer: str = "hearth", states: Optional[dict] = None):
+    """A scene of ``world`` with ``render(K, T_world_camera)`` -> ``Rendering``: Hearth's
+    ray caster (``perception.render.Scene``) or a ``MujocoScene``."""
+    if renderer == "mujoco":
+        return MujocoScene(world, states)
+    from perception.render import Scene
+    from worldmodel.geometry import scene_meshes
+    return Scene(scene_meshes(world, states=states))
+
+
+class _KnobFrame:
+    """One held-out knob frame's scene: the MuJoCo model with every knob at its map angle
+    but ``angles``, and ``missing`` knobs hidden."""
+
+    def __init__(self, scene: MujocoScene, angles: dict, missing=()):
+        self.scene, self.angles, self.missing = scene, angles, tuple(missing)
+
+    def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0):
+        self.scene.set_states(self.angles)
+        self.scene.hide(self.missing)
+        try:
+            return self.scene.render(K, T_world_camera, max_range)
+        finally:
+            self.scene.hide()
+
+
+def knob_scenes(world, renderer: str = "hearth"):
+    """``perception.knob_data.KnobScenes`` of ``world`` whose frames (``scene(...).render``)
+    are drawn by ``renderer``; where a camera may stand (``placeable``) is decided on Hearth's
+    geometry either way, so both renderers get the same views."""
+    from perception.knob_data import KnobScenes
+    if renderer != "mujoco":
+        return KnobScenes(world)
+    mj = MujocoScene(world)
+    rest = {k.id: float(k.angle) for k in world.knobs()}
+
+    class MujocoKnobScenes(KnobScenes):
+        def scene(self, owner: str, angles: dict, missing: tuple = ()):
+            return _KnobFrame(mj, dict(rest, **{k: float(a) for k, a in angles.items()}), missing)
+
+    return MujocoKnobScenes(world)
