@@ -209,12 +209,12 @@ def _guess_type(stem: str) -> str:
 
 # -- the walk ------------------------------------------------------------------------------
 
-def _geoms(mm: _Model, out: Path, meshes: dict) -> dict[int, list[_Geom]]:
-    """Visual geoms by body, world frame at qpos0."""
+def _geoms(mm: _Model, out: Path, meshes: dict, bodies: set) -> dict[int, list[_Geom]]:
+    """Visual geoms of ``bodies`` by body, world frame at qpos0."""
     m, d = mm.m, mm.d
     by_body: dict[int, list[_Geom]] = {}
     for g in range(m.ngeom):
-        if not mm.visual(g):
+        if int(m.geom_bodyid[g]) not in bodies or not mm.visual(g):
             continue
         T = _T(d.geom_xpos[g], _quat_of(d.geom_xmat[g]))
         color = mm.geom_color(g)[:3]
@@ -312,7 +312,6 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
             raise WorldError(f"the model has no body {body!r} (bodies: {', '.join(names[:30])})",
                              file=str(path))
     meshes: dict = {}
-    geoms = _geoms(mm, out, meshes)
     children: dict[int, list[int]] = {}
     for b in range(1, m.nbody):
         children.setdefault(int(m.body_parentid[b]), []).append(b)
@@ -334,7 +333,7 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
         return np.vstack(ps) if ps else np.zeros((0, 3))
 
     in_root = set(subtree(root))
-    geoms = {b: g for b, g in geoms.items() if b in in_root}
+    geoms = _geoms(mm, out, meshes, in_root)
     all_pts = points(in_root)
     if len(all_pts) == 0:
         raise WorldError("the model has no visible geometry", file=str(path))
