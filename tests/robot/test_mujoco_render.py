@@ -18,10 +18,16 @@ pytestmark = pytest.mark.skipif(not _ok, reason=f"MuJoCo cannot render here: {_w
 
 @pytest.fixture(scope="module")
 def oven_view():
-    """The demo home, a 320x240 camera 1 m in front of and 0.4 m above its first knob."""
+    """The demo home's room with the oven (alone, to keep the scenes small), a 320x240 camera
+    1 m in front of and 0.4 m above its first knob."""
+    import dataclasses
     from worldmodel import load_world
+    from worldmodel.io import parse_world, to_xml
     from tests.conftest import DEMO_WORLD
-    world = load_world(DEMO_WORLD)
+    home = load_world(DEMO_WORLD)
+    room = home.room_of(home.knobs()[0].id)
+    one = dataclasses.replace(home.apartment, rooms=[room], history=[], search_stats=[])
+    world = parse_world(to_xml(one), "oven-room", base_dir=DEMO_WORLD.parent)
     knob = world.knobs()[0]
     T_k = world.T_world(knob.id)
     eye = T_k[:3, 3] + T_k[:3, 2] * 1.0 + np.array([0.0, 0.0, 0.4])
