@@ -422,7 +422,6 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
         grip, marker = _split_marker(vis, subtree(b), geoms)
         lo_j, hi_j = (float(m.jnt_range[j][0]), float(m.jnt_range[j][1])) if m.jnt_limited[j] \
             else (-math.pi, math.pi)
-        q0 = float(m.qpos0[m.jnt_qposadr[j]])
         off_q = min(max(0.0, lo_j), hi_j)
         end = hi_j if (hi_j - off_q) >= (off_q - lo_j) else lo_j
         if not m.jnt_limited[j]:
@@ -434,10 +433,11 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
         if m.jnt_limited[j]:
             turns = "counterclockwise" if sign * (end - off_q) > 0 else "clockwise"
         kid = new_id(mm.name(mm.mj.mjtObj.mjOBJ_BODY, b) or mm.name(mm.mj.mjtObj.mjOBJ_JOINT, j) or "knob")
-        del q0
+        symmetry = 1 if marker else _symmetry(pk, radius)
         return Knob(kid, Pose.from_matrix(np.linalg.inv(T_world_parent) @ T_wk), states, "off",
                     angle=sign * off_q, radius=max(radius, 0.005), depth=max(depth, 0.002),
-                    grip=Model(grip), marker=Model(marker) if marker else None, turns=turns)
+                    grip=Model(grip), marker=Model(marker) if marker else None, turns=turns,
+                    symmetry=symmetry if _separated(states, symmetry) else 1)
 
     def part(b: int, T_world_parent: np.ndarray) -> Part:
         j = joints[b]
@@ -506,6 +506,33 @@ def _front_yaw(front: str, knob_like: dict, m, joints, mm, lo, hi) -> float:
         side = np.argmax(np.abs(v))
         v = np.eye(2)[side] * np.sign(v[side])
     return -math.atan2(v[1], v[0])
+
+
+def _symmetry(points_knob: np.ndarray, radius: float) -> int:
+    """The most-fold turn (4, 3 or 2) about +z that maps the knob's surface points (knob
+    frame) onto themselves within 3 % of its radius, else 1."""
+    from scipy.spatial import cKDTree
+    if len(points_knob) < 8 or radius <= 0:
+        return 1
+    tree = cKDTree(points_knob)
+    for n in (4, 3, 2):
+        a = 2 * math.pi / n
+        R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+        d, _ = tree.query(points_knob @ R.T)
+        if float(np.percentile(d, 95)) <= 0.03 * radius:
+            return n
+    return 1
+
+
+def _separated(states: list[KnobState], symmetry: int) -> bool:
+    """Whether the states still look different when angles are only seen modulo the
+    symmetry (else the knob is declared without one; docs/world-format.md)."""
+    period = 2 * math.pi / symmetry
+    for i, a in enumerate(states):
+        for b in states[i + 1:]:
+            if abs(math.remainder(a.angle - b.angle, period)) < math.radians(1.0):
+                return False
+    return True
 
 
 def _split_marker(vis: list[Visual], bodies, geoms) -> tuple[list[Visual], list[Visual]]:

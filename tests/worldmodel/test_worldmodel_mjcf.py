@@ -34,6 +34,10 @@ OVEN = """<mujoco model="little_oven">
         <geom type="cylinder" size="0.02 0.01" pos="0.01 0 0" euler="0 1.5708 0" rgba="0.8 0.8 0.8 1" group="1"/>
         <geom type="box" size="0.002 0.003 0.012" pos="0.021 0 0.008" rgba="0.05 0.05 0.05 1" group="1"/>
       </body>
+      <body name="knob_bar" pos="0.3 -0.15 0.35">
+        <joint name="kb" type="hinge" axis="1 0 0" range="-1.5 0"/>
+        <geom type="box" size="0.008 0.004 0.018" pos="0.008 0 0" rgba="0.1 0.1 0.1 1" group="1"/>
+      </body>
       <body name="door" pos="0.3 -0.28 -0.1">
         <joint name="door_hinge" type="hinge" axis="0 0 1" range="-1.6 0"/>
         <geom type="box" size="0.01 0.28 0.3" pos="0.01 0.28 0" rgba="0.2 0.2 0.2 1" group="1"/>
@@ -57,7 +61,7 @@ def oven_world(tmp_path_factory):
 
 
 def test_a_small_hinge_is_a_knob_with_its_range_an_off_state_and_a_marker(oven_world):
-    [knob] = oven_world.knobs()
+    knob = oven_world.get("little_oven_knob_left")
     assert knob.off == "off" and knob.state == "off" and knob.angle == 0.0
     angles = [s.angle for s in knob.states]
     assert len(angles) == 4 and angles[0] == 0.0 and math.isclose(angles[-1], 3.0)
@@ -70,6 +74,13 @@ def test_a_small_hinge_is_a_knob_with_its_range_an_off_state_and_a_marker(oven_w
     obj = oven_world.large_object_of(knob.id)
     z_world = oven_world.T_world(knob.id)[:3, 2]
     assert float(z_world @ oven_world.T_world(obj.id)[:3, 0]) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_a_bar_knob_without_a_marker_is_symmetric_and_turns_the_way_its_range_goes(oven_world):
+    knob = oven_world.get("little_oven_knob_bar")
+    assert knob.marker is None and knob.symmetry == 2
+    assert knob.turns == "clockwise" and math.isclose(knob.states[-1].angle, -1.5)
+    assert oven_world.get("little_oven_knob_left").symmetry == 1      # its marker breaks it
 
 
 def test_large_hinges_are_doors_slides_drawers_and_handle_geoms_handles(oven_world):
@@ -107,7 +118,7 @@ def test_the_cli_writes_a_world_and_says_which_knobs(tmp_path, capsys):
     assert main(["home", "import-model", str(tmp_path / "little_oven.xml"),
                  "--out", str(tmp_path / "w")]) == 0
     out = capsys.readouterr().out
-    assert "1 knobs" in out and "knob little_oven_knob_left: off is 'off'" in out
+    assert "2 knobs" in out and "knob little_oven_knob_left: off is 'off'" in out
     assert main(["home", "import-model", str(tmp_path / "little_oven.xml"), "--body", "nope",
                  "--out", str(tmp_path / "w2")]) == 2
     assert "no body 'nope'" in capsys.readouterr().err
