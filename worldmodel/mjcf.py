@@ -15,6 +15,8 @@ the compiled model (docs/renderers-and-assets.md, "Importing a model"):
   "1", "2", ...); its shape: the geoms of its subtree, those of a colour far from the largest
   geom's (and smaller than it) its ``marker``, the rest its ``grip``; ``radius`` and ``depth``
   from that shape;
+- the front (towards the room, the object's +x): where the horizontal knob axes point, else
+  the model's -x (``--front`` to say);
 - any other hinge is a door, a slide joint a drawer (a ``Part`` with the joint's range and
   the part's state at ``qpos0`` clipped into it); a body or geom whose name says "handle"
   on a part becomes that part's ``Handle`` (bar along its longest side);
@@ -33,7 +35,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Optional
 
@@ -179,8 +181,9 @@ def import_model(path, out_dir, object_id: str = "", object_type: str = "",
                  name: str = "", front: str = "auto", body: str = "") -> Path:
     """Write ``out_dir/world.xml`` (and ``out_dir/meshes/``): a kitchen holding the MJCF
     model at ``path`` as an appliance (see the module's docstring). ``front``: the model's
-    axis ("+x", "-x", "+y", "-y") that faces the room, "auto": the mean horizontal knob axis,
-    else the side the doors open to, else -x. Returns the world file's path."""
+    axis ("+x", "-x", "+y", "-y") that faces the room, "auto": the side the horizontal knob
+    axes point to (knobs on a front panel), else -x (knobs on top: LIBERO's and Meta-World's
+    robots stand on the -x side). Returns the world file's path."""
     from worldmodel.io import atomic_write, load_world, to_xml
     path, out = Path(path), Path(out_dir)
     if not path.is_file():
@@ -373,7 +376,6 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
         return nid
 
     def visuals_in(bodies, T_frame_world) -> list[Visual]:
-        from dataclasses import replace
         outv = []
         for b in bodies:
             for g in geoms.get(b, []):
@@ -459,7 +461,6 @@ def _convert(mm: _Model, path: Path, out: Path, object_id: str, object_type: str
                 if "handle" in bname or "handle" in g.visual.name.lower():
                     handles.append(_handle(new_id("handle"), T_ow @ g.T, g))
                 else:
-                    from dataclasses import replace
                     vis.append(replace(g.visual, pose=Pose.from_matrix(T_ow @ g.T)))
         p = Part(pid, "door" if revolute else "drawer",
                  Joint("revolute" if revolute else "prismatic", origin=Pose.from_matrix(T_po),
