@@ -29,6 +29,7 @@ from typing import Optional
 
 import numpy as np
 
+from hearth.robot.errors import RobotError
 from perception.camera import Intrinsics
 
 #: The OpenGL back-end asked for when ``MUJOCO_GL`` is not set.
@@ -45,8 +46,9 @@ AMBIENT, DIFFUSE = 0.85 * 0.45, 0.85 * 0.55
 _HIDDEN_GROUP = 5                 # geoms of hidden nodes are moved to this (disabled) group
 
 
-class MujocoUnavailable(RuntimeError):
-    """MuJoCo is not installed or cannot render here (the reason in the message)."""
+class MujocoUnavailable(RobotError):
+    """MuJoCo is not installed or cannot render here (the reason in the message): a
+    ``RobotError``, so the CLI prints it as one line with exit status 2."""
 
 
 def _mujoco():
