@@ -114,3 +114,19 @@ def test_the_simulated_robot_draws_with_mujoco_when_asked(oven_view):
     ok = (a.depth > 0) & (b.depth > 0)
     # the same seed draws the same noise: the frames differ by rendering alone
     assert ok.mean() > 0.8 and np.median(np.abs(a.depth[ok] - b.depth[ok])) < 1e-3
+
+
+def test_the_knob_benchs_mujoco_views_are_the_same_views_drawn_by_mujoco():
+    """``--renderer mujoco`` of `hearth bench knobs`: the same poses, states and missing
+    knobs as Hearth's views of a seed, on a world converted from LIBERO's stove."""
+    from pathlib import Path
+    from perception.knob_data import KnobDataConfig, render_views
+    from worldmodel import load_world
+    world = load_world(Path(__file__).resolve().parents[1] / "assets" / "libero_flat_stove" / "world.xml")
+    data = KnobDataConfig(at_states=True, missing_rate=0.3)
+    hearth = render_views(world, 5, 7, data, scenes=mujoco_render.knob_scenes(world, "hearth"))
+    mj = render_views(world, 5, 7, data, scenes=mujoco_render.knob_scenes(world, "mujoco"))
+    for a, b in zip(hearth, mj):
+        assert (a.state, a.present, a.K) == (b.state, b.present, b.K)
+        ok = (a.depth > 0) & (b.depth > 0)
+        assert ok.mean() > 0.9 and np.median(np.abs(a.depth[ok] - b.depth[ok])) < 1e-4
