@@ -574,34 +574,41 @@ def _handle(hid: str, T_part_geom: np.ndarray, g: _Geom) -> Handle:
 
 def _kitchen(obj: LargeArticulatedObject, size) -> Apartment:
     """A 4 x 3.5 m kitchen with the appliance against its north wall, facing south (+x of
-    the object towards the room), on a counter when it is lower than one; a cupboard beside
-    it (a second landmark, so that a localisation fix is pinned along the wall too)."""
+    the object towards the room); one lower than 0.5 m (a cooktop) is set into a counter,
+    its front 3 cm behind the counter's edge, as stoves are. Parking positions in front of
+    it: 0.6 m from a standing appliance's front (as the demo home's oven), 0.45 m from the
+    counter's edge for a cooktop (a robot's camera 1.3 m up sees knobs on top of a 0.9 m
+    counter from within ~50 degrees of their axis there, from ~70 degrees a metre away).
+    A cupboard beside it: a second landmark, so that a localisation fix is pinned along the
+    wall too."""
     depth, height = max(float(size[0]), 0.05), float(size[2])
+    wall = 3.5 - 0.05
     on_counter = height < 0.5
-    z = COUNTER_HEIGHT if on_counter else 0.0
     yaw = -math.pi / 2                                     # object +x -> world -y
-    back = 3.5 - 0.05 - (0.1 if on_counter else 0.0)
-    obj.pose = Pose(2.0, back - depth / 2, z, 0.0, 0.0, yaw)
-    stand = depth / 2 + 0.9 + (0.25 if on_counter else 0.0)
-    obj.parking = [ParkingPosition(f"{obj.id}_front", Pose(stand, 0, 0, 0, 0, math.pi)),
-                   ParkingPosition(f"{obj.id}_left", Pose(stand, 0.3, 0, 0, 0, math.pi)),
-                   ParkingPosition(f"{obj.id}_right", Pose(stand, -0.3, 0, 0, 0, math.pi))]
-    obj.default_parking = obj.parking[0].id
     objects: list = []
     if on_counter:
-        cd = max(0.6, depth + 0.25)
+        cd = max(0.6, depth + 0.1)
         objects.append(LargeObject(
             id="counter", type="counter", name="counter",
-            pose=Pose(2.0, 3.5 - 0.05 - cd / 2, 0, 0, 0, yaw),
+            pose=Pose(2.0, wall - cd / 2, 0, 0, 0, yaw),
             model=Model([Visual("box", Pose(0, 0, (COUNTER_HEIGHT - 0.04) / 2),
                                 size=(cd, 1.6, COUNTER_HEIGHT - 0.04), color=(0.55, 0.42, 0.3)),
                          Visual("box", Pose(0, 0, COUNTER_HEIGHT - 0.02), size=(cd, 1.6, 0.04),
                                 color=(0.8, 0.8, 0.78), name="top")]),
-            parking=[ParkingPosition("counter_front", Pose(cd / 2 + 0.9, 0.5, 0, 0, 0, math.pi))],
+            parking=[ParkingPosition("counter_front", Pose(cd / 2 + 0.45, 0.5, 0, 0, 0, math.pi))],
             default_parking="counter_front"))
+        obj.pose = Pose(2.0, wall - cd + 0.03 + depth / 2, COUNTER_HEIGHT, 0.0, 0.0, yaw)
+        stand = depth / 2 + 0.03 + 0.45
+    else:
+        obj.pose = Pose(2.0, wall - depth / 2, 0.0, 0.0, 0.0, yaw)
+        stand = depth / 2 + 0.6
+    obj.parking = [ParkingPosition(f"{obj.id}_front", Pose(stand, 0, 0, 0, 0, math.pi)),
+                   ParkingPosition(f"{obj.id}_left", Pose(stand, 0.3, 0, 0, 0, math.pi)),
+                   ParkingPosition(f"{obj.id}_right", Pose(stand, -0.3, 0, 0, 0, math.pi))]
+    obj.default_parking = obj.parking[0].id
     objects.append(LargeObject(
         id="cupboard", type="cupboard", name="cupboard",
-        pose=Pose(0.45, 3.5 - 0.05 - 0.3, 0, 0, 0, yaw),
+        pose=Pose(0.45, wall - 0.3, 0, 0, 0, yaw),
         model=Model([Visual("box", Pose(0, 0, 0.45), size=(0.6, 0.8, 0.9), color=(0.9, 0.88, 0.82))]),
         parking=[ParkingPosition("cupboard_front", Pose(1.2, 0, 0, 0, 0, math.pi))],
         default_parking="cupboard_front"))
