@@ -424,10 +424,19 @@ class MujocoScene:
                          triangle_normals_camera=table_n)
 
     def close(self) -> None:
-        if self._con is not None:
-            _Context.get(1, 1)
-            self._con.free()
-            self._con = None
+        """Free the OpenGL resources (buffers, uploaded meshes) of this scene."""
+        con, self._con = getattr(self, "_con", None), None
+        if con is not None and getattr(self, "_ctx", None) is _Context.ctx and _Context.ctx is not None:
+            try:
+                _Context.ctx.make_current()
+                con.free()
+            except Exception:  # noqa: BLE001 - at interpreter exit GL may be gone already
+                pass
+
+    def __del__(self):
+        # The benches make a scene per truth they render (a moved object, opened doors):
+        # without this each would keep its off-screen buffers until the process ends.
+        self.close()
 
 
 _GRIDS: dict = {}
