@@ -259,7 +259,7 @@ def world_to_mjcf(world, width: int = 640, height: int = 480) -> MJCF:
         '<material name="shiny" specular="0.6" shininess="0.7"/>'
         f'{"".join(w.assets)}</asset>'
         '<worldbody>'
-        f'<light type="directional" castshadow="false" dir="{_f(L[0])} {_f(L[1])} {_f(L[2])}" '
+        f'<light directional="true" castshadow="false" dir="{_f(L[0])} {_f(L[1])} {_f(L[2])}" '
         f'pos="0 0 10" diffuse="{d} {d} {d}" specular="0.3 0.3 0.3" ambient="0 0 0"/>'
         + "".join(bodies) + "</worldbody></mujoco>")
     return MJCF(xml, w.labels, w.joints, w.states)
