@@ -12,7 +12,7 @@ $(STAMP): pyproject.toml constraints.txt scripts/sysdeps.sh
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -c constraints.txt -e '.[dev,btcpp,ros,ray,mujoco]'
 	scripts/sysdeps.sh $(VENV)
-	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, transitions, joblib, zmq, behaviortreepy, btview, ray"
+	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, transitions, joblib, zmq, behaviortreepy, btview, ray, mujoco"
 	@touch $(STAMP)
 
 install: $(STAMP)
