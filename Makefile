@@ -10,9 +10,9 @@ $(STAMP): pyproject.toml constraints.txt scripts/sysdeps.sh
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
 	  echo "make: could not create $(VENV); on Debian run: apt-get install -y python3-venv" >&2; exit 1; }
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c constraints.txt -e '.[dev,btcpp,ros,ray]'
+	$(PY) -m pip install -q -c constraints.txt -e '.[dev,btcpp,ros,ray,mujoco]'
 	scripts/sysdeps.sh $(VENV)
-	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, transitions, joblib, zmq, behaviortreepy, btview, ray"
+	$(PY) -c "import open3d, py_trees, cv2, sklearn, lxml, transitions, joblib, zmq, behaviortreepy, btview, ray, mujoco"
 	@touch $(STAMP)
 
 install: $(STAMP)

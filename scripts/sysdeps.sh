@@ -2,7 +2,8 @@
 # System packages from the distribution, installed when we are root (apt-get), otherwise named
 # in the exact apt-get command to run. Called by the Makefile after pip, and before the tests.
 #
-#   scripts/sysdeps.sh [VENV]            open3d's libraries (required) and Chromium (tests)
+#   scripts/sysdeps.sh [VENV]            open3d's libraries (required), Mesa's software OpenGL
+#                                        (MuJoCo's off-screen rendering) and Chromium (tests)
 #   scripts/sysdeps.sh --browser         Chromium only
 #
 # open3d: find the system libraries its shared objects need and that the loader cannot find
@@ -68,6 +69,25 @@ if [ "$browser_only" = 0 ]; then
       echo "sysdeps: open3d needs system libraries that are missing (packages ${o3d_pkgs[*]})" >&2
       echo "sysdeps: run as root: apt-get update && apt-get install -y ${o3d_pkgs[*]}" >&2
       exit 1
+    fi
+  fi
+fi
+
+# MuJoCo (the mujoco extra: the second renderer, hearth/robot/mujoco_render.py) draws off-screen
+# through EGL (MUJOCO_GL=egl, the default there) or OSMesa (MUJOCO_GL=osmesa), both software
+# rendering by Mesa's llvmpipe on a machine without a GPU. Without them, and not root, we print
+# the command and go on: the MuJoCo renderer's tests are then skipped and say why.
+if [ "$browser_only" = 0 ]; then
+  gl_pkgs=()
+  for p in libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || gl_pkgs+=("$p")
+  done
+  if [ "${#gl_pkgs[@]}" -gt 0 ]; then
+    if is_root; then
+      apt_install "MuJoCo's off-screen rendering" "${gl_pkgs[@]}"
+    else
+      echo "sysdeps: MuJoCo's renderer needs Mesa's software OpenGL (packages ${gl_pkgs[*]});" >&2
+      echo "sysdeps: run as root: apt-get update && apt-get install -y ${gl_pkgs[*]}" >&2
     fi
   fi
 fi

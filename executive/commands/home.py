@@ -1,4 +1,6 @@
-"""`hearth home make|describe`: generated homes (worldmodel/homegen.py) and what is in a home.
+"""`hearth home make|describe|import-model`: generated homes (worldmodel/homegen.py), what is
+in a home, and a kitchen made around a public articulated model (MJCF, worldmodel/mjcf.py;
+docs/renderers-and-assets.md).
 
 Generate valid homes that differ the way real homes do (turned rooms, furniture and knob
 designs, off states with other names, objects on low shelves and in closed cupboards); see
@@ -31,6 +33,20 @@ def register(sub) -> None:
                                        "objects (ids to pass to missions)")
     d.add_argument("world", metavar="WORLD")
     d.set_defaults(func=_describe)
+    i = hs.add_parser("import-model", help="write a kitchen world around an MJCF appliance "
+                                           "(knobs, doors, drawers, handles from its joints)",
+                      description="Read an MJCF model with MuJoCo (the mujoco extra) and write "
+                                  "DIR/world.xml and DIR/meshes/: a kitchen holding the model "
+                                  "as an articulated appliance (docs/renderers-and-assets.md).")
+    i.add_argument("model", metavar="FILE.xml", help="the MJCF file")
+    i.add_argument("--out", required=True, metavar="DIR", help="directory to write")
+    i.add_argument("--body", default="", metavar="NAME",
+                   help="import only this body's subtree (an appliance out of a larger scene)")
+    i.add_argument("--id", default="", help="the appliance's id (default: from the file name)")
+    i.add_argument("--type", default="", help="its type (default: from the name: oven, stove, ...)")
+    i.add_argument("--front", default="auto", choices=("auto", "+x", "-x", "+y", "-y"),
+                   help="the model's axis that faces the room (default: from its knobs)")
+    i.set_defaults(func=_import_model)
 
 
 def _make(args) -> int:
@@ -72,6 +88,23 @@ def _line(s: dict) -> str:
     turned = f"; turned: {', '.join(s['turned'])}" if s["turned"] else ""
     return (f"{len(s['rooms'])} rooms ({rooms}{turned}), {s['large']} large objects, "
             f"{s['small']} small objects, {s['knobs']} knobs")
+
+
+def _import_model(args) -> int:
+    from worldmodel.mjcf import import_model
+    from worldmodel.io import load_world
+    from worldmodel.homegen import summary
+    try:
+        path = import_model(args.model, args.out, object_id=args.id, object_type=args.type,
+                            front=args.front, body=args.body)
+    except OSError as err:
+        print(f"{args.out}: cannot write the world: {err.strerror or err}", file=sys.stderr)
+        return 2
+    world = load_world(path)
+    print(f"{path}: {_line(summary(world))}")
+    for k in world.knobs():
+        print(f"  knob {k.id}: off is {k.off!r}; states " + ", ".join(s.name for s in k.states))
+    return 0
 
 
 def _describe(args) -> int:

@@ -4,6 +4,10 @@ a file, ``demo`` or ``home:SEED``; ``--homes N``: ``home:SEED`` for seeds ``--se
 ``--seed + N - 1``, worldmodel/homegen.py, knob designs varied, see ``KNOB_FAMILIES``), with
 the reader made for each world (its time: ``per_home[].load_or_train_s``, ``train_s_max``).
 
+``--renderer mujoco`` draws the held-out frames with MuJoCo (hearth/robot/mujoco_render.py,
+docs/renderers-and-assets.md) from the same poses and states, the reader still made from
+Hearth's renders; ``renderer`` in the JSON says which drew them.
+
 Held-out views are drawn with seeds 10000 + the home's seed (10000 + --seed for the demo and
 files; training uses 1..3), 800 on the demo home and 120 on every other world by default
 (``--scenarios`` for all): a camera 0.5-1.5 m
@@ -60,6 +64,8 @@ REFERENCE = dict(detection=0.96, angle_err_deg=10.0, ms_per_knob=1250.0)
 def add_arguments(parser) -> None:  # pragma: no cover - argparse wiring
     from hearth.benchmarks import _worlds
     _worlds.add_arguments(parser, homes=0)   # --world W (repeatable), --homes N, --no-demo
+    from hearth.robot.mujoco_render import add_renderer_argument
+    add_renderer_argument(parser)            # --renderer hearth|mujoco (held-out frames)
 
 
 def _wrap_deg(a: float, period: float = 2 * math.pi) -> float:
@@ -88,12 +94,14 @@ def design_of(knob) -> str:
     return " ".join(parts) + (f" sym{knob.symmetry}" if knob.symmetry > 1 else "")
 
 
-def _measure(world, reader, n: int, seed: int, noise, label: str) -> list[dict]:
-    """One record per held-out view of ``world``'s knobs."""
-    from perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
+def _measure(world, reader, n: int, seed: int, noise, label: str,
+             renderer: str = "hearth") -> list[dict]:
+    """One record per held-out view of ``world``'s knobs, drawn by ``renderer``."""
+    from hearth.robot.mujoco_render import knob_scenes
+    from perception.knob_data import KnobDataConfig, render_views, true_center_m
     from perception.knobs import view_level
     data = KnobDataConfig(at_states=True, missing_rate=0.2)
-    scenes = KnobScenes(world)
+    scenes = knob_scenes(world, renderer)
     views = render_views(world, n, seed, data, reader.config, noise=noise, scenes=scenes)
     pitch = {}
     for owner, ids in scenes.knobs_of.items():
@@ -176,14 +184,14 @@ def over_views(recs: list[dict], views=(1, 2, 3)) -> dict:
     return out
 
 
-def _frames_ms(world, reader, seed: int, n: int) -> list[float]:
+def _frames_ms(world, reader, seed: int, n: int, renderer: str = "hearth") -> list[float]:
     """Wall ms of reading every knob of the map's appliance with the most knobs in full
     640x480 frames, from 0.7-1.1 m in front of its knob panel and 0.3-0.6 m above it."""
     from perception.camera import Intrinsics, look_at
-    from perception.knob_data import KnobScenes
+    from hearth.robot.mujoco_render import knob_scenes
     from perception.knobs import knob_priors
     K = Intrinsics.kinect()
-    scenes = KnobScenes(world)
+    scenes = knob_scenes(world, renderer)
     owner = max(sorted(scenes.knobs_of), key=lambda o: len(scenes.knobs_of[o]))
     priors = knob_priors(world, owner)
     mid = np.mean([p.T_world_face()[:3, 3] for p in priors], axis=0)
@@ -215,7 +223,8 @@ def _world(spec: str, args, seed: int) -> tuple[list[dict], dict]:
     quick = getattr(args, "quick", False)
     n = getattr(args, "scenarios", None) or ((150 if quick else 800) if spec == "demo" else
                                             (40 if quick else 120))
-    recs = _measure(world, reader, n, seed, _noise(), spec)
+    renderer = getattr(args, "renderer", "hearth") or "hearth"
+    recs = _measure(world, reader, n, seed, _noise(), spec, renderer)
     f = _figures(recs)
     return recs, dict(world=spec, knobs=len(world.knobs()),
                       designs=sorted({r["design"] for r in recs}),
@@ -226,7 +235,7 @@ def _world(spec: str, args, seed: int) -> tuple[list[dict], dict]:
                       detector_threshold=round(reader.detect_threshold, 4),
                       detector_calibration=getattr(reader.detect_gate, "validation_", None),
                       state_margin_threshold=round(reader.margin_threshold, 4),
-                      frame_ms=_frames_ms(world, reader, seed, 3 if quick else 8))
+                      frame_ms=_frames_ms(world, reader, seed, 3 if quick else 8, renderer))
 
 
 def run(args) -> dict:
@@ -259,6 +268,7 @@ def run(args) -> dict:
     gen = [r for r in recs if _worlds.is_generated(r["world"])]
     out.update(
         angle_method="analysis by synthesis",
+        renderer=getattr(args, "renderer", "hearth") or "hearth",
         worlds=specs, homes=sum(_worlds.is_generated(s) for s in specs),
         views_per_world={w: sum(r["world"] == w for r in recs) for w in specs},
         per_world={w["world"]: _figures([r for r in recs if r["world"] == w["world"]]) for w in read},

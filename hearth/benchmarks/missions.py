@@ -55,6 +55,8 @@ def add_arguments(parser) -> None:
                         help="a world file to run on instead of generated homes (repeatable)")
     parser.add_argument("--no-demo", action="store_true", help="leave the demo home out")
     parser.add_argument("--verbose", action="store_true", help="per-case lines on stderr")
+    from hearth.robot.mujoco_render import add_renderer_argument
+    add_renderer_argument(parser)       # the simulated robot's frames ($HEARTH_SIM_RENDERER)
     from executive.suite import add_engine_arguments
     add_engine_arguments(parser, several=True)
 
@@ -75,6 +77,8 @@ def run(args) -> dict:
     missions = getattr(args, "missions", None) or ("fetch_object", "turn_off_oven",
                                                    "refine_localisation")
     worlds = worlds_of(args)
+    renderer = getattr(args, "renderer", None) or "hearth"
+    os.environ["HEARTH_SIM_RENDERER"] = renderer      # the workers' simulated robots inherit it
     cases = suite_cases(n, seed=args.seed, missions=missions,
                         warmup=getattr(args, "warmup", 20), worlds=worlds)
     verbose = getattr(args, "verbose", False) or bool(os.environ.get("HEARTH_BENCH_VERBOSE"))
@@ -88,7 +92,7 @@ def run(args) -> dict:
     results = first["results"]
     out = {"scenarios_per_mission": n, "jobs": jobs, "seed": args.seed,
            "worlds": worlds, "warmup_searches": getattr(args, "warmup", 20),
-           "cases_run": len(results), "engine": engines[0],
+           "cases_run": len(results), "engine": engines[0], "renderer": renderer,
            "total_wall_s": first["total_wall_s"], "scenarios_per_s": first["scenarios_per_s"],
            "errors_by_kind": first["errors_by_kind"],
            "load_average": [round(x, 2) for x in os.getloadavg()]}

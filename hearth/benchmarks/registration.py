@@ -35,7 +35,8 @@ share read wrong from either view.
 ``*_ms_median`` is wall time; ``*_cpu_ms_median`` is this process's CPU time (all threads),
 steadier on a machine shared with other jobs; ``load_average_1min`` says how shared it was.
 Truth: the world with the object moved a little and its parts opened, rendered with
-Kinect-class depth noise; the belief is the map. Targets (DESIGN.md): localisation within
+Kinect-class depth noise (by Hearth's ray caster, or by MuJoCo with ``--renderer mujoco``:
+``renderer`` in the JSON, docs/renderers-and-assets.md); the belief is the map. Targets (DESIGN.md): localisation within
 1 cm and 0.5 deg from start errors up to 15 cm and 8 deg; large object <= 60 ms; two doors
 with handles <= 300 ms; door angle <= 1 deg; drawer <= 5 mm; handle <= 5 mm and <= 1 deg.
 The RAMCIP reference figures (2016 laptop) are given as ratios (ours / theirs: below 1 is
@@ -76,6 +77,18 @@ DOOR_RANGE = math.radians(90)
 def add_arguments(parser) -> None:
     from hearth.benchmarks import _worlds
     _worlds.add_arguments(parser, homes=0)   # --world W (repeatable), --homes N, --no-demo
+    from hearth.robot.mujoco_render import add_renderer_argument
+    add_renderer_argument(parser)            # --renderer hearth|mujoco (the observed frames)
+
+
+#: What draws the observed (truth) frames: "hearth" (perception/render.py) or "mujoco"
+#: (hearth/robot/mujoco_render.py); set by ``run`` from ``--renderer``.
+RENDERER = "hearth"
+
+
+def _truth_scene(world, states: dict | None = None):
+    from hearth.robot.mujoco_render import scene_for
+    return scene_for(world, RENDERER, states)
 
 
 def worlds_of(args) -> list[str]:
@@ -102,10 +115,9 @@ def simulate_depth(truth, K: Intrinsics, T_world_camera: np.ndarray, rng: np.ran
                    states: dict | None = None, scene=None) -> np.ndarray:
     """A noisy depth image (metres) of the truth world: the ray caster, then the simulated
     robot's Kinect noise model (``robot.noise.add_kinect_noise``) when it is there, else
-    ``axial_noise``. ``scene``: a prebuilt perception.render.Scene of the truth."""
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes
-    scene = scene or Scene(scene_meshes(truth, states=states))
+    ``axial_noise``. ``scene``: a prebuilt scene of the truth (``_truth_scene``: drawn by
+    ``RENDERER``)."""
+    scene = scene or _truth_scene(truth, states)
     rendering = scene.render(K, T_world_camera)
     noise = _kinect_noise()
     if noise is not None:
@@ -339,13 +351,11 @@ class Tally:
 
 def bench_localisation(world, n: int, rng, layout: Layout, t: Tally) -> None:
     from perception.localisation import refine_localisation
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes
     objects = front_objects(world)
     if not objects:
         return
     K = Intrinsics.kinect()
-    scene = Scene(scene_meshes(world))
+    scene = _truth_scene(world)
     for oid in islice(cycle(objects), n):
         T_true = base_in_front(world, oid, rng, layout)
         if T_true is None:
@@ -672,7 +682,8 @@ def bench_world(spec: str, n: int, seed: int) -> Tally:
 
 
 def _bench_world_job(job: tuple) -> tuple:
-    spec, n, seed = job
+    global RENDERER
+    spec, n, seed, RENDERER = job
     return spec, bench_world(spec, n, seed)
 
 
@@ -684,7 +695,8 @@ def run(args) -> dict:
     seed = int(getattr(args, "seed", 0))
     jobs = max(1, int(getattr(args, "jobs", 1) or 1))
     t0 = time.perf_counter()
-    tasks = [(w, n, seed) for w in worlds]
+    renderer = getattr(args, "renderer", "hearth") or "hearth"
+    tasks = [(w, n, seed, renderer) for w in worlds]
     if jobs > 1 and len(worlds) > 1:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
@@ -716,6 +728,7 @@ def run(args) -> dict:
                 generated.merge(done[w])
             out["generated"] = figures(generated)
     out["worlds"] = worlds
+    out["renderer"] = renderer
     out["noise_model"] = ("hearth.robot.noise.add_kinect_noise" if _kinect_noise() is not None
                           else "axial gaussian 1.2 mm + 1.9 mm (z - 0.4)^2")
     out["load_average_1min"] = round(os.getloadavg()[0], 2)

@@ -49,6 +49,9 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
     ``localisation_error``: body-frame error, believed = true composed with it.
     ``stuck_knobs`` / ``locked``: knob ids that will not turn / part ids that will not open.
     Speeds in m/s and rad/s; ``reach`` (m) from the base centre to what the arm touches.
+    ``renderer``: what draws the camera's frames, "hearth" (perception/render.py) or
+    "mujoco" (hearth/robot/mujoco_render.py); default ``$HEARTH_SIM_RENDERER``, else "hearth"
+    (an environment variable so that a suite's worker processes inherit it).
     """
 
     def __init__(self, truth, clock=None, start_pose=None, localisation_error=Pose(),
@@ -57,8 +60,11 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
                  mount: HeadMount = HEAD, stuck_knobs: Iterable[str] = (),
                  locked: Iterable[str] = (), speed: float = 0.5, turn_speed: float = 1.0,
                  joint_speed: float = 0.5, drawer_speed: float = 0.15, approach_time: float = 2.0,
-                 reach: float = 1.6, grasp_tolerance: float = 0.08):
+                 reach: float = 1.6, grasp_tolerance: float = 0.08,
+                 renderer: Optional[str] = None):
+        import os
         self.truth = truth
+        self.renderer = renderer or os.environ.get("HEARTH_SIM_RENDERER", "hearth")
         self.clock = clock if clock is not None else SimClock()
         self.intrinsics = intrinsics or Intrinsics.kinect()
         self.noise = noise
@@ -140,9 +146,12 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         T_true = camera_pose(self._true, self._pan, self._tilt, self.mount)
         believed = self.base_pose()
         T_bel = camera_pose(believed, self._pan, self._tilt, self.mount)
-        frame = render_view(self.truth, self.intrinsics, T_true, self.rng, self.noise,
-                            scene=self._current_scene(), T_world_camera_believed=T_bel,
-                            timestamp=self.clock.now())
+        draw = render_view
+        if self.renderer == "mujoco":
+            from hearth.robot.mujoco_render import render_view as draw
+        frame = draw(self.truth, self.intrinsics, T_true, self.rng, self.noise,
+                     scene=self._current_scene(), T_world_camera_believed=T_bel,
+                     timestamp=self.clock.now())
         frame.pan, frame.tilt = self._pan, self._tilt
         frame.base_pose, frame.base_pose_true = believed, self._true
         frame.parking = self._parking_at(believed)
@@ -154,6 +163,12 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         held_key = None
         if self.held is not None:
             held_key = (self.held.id, self._true.as_tuple())
+        if self.renderer == "mujoco":
+            # The held object is not drawn by MuJoCo's scene (it is carried below the camera).
+            if self._scene is None or self._dirty:
+                from hearth.robot.mujoco_render import MujocoScene
+                self._scene, self._dirty = MujocoScene(self.truth), False
+            return self._scene
         if self._scene is None or self._dirty or held_key != self._scene_key:
             meshes = scene_meshes(self.truth)
             if self.held is not None:
