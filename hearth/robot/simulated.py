@@ -54,7 +54,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
     ``stuck_knobs`` / ``locked``: knob ids that will not turn / part ids that will not open.
     Speeds in m/s and rad/s; ``reach`` (m) from the base centre to what the arm touches.
     ``battery``: a ``robot.battery.Battery`` (default: full, the default model);
-    ``dock_time`` / ``undock_time`` (s); ``user_room``: the room id the user is in (the
+    ``dock_time`` / ``undock_time`` (s); ``person_room``: the room id the user is in (the
     simulated person detector's truth, see ``look_for_person``; None: nobody home).
     """
 
@@ -71,7 +71,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
                  joint_speed: float = 0.5, drawer_speed: float = 0.15, approach_time: float = 2.0,
                  reach: float = 1.6, grasp_tolerance: float = 0.08,
                  battery: Optional[Battery] = None, dock_time: float = 5.0,
-                 undock_time: float = 3.0, user_room: Optional[str] = None):
+                 undock_time: float = 3.0, person_room: Optional[str] = None):
         self.truth = truth
         self.clock = clock if clock is not None else SimClock()
         self.intrinsics = intrinsics or Intrinsics.kinect()
@@ -102,7 +102,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self.battery = battery if battery is not None else Battery(now=self.clock.now())
         self.battery.t = max(self.battery.t, self.clock.now())
         self.dock_time, self.undock_time = float(dock_time), float(undock_time)
-        self.user_room = user_room
+        self.person_room = person_room
 
     # -- ground truth (for tests, scoring and recordings; skills must not use these) -------
     def true_pose(self) -> Pose:
@@ -400,7 +400,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self._poll()
         room = room_at(self.truth, self._true.x, self._true.y, margin=0.05)
         here = room.id if room is not None else None
-        user = self.user_room
+        user = self.person_room
         fail = None if (here is not None and user == here) else (
             f"no one in the {room.name or room.id}" if room is not None else "no one here")
         act = TimedAction("look_for_person", self.clock, self.LOOK_FOR_PERSON_S,
