@@ -275,6 +275,7 @@ class Day:
         self._emergency_at: dict[str, float] = {}    # go_to_user run -> request time (clock)
         self._moving_paths: dict[str, set[str]] = {}
         self._critical = False
+        self._held: list[tuple[float, str, str]] = []   # emergencies waiting for charge
         self._last_check: Optional[float] = None
         self._last_t = self.ex.clock.now()
         self._origin_wall = None
@@ -318,24 +319,34 @@ class Day:
         return h
 
     def emergency(self, user_room: str = "", source: str = "user") -> Any:
-        """The user called for help: ``go_to_user`` above everything (see the module
-        docstring for the critical battery)."""
+        """The user called for help: ``go_to_user`` above everything; its handle. While the
+        robot recharges below the critical level the call is held (None is returned) and
+        submitted as soon as the level is back above it."""
         with self._lock:
             level = self._level()
             current = self.ex.current
-            critical = (level < self.battery.critical and current is not None
-                        and current.mission.name == "recharge")
-            priority = RECHARGE if critical else EMERGENCY
+            held = (level < self.battery.critical and current is not None
+                    and current.mission.name == "recharge")
             self.stats.emergencies += 1
             t = self.ex.clock.now()
-            h = self.submit("go_to_user", {"user_room": user_room} if user_room else {},
-                            priority=priority, source=f"emergency ({source})")
-            self._emergency_at[h.id] = t
-            self._moving_paths[h.id] = {n.path for n in h.mission.nodes()
-                                        if n.kind == "skill" and n.skill_name == "GoToRoom"}
-        self._emit("emergency", run=h.id, user_room=user_room, source=source,
-                   battery=round(level, 4),
-                   waits_for_charge=critical)
+            self._emit("emergency", user_room=user_room, source=source,
+                       battery=round(level, 4), waits_for_charge=held)
+            if held:
+                self._held.append((t, user_room, source))
+                return None
+            return self._send_emergency(t, user_room, source)
+
+    def level_awaited(self) -> Optional[float]:
+        """The battery level a held emergency waits for (None: nothing held)."""
+        with self._lock:
+            return self.battery.critical if self._held else None
+
+    def _send_emergency(self, t: float, user_room: str, source: str) -> Any:
+        h = self.submit("go_to_user", {"user_room": user_room} if user_room else {},
+                        priority=EMERGENCY, source=f"emergency ({source})")
+        self._emergency_at[h.id] = t
+        self._moving_paths[h.id] = {n.path for n in h.mission.nodes()
+                                    if n.kind == "skill" and n.skill_name == "GoToRoom"}
         return h
 
     def set_away(self, away: bool) -> None:
@@ -385,6 +396,11 @@ class Day:
                     self._emit("battery_critical", level=round(state.level, 4))
             elif self._critical and state.level >= self.battery.critical:
                 self._critical = False
+            if self._held and (state.level >= self.battery.critical
+                               or not self._live("recharge")):
+                held, self._held = self._held, []
+                for t, room, source in held:
+                    self._send_emergency(t, room, source)
             if state.level < self.battery.low and not state.docked and not self._live("recharge"):
                 self._emit("battery_low", level=round(state.level, 4), threshold=self.battery.low)
                 self.stats.recharges += 1

@@ -75,6 +75,10 @@ def simulate_day(world: Any, schedule: Schedule, hours: float = 24.0,
             day.step()
             if ex.tick():
                 wake = _idle_until(ex)
+                awaited = day.level_awaited()
+                if wake is not None and awaited is not None:
+                    b = robot.battery
+                    wake = min(wake, b.t + b.model.seconds_to(b.level, awaited) + 1.0)
                 if wake is not None:
                     jump = min(wake, _next_due(day, pending, now_day, end)) - clock.now()
                     if jump > 0:
