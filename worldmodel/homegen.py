@@ -48,7 +48,7 @@ from worldmodel.homegen_geometry import (
     polygon_inside_rect, polygons_overlap, rounded_rect, transform_polygon, transformed,
 )
 from worldmodel.nodes import (
-    Apartment, Charger, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,
+    Apartment, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,
     LargeObject, Model, ParkingPosition, Part, Room, SmallObject, Surface, Switch, Visual,
 )
 from worldmodel.pose import Pose, wrap_angle
@@ -1640,7 +1640,6 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
             pieces += ps
             layouts.append(layout)
         _ensure_table(ctx, rooms, pieces, layouts, scratch)
-        _add_charger(rooms, layouts)
     small_objects(ctx, pieces)
     for pc in pieces:
         if ctx.chance(config.front_turn_probability):
@@ -1651,6 +1650,8 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
                           rooms=rooms, library=library)
     world = World(apartment, path=None, base_dir=mesh_dir)
     ctx.meshes.write(mesh_dir, _mesh_files(apartment))
+    from worldmodel.chargers import place_charger
+    place_charger(world)
     return world
 
 
@@ -1666,34 +1667,6 @@ def _ensure_table(ctx: _Ctx, rooms, pieces, layouts, scratch) -> None:
         if piece is not None:
             rooms[i].objects.append(piece.obj)
             pieces.append(piece)
-            return
-
-
-#: How far from its charger (m) the robot stands docked, backed onto it.
-DOCK_DISTANCE = 0.4
-
-
-def _add_charger(rooms, layouts) -> None:
-    """One charging station, against a wall of the first room (the kitchen) with room for the
-    robot to dock in front of it, away from every parking position. Chosen without the
-    generator's random numbers, so a home's furniture and objects are those it had before
-    chargers existed."""
-    for room, layout in zip(rooms, layouts):
-        x0, y0, x1, y1 = room.bounds
-        walls = [  # (charger x, y, inward yaw) along each wall, every 0.1 m
-            *(((x0 + 0.05, y, 0.0), (1, 0)) for y in np.arange(y0 + 0.5, y1 - 0.45, 0.1)),
-            *(((x1 - 0.05, y, math.pi), (-1, 0)) for y in np.arange(y0 + 0.5, y1 - 0.45, 0.1)),
-            *(((x, y0 + 0.05, math.pi / 2), (0, 1)) for x in np.arange(x0 + 0.5, x1 - 0.45, 0.1)),
-            *(((x, y1 - 0.05, -math.pi / 2), (0, -1)) for x in np.arange(x0 + 0.5, x1 - 0.45, 0.1))]
-        for (cx, cy, yaw), (nx, ny) in walls:
-            dx, dy = cx + nx * DOCK_DISTANCE, cy + ny * DOCK_DISTANCE
-            if not layout.parking_free(dx, dy):
-                continue
-            if any(math.hypot(dx - px, dy - py) < 0.7 for px, py in layout.parkings):
-                continue
-            room.chargers.append(Charger(f"{room.id}_charger", Pose(_mm(cx), _mm(cy), 0, 0, 0, yaw),
-                                         Pose.planar(DOCK_DISTANCE, 0.0, 0.0),
-                                         name="charging station"))
             return
 
 
