@@ -241,6 +241,7 @@ class Stats:
     slots_missed: int = 0
     recharges: int = 0
     emergencies: int = 0
+    emergencies_preempting: int = 0
     emergency_response_s: list[float] = field(default_factory=list)
     map_inconsistent: int = 0
     robot_not_stopped: int = 0
@@ -328,6 +329,7 @@ class Day:
             held = (level < self.battery.critical and current is not None
                     and current.mission.name == "recharge")
             self.stats.emergencies += 1
+            self.stats.emergencies_preempting += current is not None
             t = self.ex.clock.now()
             self._emit("emergency", user_room=user_room, source=source,
                        battery=round(level, 4), waits_for_charge=held)
@@ -472,7 +474,10 @@ class Day:
     # -- runs ending ----------------------------------------------------------------------
     def _on_run_event(self, ev: Any) -> None:
         if ev.kind is EventKind.STATUS and ev.run in self._emergency_at:
-            if ev.data.get("status") == "RUNNING" and ev.path in self._moving_paths.get(ev.run, ()):
+            # The first drive towards the user starting (or finding the robot already at the
+            # place it would drive to: a drive that ends in the tick it starts).
+            if (ev.data.get("status") in ("RUNNING", "SUCCESS")
+                    and ev.path in self._moving_paths.get(ev.run, ())):
                 with self._lock:
                     t0 = self._emergency_at.pop(ev.run, None)
                     if t0 is not None:
@@ -591,6 +596,7 @@ class Day:
             "restarted": s.restarted,
             "recharges": s.recharges,
             "emergencies": s.emergencies,
+            "emergencies_preempting": s.emergencies_preempting,
             "emergency_response_s_median": (round(statistics.median(resp), 3) if resp else None),
             "emergency_response_s_max": round(max(resp), 3) if resp else None,
             "slots_run": s.slots_run,

@@ -48,9 +48,11 @@ def simulate_day(world: Any, schedule: Schedule, hours: float = 24.0,
                  tick_hz: float = 10.0, runs_dir: Optional[str] = None,
                  day_log: Optional[str] = None, battery_level: float = 1.0,
                  on_event: Optional[Callable[[dict], None]] = None,
-                 robot_kwargs: Optional[dict] = None) -> tuple[dict, Day, Any]:
-    """Run ``hours`` of a simulated day on ``world`` (the belief; the truth is a copy).
-    Returns (the day's report, the Day, the simulated robot)."""
+                 robot_kwargs: Optional[dict] = None,
+                 finish_s: float = 0.0) -> tuple[dict, Day, Any]:
+    """Run ``hours`` of a simulated day on ``world`` (the belief; the truth is a copy), then
+    up to ``finish_s`` more seconds (no new slots or happenings) for the missions still
+    running or queued to end. Returns (the day's report, the Day, the simulated robot)."""
     from executive.executive import Executive
     from hearth.robot.battery import Battery
     from hearth.robot.clock import SimClock
@@ -87,6 +89,16 @@ def simulate_day(world: Any, schedule: Schedule, hours: float = 24.0,
             nxt = _next_due(day, pending, now_day, end)
             clock.advance(max(min(nxt - clock.now(), IDLE_STEP), 1.0 / tick_hz))
         day.step()
+        day.schedule = Schedule((), day.schedule.battery, day.schedule.start, day.schedule.file)
+        last = clock.now() + finish_s
+        while clock.now() < last and not ex.idle():
+            day.step()
+            if ex.tick():
+                wake = _idle_until(ex)
+                if wake is not None and wake > clock.now():
+                    clock.advance(min(wake, last) - clock.now())
+            else:
+                clock.advance(1.0 / tick_hz)
         report = day.report()     # before the shutdown cancels what still runs: "open"
     finally:
         ex.shutdown()
