@@ -282,7 +282,28 @@ class Day:
         self._origin_wall = None
         self._log = open(log_path, "a", encoding="utf-8") if log_path is not None else None
         self.log_path = str(log_path) if log_path is not None else None
+        self.check_schedule()
         self._unsubscribe = executive.subscribe(self._on_run_event)
+
+    def check_schedule(self) -> None:
+        """Every entry names a mission of this day with parameters it accepts in this map
+        (ScheduleError with the schedule's file and the entry's line), so a bad entry is
+        found when the day starts, not at its time."""
+        for needed in ("recharge", "go_to_user"):
+            if needed not in self.missions:
+                raise ScheduleError(f"a day needs the {needed} mission", file=self.schedule.file)
+        for e in self.schedule.entries:
+            m = self.missions.get(e.mission)
+            if m is None:
+                raise ScheduleError(f"no mission named {e.mission!r} (known: "
+                                    f"{', '.join(sorted(self.missions))})",
+                                    file=self.schedule.file, line=e.line)
+            try:
+                m.resolve_parameters(m.resolve_in_map(dict(e.params), self.ex.world))
+            except MissionError as err:
+                what = f"parameter {err.param}: " if err.param else ""
+                raise ScheduleError(f"{e.mission}: {what}{err.message}",
+                                    file=self.schedule.file, line=e.line) from None
 
     def close(self) -> None:
         self._unsubscribe()

@@ -117,10 +117,11 @@ def _apply(day: Day, robot: Any, h: Happening) -> None:
     elif h.kind == "emergency":
         day.emergency(h.room, source="call")
     elif h.kind == "away":
+        robot.person_room_before_away = robot.person_room
         robot.person_room = None
         day.set_away(True)
     elif h.kind == "home":
-        robot.person_room = h.room or robot.person_room
+        robot.person_room = h.room or getattr(robot, "person_room_before_away", None)
         day.set_away(False)
     elif h.kind == "user_moves":
         robot.person_room = h.room
