@@ -257,8 +257,12 @@ class Day:
     def __init__(self, executive: Any, robot: Any, missions: dict[str, Any],
                  schedule: Optional[Schedule] = None,
                  on_event: Optional[Callable[[dict], None]] = None,
-                 log_path: Optional[str | Path] = None):
+                 log_path: Optional[str | Path] = None,
+                 submit: Optional[Callable[[str, dict, int, str], Any]] = None):
         self.ex = executive
+        #: how a mission is submitted: (name, params, priority, source) -> handle; by default
+        #: straight to the executive (the command service's, so the API lists the runs)
+        self._submit_fn = submit
         self.robot = robot
         self.schedule = schedule or Schedule(())
         self.battery = self.schedule.battery
@@ -323,6 +327,9 @@ class Day:
             self._origin_wall = wall - (lt.tm_hour * 3600 + lt.tm_min * 60 + lt.tm_sec)
         return wall - self._origin_wall
 
+    def now_text(self) -> str:
+        return clock_text(self.day_seconds())
+
     # -- requests ------------------------------------------------------------------------
     def submit(self, mission: str, params: Optional[dict] = None, priority: int = REQUEST,
                source: str = "request") -> Any:
@@ -331,14 +338,20 @@ class Day:
         if m is None:
             raise MissionError(f"no mission named {mission!r} in this day "
                                f"(known: {', '.join(sorted(self.missions))})")
-        h = self.ex.submit(m, priority=priority, **(params or {}))
+        # Held across the submission: the run's events (another thread) wait for its record.
         with self._lock:
+            h = self._send(mission, params or {}, priority, source)
             self._runs[h.id] = h
             self._given[h.id] = dict(params or {})
             self._chains[h.id] = Chain(h.id, mission)
         self._emit("submitted", run=h.id, mission=mission, priority=priority, source=source,
                    params=params or {})
         return h
+
+    def _send(self, mission: str, params: dict, priority: int, source: str) -> Any:
+        if self._submit_fn is not None:
+            return self._submit_fn(mission, dict(params), priority, source)
+        return self.ex.submit(self.missions[mission], priority=priority, **params)
 
     def emergency(self, user_room: str = "", source: str = "user") -> Any:
         """The user called for help: ``go_to_user`` above everything; its handle. While the
@@ -494,13 +507,16 @@ class Day:
 
     # -- runs ending ----------------------------------------------------------------------
     def _on_run_event(self, ev: Any) -> None:
-        if ev.kind is EventKind.STATUS and ev.run in self._emergency_at:
+        if ev.kind is EventKind.STATUS:
             # The first drive towards the user starting (or finding the robot already at the
-            # place it would drive to: a drive that ends in the tick it starts).
-            if (ev.data.get("status") in ("RUNNING", "SUCCESS")
-                    and ev.path in self._moving_paths.get(ev.run, ())):
-                with self._lock:
+            # place it would drive to: a drive that ends in the tick it starts). Under the
+            # lock: the run's events may come before emergency() has filed its request.
+            if ev.data.get("status") not in ("RUNNING", "SUCCESS"):
+                return
+            with self._lock:
+                if ev.path in self._moving_paths.get(ev.run, ()):
                     t0 = self._emergency_at.pop(ev.run, None)
+                    self._moving_paths.pop(ev.run, None)
                     if t0 is not None:
                         self.stats.emergency_response_s.append(ev.time - t0)
                         self._emit("emergency_response", run=ev.run,
@@ -554,7 +570,8 @@ class Day:
             done = outputs.get(how["progress"])
             if done is not None:
                 params[how["param"]] = list(done)
-        new = self.ex.submit(mission, priority=h.priority, **params)
+        new = self._send(mission.name, params, h.priority,  # (lock held)
+                         f"{'resumed' if then == 'resume' else 'restarted'} after {h.id}")
         self._runs[new.id] = new
         self._given[new.id] = params
         self._chains[new.id] = chain
