@@ -243,6 +243,8 @@ class Stats:
     emergencies: int = 0
     emergencies_preempting: int = 0
     emergency_response_s: list[float] = field(default_factory=list)
+    #: the responses to calls that came while another mission ran (it had to be halted)
+    emergency_response_preempting_s: list[float] = field(default_factory=list)
     map_inconsistent: int = 0
     robot_not_stopped: int = 0
     battery_min: float = 1.0
@@ -281,6 +283,7 @@ class Day:
         self._moving_paths: dict[str, set[str]] = {}
         self._critical = False
         self._held: list[tuple[float, str, str]] = []   # emergencies waiting for charge
+        self._preempting: set[str] = set()              # emergency runs that halted another
         self._last_check: Optional[float] = None
         self._last_t = self.ex.clock.now()
         self._origin_wall = None
@@ -370,7 +373,10 @@ class Day:
             if held:
                 self._held.append((t, user_room, source))
                 return None
-            return self._send_emergency(t, user_room, source)
+            h = self._send_emergency(t, user_room, source)
+            if current is not None:
+                self._preempting.add(h.id)
+            return h
 
     def level_awaited(self) -> Optional[float]:
         """The battery level a held emergency waits for (None: nothing held)."""
@@ -519,6 +525,8 @@ class Day:
                     self._moving_paths.pop(ev.run, None)
                     if t0 is not None:
                         self.stats.emergency_response_s.append(ev.time - t0)
+                        if ev.run in self._preempting:
+                            self.stats.emergency_response_preempting_s.append(ev.time - t0)
                         self._emit("emergency_response", run=ev.run,
                                    seconds=round(ev.time - t0, 3))
             return
@@ -637,6 +645,8 @@ class Day:
             "emergencies_preempting": s.emergencies_preempting,
             "emergency_response_s_median": (round(statistics.median(resp), 3) if resp else None),
             "emergency_response_s_max": round(max(resp), 3) if resp else None,
+            "emergency_response_preempting_s": [round(x, 3) for x in
+                                                s.emergency_response_preempting_s],
             "slots_run": s.slots_run,
             "slots_missed": s.slots_missed,
             "map_inconsistent_after_preemption": s.map_inconsistent,

@@ -104,7 +104,7 @@ def register(sub) -> None:
                    help="room id the user starts in (default: the first room)")
     p.add_argument("--request", type=_request, action="append", default=[],
                    metavar="'HH:MM MISSION [K=V ...]'",
-                   help="a user's request, e.g. '10:30 fetch_object object=blue_cup' "
+                   help="a user's request, e.g. '10:30 fetch_object object=reading_glasses' "
                         "(repeatable; '_' stands for a space in object=)")
     p.add_argument("--emergency", type=_emergency, action="append", default=[],
                    metavar="'HH:MM [ROOM]'",

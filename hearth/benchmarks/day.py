@@ -3,8 +3,8 @@ emergencies, outings and the user moving between rooms, on each home.
 
 Per home one day (seeded by ``--seed`` and the home): the user moves every 40-120 min; 4
 reminders at random times 08:00-21:30 (``deliver_reminder``, never during an outing); a
-patrol every 3 h 09:00-21:00; 2 user requests (a fetch of a graspable object, or a patrol);
-3 emergencies at random times (half with the call's room, the user's, half without); one
+patrol every 2 h 09:00-21:00; 4 user requests (a fetch of a graspable object, or a patrol);
+4 emergencies at random times (half with the call's room, the user's, half without); one
 outing of 1-3 h; the battery starts at 35-70 %.
 
 Figures (medians over emergencies of every home; counts summed): ``battery_below_critical``
@@ -12,7 +12,8 @@ Figures (medians over emergencies of every home; counts summed): ``battery_below
 ``emergency_response_s_median`` (the call -> the robot driving towards the user, simulated
 seconds, target <= 2), ``interrupted_missions`` with ``interrupted_completed``,
 ``interrupted_reported`` (ended failed or cancelled, with a reason) and ``interrupted_open``
-(target 0), ``emergencies_preempting`` (calls that came while a mission ran),
+(target 0), ``emergencies_preempting`` (calls that came while a mission ran) and
+``emergency_response_preempting_s_median`` (the response to those alone),
 ``missed_reminders`` (not delivered: slot missed or the run failed, target 0),
 ``map_inconsistent_after_preemption`` (the belief map failing validation right after a
 preemption, target 0), ``robot_not_stopped_after_preemption``, ``docked_h`` and the wall
@@ -57,7 +58,7 @@ def day_plan(world, rng, hours: float = 24.0):
     if out_at is not None:
         hap += [Happening(out_at, "away"), Happening(out_back, "home", room=str(rng.choice(rooms)))]
     graspable = [o.id for o in world.small_objects() if o.graspable]
-    for _ in range(2):
+    for _ in range(4):
         at = float(rng.uniform(8 * 3600, 21 * 3600))
         if out_at is not None and out_at - 600 <= at <= out_back:
             continue
@@ -66,7 +67,7 @@ def day_plan(world, rng, hours: float = 24.0):
                                  {"object": str(rng.choice(graspable))}))
         else:
             hap.append(Happening(at, "request", "emergency_patrol"))
-    for _ in range(3):
+    for _ in range(4):
         at = float(rng.uniform(start + 600, end - 1800))
         if out_at is not None and out_at - 600 <= at <= out_back:
             continue
@@ -74,7 +75,7 @@ def day_plan(world, rng, hours: float = 24.0):
     entries = [Entry(f"reminder{i + 1}", "deliver_reminder",
                      {"text": f"reminder number {i + 1}"}, REMINDER, at=r % 86400)
                for i, r in enumerate(reminder_times)]
-    entries.append(Entry("patrol", "emergency_patrol", {}, 0, every=3 * 3600.0,
+    entries.append(Entry("patrol", "emergency_patrol", {}, 0, every=2 * 3600.0,
                          start=9 * 3600.0, end=21 * 3600.0))
     schedule = Schedule(tuple(entries), BatteryPolicy(low=0.30, critical=0.15, charge_to=0.95),
                         start=start)
@@ -102,7 +103,7 @@ def run(args) -> dict:
     from worldmodel.chargers import place_charger
 
     specs = world_specs(args, homes=2)
-    per_world, responses, walls = {}, [], []
+    per_world, responses, preempting, walls = {}, [], [], []
     totals: dict = {}
     added = []
     for i, spec in enumerate(specs):
@@ -120,6 +121,7 @@ def run(args) -> dict:
         wall = time.perf_counter() - t0
         walls.append(wall)
         responses += day.stats.emergency_response_s
+        preempting += day.stats.emergency_response_preempting_s
         reminders = [c for c in day.chains() if c.mission == "deliver_reminder"]
         missed = (sum(1 for m in day.missed if m["mission"] == "deliver_reminder")
                   + sum(c.outcome != "succeeded" for c in reminders))
@@ -148,6 +150,9 @@ def run(args) -> dict:
         emergency_response_s_median=(round(statistics.median(responses), 3) if responses
                                      else None),
         emergency_response_s_max=round(max(responses), 3) if responses else None,
+        emergency_response_preempting_s_median=(round(statistics.median(preempting), 3)
+                                                if preempting else None),
+        emergency_responses_preempting=len(preempting),
         battery_min=min(f["battery_min"] for f in per_world.values()),
         wall_s_per_day_median=round(statistics.median(walls), 1),
         chargers_added=added, per_world=per_world)
