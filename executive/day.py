@@ -242,6 +242,7 @@ class Stats:
     recharges: int = 0
     emergencies: int = 0
     emergencies_preempting: int = 0
+    emergencies_joined: int = 0
     emergency_response_s: list[float] = field(default_factory=list)
     #: the responses to calls that came while another mission ran (it had to be halted)
     emergency_response_preempting_s: list[float] = field(default_factory=list)
@@ -359,15 +360,25 @@ class Day:
     def emergency(self, user_room: str = "", source: str = "user") -> Any:
         """The user called for help: ``go_to_user`` above everything; its handle. While the
         robot recharges below the critical level the call is held (None is returned) and
-        submitted as soon as the level is back above it."""
+        submitted as soon as the level is back above it. A call while a ``go_to_user`` is
+        queued or running joins it (its handle is returned)."""
         with self._lock:
             level = self._level()
             current = self.ex.current
             held = (level < self.battery.critical and current is not None
                     and current.mission.name == "recharge")
             self.stats.emergencies += 1
-            self.stats.emergencies_preempting += current is not None
             t = self.ex.clock.now()
+            going = next((h for h in self._runs.values() if h.mission.name == "go_to_user"
+                          and h.status not in TERMINAL), None)
+            if going is not None:
+                # The robot is already on its way to the user (a second call, another
+                # button): the call joins that run rather than queueing a second one.
+                self.stats.emergencies_joined += 1
+                self._emit("emergency", user_room=user_room, source=source,
+                           battery=round(level, 4), joins=going.id)
+                return going
+            self.stats.emergencies_preempting += current is not None
             self._emit("emergency", user_room=user_room, source=source,
                        battery=round(level, 4), waits_for_charge=held)
             if held:
@@ -643,6 +654,7 @@ class Day:
             "recharges": s.recharges,
             "emergencies": s.emergencies,
             "emergencies_preempting": s.emergencies_preempting,
+            "emergencies_joined": s.emergencies_joined,
             "emergency_response_s_median": (round(statistics.median(resp), 3) if resp else None),
             "emergency_response_s_max": round(max(resp), 3) if resp else None,
             "emergency_response_preempting_s": [round(x, 3) for x in

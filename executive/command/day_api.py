@@ -17,8 +17,6 @@ from typing import Any
 from fastapi import APIRouter, Depends
 from pydantic import BaseModel, Field
 
-from executive.errors import MissionError
-
 
 class BatteryLevels(BaseModel):
     low: float | None = Field(default=None, gt=0, le=1)
@@ -88,4 +86,4 @@ def day_router(day: Any, check_token: Any) -> APIRouter:
     return r
 
 
-__all__ = ["DayRunner", "day_router", "MissionError"]
+__all__ = ["DayRunner", "day_router"]

@@ -1,11 +1,13 @@
 """A robot's day (docs/day.md): simulated 24 h days with random reminders, requests,
 emergencies, outings and the user moving between rooms, on each home.
 
-Per home one day (seeded by ``--seed`` and the home): the user moves every 40-120 min; 4
-reminders at random times 08:00-21:30 (``deliver_reminder``, never during an outing); a
-patrol every 2 h 09:00-21:00; 4 user requests (a fetch of a graspable object, or a patrol);
-4 emergencies at random times (half with the call's room, the user's, half without); one
-outing of 1-3 h; the battery starts at 35-70 %.
+Per home one day (seeded by ``--seed`` and the home): the user moves every 40-120 min; a
+patrol every 2 h 09:00-21:00; 4 reminders (``deliver_reminder``, never during an outing),
+two at random times 08:00-21:30 and two 10-60 s after a patrol starts (the patrol is
+interrupted and resumes); 4 user requests (a fetch of a graspable object, or a patrol); 4
+emergencies, two at random times and two 2-15 s after a request or a patrol started (half
+with the call's room, the user's, half without); one outing of 1-3 h; the battery starts at
+35-70 %.
 
 Figures (medians over emergencies of every home; counts summed): ``battery_below_critical``
 (days during which the level fell below the critical one, target 0),
@@ -14,6 +16,7 @@ seconds, target <= 2), ``interrupted_missions`` with ``interrupted_completed``,
 ``interrupted_reported`` (ended failed or cancelled, with a reason) and ``interrupted_open``
 (target 0), ``emergencies_preempting`` (calls that came while a mission ran) and
 ``emergency_response_preempting_s_median`` (the response to those alone),
+``emergencies_joined`` (calls while the robot was already going to the user),
 ``missed_reminders`` (not delivered: slot missed or the run failed, target 0),
 ``map_inconsistent_after_preemption`` (the belief map failing validation right after a
 preemption, target 0), ``robot_not_stopped_after_preemption``, ``docked_h`` and the wall
@@ -46,7 +49,12 @@ def day_plan(world, rng, hours: float = 24.0):
     while t < end:
         t += rng.uniform(40, 120) * 60
         hap.append(Happening(t, "user_moves", room=str(rng.choice(rooms))))
-    reminder_times = sorted(float(x) for x in rng.uniform(8 * 3600, 21.5 * 3600, 4))
+    patrols = [h * 3600.0 for h in range(9, 22, 2)]
+    # two reminders at random times, two 10-60 s after a patrol starts (it is interrupted and
+    # resumes afterwards)
+    reminder_times = sorted([float(x) for x in rng.uniform(8 * 3600, 21.5 * 3600, 2)]
+                            + [float(rng.choice(patrols) + rng.uniform(10, 60))
+                               for _ in range(2)])
     # one outing that keeps 20 min clear of every reminder
     out_at = out_back = None
     for _ in range(50):
@@ -67,15 +75,19 @@ def day_plan(world, rng, hours: float = 24.0):
                                  {"object": str(rng.choice(graspable))}))
         else:
             hap.append(Happening(at, "request", "emergency_patrol"))
-    for _ in range(4):
-        at = float(rng.uniform(start + 600, end - 1800))
+    busy = [h.t for h in hap if h.kind == "request"] + patrols
+    for k in range(4):
+        # two calls at random times, two 2-15 s after a request or a patrol started (while
+        # the robot is busy: the call halts what runs)
+        at = (float(rng.uniform(start + 600, end - 1800)) if k < 2
+              else float(rng.choice(busy) + rng.uniform(2, 15)))
         if out_at is not None and out_at - 600 <= at <= out_back:
             continue
         hap.append(Happening(at, "emergency", room="" if rng.random() < 0.5 else "@user"))
     entries = [Entry(f"reminder{i + 1}", "deliver_reminder",
                      {"text": f"reminder number {i + 1}"}, REMINDER, at=r % 86400)
                for i, r in enumerate(reminder_times)]
-    entries.append(Entry("patrol", "emergency_patrol", {}, 0, every=2 * 3600.0,
+    entries.append(Entry("patrol", "emergency_patrol", {}, 0, every=2 * 3600.0,  # = patrols
                          start=9 * 3600.0, end=21 * 3600.0))
     schedule = Schedule(tuple(entries), BatteryPolicy(low=0.30, critical=0.15, charge_to=0.95),
                         start=start)
@@ -129,7 +141,7 @@ def run(args) -> dict:
             "missions_run", "succeeded", "failed", "cancelled", "still_open", "interruptions",
             "interrupted_missions", "interrupted_completed", "interrupted_reported",
             "interrupted_open", "resumed", "restarted", "recharges", "emergencies",
-            "emergencies_preempting",
+            "emergencies_preempting", "emergencies_joined",
             "slots_run", "slots_missed", "map_inconsistent_after_preemption",
             "robot_not_stopped_after_preemption", "docked_h")}
         fig.update(missed_reminders=missed, reminders=len(reminders),

@@ -112,3 +112,17 @@ def test_a_bad_schedule_is_one_line_with_file_and_line(tmp_path):
     with pytest.raises(ScheduleError) as err:
         load_schedule(path, {"deliver_reminder"})
     assert str(err.value) == f"{path}:4: '25:00' is not a time of day (HH:MM)"
+
+
+def test_a_second_call_joins_the_robot_already_going_to_the_user(world):
+    events = []
+    schedule = Schedule((), start=8 * 3600)
+    report, day, robot = simulate_day(
+        world, schedule, hours=0.2, user_room="bathroom", on_event=events.append,
+        happenings=[Happening(8 * 3600 + 60, "emergency", room="bathroom"),
+                    Happening(8 * 3600 + 63, "emergency", room="bathroom")])
+    calls = kinds(events, "emergency")
+    runs = [e["run"] for e in kinds(events, "submitted") if e["mission"] == "go_to_user"]
+    assert len(calls) == 2 and len(runs) == 1 and calls[1]["joins"] == runs[0]
+    assert report["emergencies_joined"] == 1
+    assert robot.said.count("I am coming.") == 1
