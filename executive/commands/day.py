@@ -146,7 +146,8 @@ def _run(args) -> int:
     world = load_world(args.world)
     if not world.chargers():
         raise WorldError("the map has no charger: a day needs one (a <charger> in a room, "
-                         "docs/world-format.md)", file=args.world)
+                         "docs/world-format.md)", file=args.world,
+                         line=world.apartment.line or 1)
     if args.user_room is not None and args.user_room not in [r.id for r in world.rooms]:
         print(f"hearth day: --user-room {args.user_room}: not a room of {args.world} "
               f"(rooms: {', '.join(r.id for r in world.rooms)})", file=sys.stderr)

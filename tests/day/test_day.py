@@ -126,3 +126,32 @@ def test_a_second_call_joins_the_robot_already_going_to_the_user(world):
     assert len(calls) == 2 and len(runs) == 1 and calls[1]["joins"] == runs[0]
     assert report["emergencies_joined"] == 1
     assert robot.said.count("I am coming.") == 1
+
+
+def test_hearth_day_prints_the_days_figures(capsys):
+    from executive.cli import main
+    from hearth import resource_dir
+    schedule = resource_dir("data") / "demo_home" / "day.yaml"
+    assert main(["day", "--schedule", str(schedule), "--hours", "2", "--battery", "0.31",
+                 "--emergency", "08:30 bathroom"]) == 0
+    out = capsys.readouterr().out
+    assert "battery_low" in out and "08:00:00  slot" in out
+    import re
+    response = re.search(r"emergencies 1 \(response median ([0-9.]+) s\)", out)
+    assert response and float(response.group(1)) <= 2.0
+    assert "interrupted 1 (1 times): 0 resumed, 1 restarted; 1 completed" in out
+    assert "below the critical 15%: never" in out
+
+
+def test_hearth_day_refuses_a_world_without_a_charger_in_one_line(tmp_path, capsys):
+    import re
+    from executive.cli import main
+    text = demo_world_path().read_text()
+    path = tmp_path / "world.xml"
+    path.write_text(re.sub(r"<charger .*?</charger>\s*", "", text, flags=re.S))
+    schedule = tmp_path / "day.yaml"
+    schedule.write_text("hearth: 1\nday: {entries: []}\n")
+    assert main(["day", "--world", str(path), "--schedule", str(schedule)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"{path}:2: the map has no charger: a day needs one (a <charger> in a room, "
+                   "docs/world-format.md)"]
