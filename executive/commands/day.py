@@ -137,6 +137,26 @@ def _line(e: dict) -> str:
     return f"{e['time']}  {kind:<18} {rest}"
 
 
+def _check_requests(requests, world) -> None:
+    """Every --request names a shipped mission with parameters it takes in this map
+    (MissionError, one line, before the day starts)."""
+    from executive.daysim import mission_paths
+    from executive.errors import MissionError
+    from executive.missionfile import load_mission, skill_registry
+    paths = mission_paths()
+    skills = None
+    for h in requests:
+        if h.mission not in paths:
+            raise MissionError(f"--request: no mission named {h.mission!r} (known: "
+                               f"{', '.join(sorted(paths))})")
+        skills = skills or skill_registry()
+        m = load_mission(paths[h.mission], skills)
+        try:
+            m.resolve_parameters(m.resolve_in_map(dict(h.params), world))
+        except MissionError as err:
+            raise MissionError(f"--request {h.mission}: {err}") from None
+
+
 def _run(args) -> int:
     from executive.day import load_schedule
     from executive.daysim import mission_paths, simulate_day
@@ -153,6 +173,13 @@ def _run(args) -> int:
               f"(rooms: {', '.join(r.id for r in world.rooms)})", file=sys.stderr)
         return 2
     schedule = load_schedule(args.schedule, set(mission_paths()))
+    _check_requests(args.request, world)
+    rooms = {r.id for r in world.rooms}
+    for h in list(args.emergency) + list(args.user_moves):
+        if h.room and h.room not in rooms:
+            print(f"hearth day: {h.room}: not a room of {args.world} (rooms: "
+                  f"{', '.join(sorted(rooms))})", file=sys.stderr)
+            return 2
     happenings = list(args.request) + list(args.emergency) + list(args.user_moves)
     for pair in args.away:
         happenings += list(pair)
