@@ -217,6 +217,42 @@ def load_schedule(path: str | Path, known_missions: Optional[set[str]] = None) -
     return Schedule(tuple(entries), battery, start, path)
 
 
+def is_schedule_file(path: str | Path) -> bool:
+    """Whether a YAML file is a day schedule (a top-level ``day:`` key, no ``tree:``)."""
+    import yaml
+    try:
+        with open(path, encoding="utf-8") as f:
+            head = f.read(1 << 16)
+        keys = [ln.split(":", 1)[0] for ln in head.splitlines()
+                if ln and not ln[0].isspace() and not ln.startswith("#") and ":" in ln]
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return False
+    return "day" in keys and "tree" not in keys
+
+
+def schedule_problems(path: str | Path) -> list[ScheduleError]:
+    """The problems of a schedule file, checked against the shipped missions (their
+    parameters' names and types; what they name in a map is checked when a day starts on
+    it). Empty: fine."""
+    from executive.daysim import mission_paths
+    from executive.missionfile import load_mission, skill_registry
+    paths = mission_paths()
+    try:
+        schedule = load_schedule(path, set(paths))
+    except ScheduleError as err:
+        return [err]
+    problems: list[ScheduleError] = []
+    skills = skill_registry()
+    for e in schedule.entries:
+        try:
+            load_mission(paths[e.mission], skills).resolve_parameters(dict(e.params))
+        except MissionError as err:
+            what = f"parameter {err.param}: " if err.param else ""
+            problems.append(ScheduleError(f"{e.mission}: {what}{err.message}", file=str(path),
+                                          line=e.line))
+    return problems
+
+
 # -- the day --------------------------------------------------------------------------------
 @dataclass
 class Chain:

@@ -155,3 +155,15 @@ def test_hearth_day_refuses_a_world_without_a_charger_in_one_line(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"{path}:2: the map has no charger: a day needs one (a <charger> in a room, "
                    "docs/world-format.md)"]
+
+
+def test_hearth_validate_checks_a_schedule(tmp_path, capsys):
+    from executive.cli import main
+    from hearth import resource_dir
+    assert main(["validate", str(resource_dir("data") / "demo_home" / "day.yaml")]) == 0
+    path = tmp_path / "day.yaml"
+    path.write_text("hearth: 1\nday:\n  entries:\n    - {mission: deliver_reminder, at: '08:00'}\n")
+    assert main(["validate", str(path)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"{path}:4: deliver_reminder: parameter text: required by mission deliver_reminder "
+        "but not given")
