@@ -266,7 +266,7 @@ class Chain:
 
 @dataclass
 class Stats:
-    started: int = 0
+    """Counts of one day (the report reads them, and the chains)."""
     succeeded: int = 0
     failed: int = 0
     cancelled: int = 0
@@ -324,9 +324,9 @@ class Day:
         self._last_check: Optional[float] = None
         self._last_t = self.ex.clock.now()
         self._origin_wall = None
+        self.check_schedule()
         self._log = open(log_path, "a", encoding="utf-8") if log_path is not None else None
         self.log_path = str(log_path) if log_path is not None else None
-        self.check_schedule()
         self._unsubscribe = executive.subscribe(self._on_run_event)
 
     def check_schedule(self) -> None:

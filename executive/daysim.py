@@ -61,7 +61,7 @@ def simulate_day(world: Any, schedule: Schedule, hours: float = 24.0,
     clock = SimClock()
     truth = world.copy()
     start = _start_pose(world)
-    robot = SimulatedRobot(truth, clock=clock, noise=None, start_pose=start,
+    robot = SimulatedRobot(truth, clock=clock, start_pose=start,
                            battery=Battery(level=battery_level),
                            person_room=user_room or world.rooms[0].id, **(robot_kwargs or {}))
     ex = Executive(world, robot, clock=clock, tick_hz=tick_hz, runs_dir=runs_dir,

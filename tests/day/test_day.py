@@ -23,10 +23,11 @@ def kinds(events, kind):
 def test_a_fetch_interrupted_by_low_battery_recharges_and_completes(world):
     events = []
     schedule = Schedule((), BatteryPolicy(low=0.30, critical=0.15, charge_to=0.95), start=8 * 3600)
+    # a noise-free camera: this is about the day, not perception (and keeps the test short)
     report, day, robot = simulate_day(
         world, schedule, hours=3.0, battery_level=0.3004, user_room="kitchen",
         happenings=[Happening(8 * 3600, "request", "fetch_object", {"object": "pill box"})],
-        on_event=events.append)
+        on_event=events.append, robot_kwargs={"noise": None})
     interrupted = kinds(events, "interrupted")
     assert [e["mission"] for e in interrupted] == ["fetch_object"]
     assert interrupted[0]["robot_stopped"] and interrupted[0]["map_consistent"]
