@@ -168,3 +168,25 @@ def test_hearth_validate_checks_a_schedule(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         f"{path}:4: deliver_reminder: parameter text: required by mission deliver_reminder "
         "but not given")
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=200, deadline=None)
+@given(every=st.integers(1, 1440), start=st.integers(0, 86_399), span=st.integers(1, 86_400),
+       t0=st.floats(0, 3 * 86_400), a=st.floats(0, 86_400), b=st.floats(0, 86_400))
+def test_schedule_slots_split_at_any_time_are_the_same_slots(every, start, span, t0, a, b):
+    end = min(start + span, 86_400)
+    entry = Entry("e", "m", {}, 0, every=every * 60.0, start=float(start), end=float(end))
+    t1, t2 = t0 + a, t0 + a + b
+    whole = entry.slots(t0, t2)
+    assert entry.slots(t0, t1) + entry.slots(t1, t2) == whole      # never twice, none lost
+    assert all(t0 < s <= t2 for s in whole)
+    assert all(start <= s % 86_400 <= end or s % 86_400 == 0 and end == 86_400 for s in whole)
+
+
+@given(st.integers(0, 86_399))
+def test_a_time_of_day_reads_back_as_written(seconds):
+    from executive.day import clock_text, parse_clock_time
+    assert parse_clock_time(clock_text(seconds)) == seconds
