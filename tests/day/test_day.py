@@ -3,6 +3,7 @@ missed slots. Simulated clock, demo home; each test a few seconds."""
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from executive.day import (BatteryPolicy, Entry, Schedule, ScheduleError, load_schedule)
 from executive.daysim import Happening, simulate_day
@@ -168,9 +169,6 @@ def test_hearth_validate_checks_a_schedule(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         f"{path}:4: deliver_reminder: parameter text: required by mission deliver_reminder "
         "but not given")
-
-
-from hypothesis import given, settings, strategies as st  # noqa: E402
 
 
 @settings(max_examples=200, deadline=None)
