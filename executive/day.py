@@ -282,6 +282,8 @@ class Stats:
     emergency_response_s: list[float] = field(default_factory=list)
     #: the responses to calls that came while another mission ran (it had to be halted)
     emergency_response_preempting_s: list[float] = field(default_factory=list)
+    #: interruptions by the mission that preempted (recharge, go_to_user, a reminder...)
+    interrupted_by: dict[str, int] = field(default_factory=dict)
     map_inconsistent: int = 0
     robot_not_stopped: int = 0
     battery_min: float = 1.0
@@ -590,6 +592,9 @@ class Day:
             if state is RunState.PREEMPTED:
                 s.interrupted += 1
                 chain.interrupted += 1
+                by = reason.split("preempted by ", 1)[-1].split(" (", 1)[0] \
+                    if "preempted by " in reason else "other"
+                s.interrupted_by[by] = s.interrupted_by.get(by, 0) + 1
                 problems = self._map_problems()
                 s.map_inconsistent += bool(problems)
                 stopped = ev.data.get("robot_stopped", True) is not False
@@ -680,6 +685,7 @@ class Day:
             "cancelled": sum(c.outcome == "cancelled" for c in chains),
             "still_open": sum(c.outcome is None for c in chains),
             "interruptions": s.interrupted,
+            "interrupted_by": dict(sorted(s.interrupted_by.items())),
             "interrupted_missions": len(interrupted),
             "interrupted_completed": sum(c.outcome == "succeeded" for c in interrupted),
             "interrupted_reported": sum(c.outcome in ("failed", "cancelled", "replaced")

@@ -14,7 +14,8 @@ Figures (medians over emergencies of every home; counts summed): ``battery_below
 ``emergency_response_s_median`` (the call -> the robot driving towards the user, simulated
 seconds, target <= 2), ``interrupted_missions`` with ``interrupted_completed``,
 ``interrupted_reported`` (ended failed or cancelled, with a reason) and ``interrupted_open``
-(target 0), ``emergencies_preempting`` (calls that came while a mission ran) and
+(target 0), ``interrupted_by`` (interruptions by the mission that preempted),
+``emergencies_preempting`` (calls that came while a mission ran) and
 ``emergency_response_preempting_s_median`` (the response to those alone),
 ``emergencies_joined`` (calls while the robot was already going to the user),
 ``missed_reminders`` (not delivered: slot missed or the run failed, target 0),
@@ -117,6 +118,7 @@ def run(args) -> dict:
     specs = world_specs(args, homes=2)
     per_world, responses, preempting, walls = {}, [], [], []
     totals: dict = {}
+    interrupted_by: dict = {}
     added = []
     for i, spec in enumerate(specs):
         world = load(spec)
@@ -149,6 +151,9 @@ def run(args) -> dict:
                    battery_below_critical=int(report["battery_below_critical_s"] > 0),
                    emergency_response_s_median=report["emergency_response_s_median"],
                    start_battery=round(level, 3), wall_s=round(wall, 1))
+        fig["interrupted_by"] = report["interrupted_by"]
+        for k, v in report["interrupted_by"].items():
+            interrupted_by[k] = interrupted_by.get(k, 0) + v
         per_world[spec] = fig
         for k, v in fig.items():
             if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in (
@@ -159,6 +164,7 @@ def run(args) -> dict:
     out = dict(totals)
     out.update(
         days=len(specs), hours=args.hours, seed=args.seed, worlds=specs,
+        interrupted_by=dict(sorted(interrupted_by.items())),
         emergency_response_s_median=(round(statistics.median(responses), 3) if responses
                                      else None),
         emergency_response_s_max=round(max(responses), 3) if responses else None,
