@@ -25,6 +25,7 @@ an arm whose actions change the truth, on a (simulated) clock.
 from __future__ import annotations
 
 import math
+import threading
 from typing import Iterable, Optional
 
 import numpy as np
@@ -100,6 +101,9 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self._dirty = True
         self._unsubscribe = truth.subscribe(self._on_truth_change)
         self.battery = battery if battery is not None else Battery(now=self.clock.now())
+        # battery_state() may be asked from another thread than the one driving the robot
+        # (a day's watch under hearth serve): the integration is done under this lock.
+        self._battery_lock = threading.Lock()
         self.battery.t = max(self.battery.t, self.clock.now())
         self.dock_time, self.undock_time = float(dock_time), float(undock_time)
         self.person_room = person_room
@@ -356,8 +360,9 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
 
     # -- battery and charger ---------------------------------------------------------------
     def battery_state(self) -> BatteryState:
-        """The battery now (level 0..1, charging, docked)."""
-        self._poll()
+        """The battery now (level 0..1, charging, docked). Safe from any thread: it only
+        integrates the battery (under a lock), never polls or changes the actions."""
+        self._drain(self.clock.now())
         return self.battery.state()
 
     def dock(self) -> Action:
@@ -430,11 +435,15 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self._drain(self.clock.now())
 
     def _drain(self, now: float) -> None:
+        with self._battery_lock:
+            self._drain_locked(now)
+
+    def _drain_locked(self, now: float) -> None:
         last = self.battery.t
         if now <= last:
             return
         busy = {"base": 0.0, "arm": 0.0}
-        for res, act in self._actions:
+        for res, act in list(self._actions):
             start = getattr(act, "start", None)
             if start is None or res not in busy:
                 continue
