@@ -475,6 +475,11 @@ class _Exporter:
             if body.get("utterances"):
                 meta["utterances"] = "json:" + json.dumps(plain(body["utterances"]),
                                                           ensure_ascii=False)
+            if body.get("interrupted") is not None:     # docs/day.md
+                how = plain(body["interrupted"])
+                if isinstance(how, dict) and how.get("progress"):
+                    how["progress"] = scope.rename.get(how["progress"], how["progress"])
+                meta["interrupted"] = "json:" + json.dumps(how, ensure_ascii=False)
             if body.get("blackboard"):
                 values = {scope.rename.get(str(k), str(k)): plain(v)
                           for k, v in body["blackboard"].items()}
@@ -1016,6 +1021,8 @@ class _Importer:
             doc["description"] = minfo.description
         if "utterances" in minfo.meta:
             doc["utterances"] = minfo.meta["utterances"]
+        if "interrupted" in minfo.meta:
+            doc["interrupted"] = minfo.meta["interrupted"]
         if minfo.params:
             doc["parameters"] = dict(minfo.params)
         if "blackboard" in minfo.meta:

@@ -683,6 +683,11 @@ class Mission:
     blackboard: dict[str, Any]
     key_types: dict[str, str]
     files: list[str]
+    #: What a day's supervisor does with this mission after a higher priority event (low
+    #: battery, an emergency) interrupted it (docs/day.md): ``{"then": "restart"}``, or
+    #: ``{"then": "resume", "progress": KEY, "param": NAME}``: run it again with parameter
+    #: NAME set to the value key KEY held when it was interrupted (the places done).
+    interrupted: dict[str, str] = field(default_factory=lambda: {"then": "restart"})
 
     def nodes(self):
         return self.root.walk()
@@ -970,9 +975,42 @@ class _Compiler:
                        data.line)
         if self.errors or root is None:
             return None
+        interrupted = self.interrupted(data, path)
+        if self.errors:
+            return None
         return Mission(name=str(data.get("name")), description=str(data.get("description", "")),
                        file=path, parameters=self.params, root=root, blackboard=blackboard,
-                       key_types={k: w[0] for k, w in self.writers.items()}, files=self.files)
+                       key_types={k: w[0] for k, w in self.writers.items()}, files=self.files,
+                       interrupted=interrupted)
+
+    def interrupted(self, data: LineDict, path: str) -> dict[str, str]:
+        """The ``interrupted:`` declaration (the schema checked its shape): a resumed
+        mission's progress key must be one its tree writes, its parameter a list it declares."""
+        value = data.get("interrupted", "restart")
+        line = data.key_lines.get("interrupted", data.line)
+        if isinstance(value, str):
+            if value == "resume":
+                self.error("interrupted: resume needs progress (a key) and param (a "
+                           "parameter): {then: resume, progress: KEY, param: NAME}", path, line)
+            return {"then": value}
+        out = {k: str(v) for k, v in value.items()}
+        if out.get("then") == "resume":
+            key, param = out.get("progress"), out.get("param")
+            if key is None or param is None:
+                self.error("interrupted: resume needs progress (a key) and param (a parameter)",
+                           path, line)
+            else:
+                if key not in self.writers:
+                    self.error(f"interrupted: progress key {{{key}}} is not written by the tree",
+                               path, line)
+                spec = self.params.get(param)
+                if spec is None:
+                    self.error(f"interrupted: param {param} is not a parameter of the mission",
+                               path, line)
+                elif spec.type not in ("list", "any"):
+                    self.error(f"interrupted: param {param} is {spec.type}, a list is needed",
+                               path, line)
+        return out
 
     def check_library(self, data: LineDict, path: str) -> None:
         """A file of subtrees only: check each as if it were a mission of its own, its

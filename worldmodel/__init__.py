@@ -14,7 +14,7 @@ _EXPORTS = {
     "worldmodel.errors": ("UnknownNode", "WorldError", "WorldValidationError"),
     "worldmodel.io": ("load_world", "parse_world", "save_world", "to_xml", "validate_file"),
     "worldmodel.nodes": (
-        "Apartment", "DefaultPosition", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
+        "Apartment", "Charger", "DefaultPosition", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
         "LargeArticulatedObject", "LargeObject", "Model", "ParkingPosition", "Part", "Room",
         "SmallObject", "Surface", "Switch", "Visual",
     ),

@@ -2,7 +2,8 @@
 
 A kitchen (6 m x 5 m) with a kitchen table holding a red cup, a bowl, a sugar container and a
 blue cup; a side table; a chair; a cupboard with two hinged doors; a drawer unit with three
-drawers; a fridge; an oven with a bottom-hinged door and four knobs; a light switch. A
+drawers; a fridge; an oven with a bottom-hinged door and four knobs; a light switch; a
+charging station. A
 bathroom with a cabinet holding a pill box. Articulated objects face their local +x.
 
 Run ``python -m worldmodel.demo_home [OUT]`` to regenerate the file.
@@ -17,7 +18,7 @@ import numpy as np
 
 from worldmodel.io import atomic_write, to_xml
 from worldmodel.nodes import (
-    Apartment, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,
+    Apartment, Charger, DefaultPosition, GraspPoint, Handle, Joint, Knob, KnobState, LargeArticulatedObject,
     LargeObject, Model, ParkingPosition, Part, Room, SmallObject, Surface, Switch, Visual,
 )
 from worldmodel.pose import Pose
@@ -251,6 +252,10 @@ def build() -> Apartment:
     kitchen = Room("kitchen", "kitchen", bounds=(0.0, 0.0, 6.0, 5.0),
                    switches=[Switch("kitchen_light", "rotational", Pose(0.05, 2.5, 1.2, 0, 0, 0),
                                     name="kitchen light")],
+                   # in the free south-east corner, facing into the room; the robot docks
+                   # backed onto it, 0.4 m out
+                   chargers=[Charger("charger", Pose(5.95, 0.5, 0, 0, 0, math.pi),
+                                     Pose.planar(0.4, 0.0, 0.0), name="charging station")],
                    objects=[kitchen_table, side_table, chair, cupboard(), drawer_unit(), fridge(),
                             oven()])
     counter = table("bathroom_counter", "bathroom counter", 7.2, 0.3, 0.9, 0.5, 0.85,

@@ -5,7 +5,7 @@ import math
 from typing import Optional
 
 from worldmodel.nodes import (
-    Handle, Knob, LargeArticulatedObject, LargeObject, Part, Room, SmallObject, Switch,
+    Charger, Handle, Knob, LargeArticulatedObject, LargeObject, Part, Room, SmallObject, Switch,
 )
 
 
@@ -21,6 +21,8 @@ def _state(node) -> str:
         return f"knob, state {node.state} ({math.degrees(node.angle):.0f} deg)"
     if isinstance(node, Handle):
         return "handle"
+    if isinstance(node, Charger):
+        return "charger"
     if isinstance(node, Switch):
         return f"{node.type} switch, {'on' if node.on else 'off'}"
     if isinstance(node, SmallObject):
@@ -56,7 +58,7 @@ def hierarchy_lines(world, node_id: Optional[str] = None) -> list[str]:
 
 def _children(node) -> list:
     if isinstance(node, Room):
-        return [*node.switches, *node.objects]
+        return [*node.switches, *node.chargers, *node.objects]
     if isinstance(node, LargeArticulatedObject):
         return [*node.handles, *node.knobs, *node.parts, *node.children]
     if isinstance(node, LargeObject):

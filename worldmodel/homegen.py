@@ -1650,6 +1650,8 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
                           rooms=rooms, library=library)
     world = World(apartment, path=None, base_dir=mesh_dir)
     ctx.meshes.write(mesh_dir, _mesh_files(apartment))
+    from worldmodel.chargers import place_charger
+    place_charger(world)
     return world
 
 

@@ -27,7 +27,7 @@ from worldmodel.errors import WorldError, WorldValidationError
 from worldmodel.nodes import (
     Apartment, DefaultPosition, GraspPoint, Handle, HistoryEntry, Joint, Knob, KnobState,
     LargeArticulatedObject, LargeObject, Model, ParkingPosition, Part, Room, SearchStat,
-    SmallObject, Surface, Switch, Visual,
+    SmallObject, Surface, Switch, Visual, Charger,
 )
 from worldmodel.pose import Pose
 from worldmodel.validate import MAX_ROOMS, MAX_TEXT_CHARS, semantic_problems
@@ -268,6 +268,11 @@ class _Reader:
                 knobs=[self.knob(k) for k in el.findall("knob")])
         return LargeObject(**kw)
 
+    @staticmethod
+    def dock(el) -> Pose:
+        d = el.find("dock")
+        return Pose.planar(float(d.get("x")), float(d.get("y")), float(d.get("yaw", 0)))
+
     def room(self, el) -> Room:
         b = el.get("bounds")
         return Room(id=el.get("id"), name=el.get("name"), pose=_pose_of(el),
@@ -276,6 +281,9 @@ class _Reader:
                     switches=[Switch(s.get("id"), s.get("type"), _pose_of(s), s.get("name", ""),
                                      _b(s.get("on"), False), line=s.sourceline)
                               for s in el.findall("switch")],
+                    chargers=[Charger(c.get("id"), _pose_of(c), self.dock(c), c.get("name", ""),
+                                      line=c.sourceline)
+                              for c in el.findall("charger")],
                     objects=[self.large(o) for o in el
                              if o.tag in ("LargeObject", "LargeArticulatedObject")],
                     line=el.sourceline)
@@ -540,6 +548,12 @@ def to_xml(apartment: Apartment) -> bytes:
             if s.name:
                 se.set("name", s.name)
             _set_pose(se, s.pose)
+        for c in r.chargers:
+            ce = etree.SubElement(re_, "charger", id=c.id)
+            if c.name:
+                ce.set("name", c.name)
+            _set_pose(ce, c.pose)
+            etree.SubElement(ce, "dock", x=_num(c.dock.x), y=_num(c.dock.y), yaw=_num(c.dock.yaw))
         for o in r.objects:
             _write_large(re_, o)
     if apartment.search_stats:

@@ -1,6 +1,6 @@
 """Typed nodes of the hierarchical semantic map (RAMCIP D3.1 section 3.2).
 
-apartment -> room (switches) -> LargeObject / LargeArticulatedObject (parts with joints,
+apartment -> room (switches, chargers) -> LargeObject / LargeArticulatedObject (parts with joints,
 handles, knobs) -> SmallObject. Every pose is relative to its parent node's frame; lengths
 are metres, angles radians. ``line`` fields remember where a node stood in its file and do
 not take part in equality.
@@ -289,6 +289,24 @@ class Switch:
 
 
 @dataclass
+class Charger:
+    """A charging station on the floor of a room: where it stands (``pose``, room frame) and
+    the base pose the robot docks at (``dock``, x/y/yaw in the charger's frame, as a parking
+    position is in its object's). Not drawn: a flat plate the camera does not need."""
+    id: str
+    pose: Pose
+    dock: Pose
+    name: str = ""
+    line: Optional[int] = _line()
+
+    kind = "Charger"
+
+    @property
+    def words(self) -> list[str]:
+        return ["charger", self.name, self.id]
+
+
+@dataclass
 class Room:
     id: str
     name: str
@@ -296,6 +314,7 @@ class Room:
     pointcloud: Optional[str] = None
     bounds: Optional[tuple[float, float, float, float]] = None   # xmin, ymin, xmax, ymax
     switches: list[Switch] = field(default_factory=list)
+    chargers: list[Charger] = field(default_factory=list)
     objects: list[Union[LargeObject, LargeArticulatedObject]] = field(default_factory=list)
     line: Optional[int] = _line()
 
@@ -341,5 +360,5 @@ class Apartment:
     kind = "Apartment"
 
 
-AnyNode = Union[Apartment, Room, Switch, LargeObject, LargeArticulatedObject, Part, Handle, Knob,
+AnyNode = Union[Apartment, Room, Switch, Charger, LargeObject, LargeArticulatedObject, Part, Handle, Knob,
                 SmallObject]

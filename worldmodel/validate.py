@@ -49,6 +49,8 @@ def iter_nodes(apartment: Apartment) -> Iterator[tuple[object, Optional[object]]
         yield room, apartment
         for s in room.switches:
             yield s, room
+        for c in room.chargers:
+            yield c, room
         for o in room.objects:
             yield o, room
             if isinstance(o, LargeArticulatedObject):
@@ -207,6 +209,8 @@ def _node_value_problems(node) -> Iterator[str]:
     if kind == "Room" and node.bounds is not None:
         for i, v in enumerate(node.bounds):
             yield from _coord(f"bounds[{i}]", v, nid)
+    elif kind == "Charger":
+        yield from _pose("dock pose", node.dock, nid)
     elif kind in ("LargeObject", "LargeArticulatedObject"):
         for p in node.parking:
             yield from _text("parking position id", p.id, nid, optional=False)
@@ -456,6 +460,13 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
             for d in node.default_positions:
                 if d.parent not in seen:
                     bad(f"{node.id}: default position names unknown parent {d.parent!r}", d)
+        elif kind == "Charger" and parent.bounds is not None:
+            # The robot must be able to stand at the dock: inside the charger's room.
+            d = node.pose.matrix() @ node.dock.matrix()
+            x0, y0, x1, y1 = parent.bounds
+            if not (x0 <= d[0, 3] <= x1 and y0 <= d[1, 3] <= y1):
+                bad(f"charger {node.id!r}: its dock pose ({d[0, 3]:.2f}, {d[1, 3]:.2f}) is "
+                    f"outside room {parent.id!r}", node)
         elif kind == "Room":
             if node.bounds is not None:
                 x0, y0, x1, y1 = node.bounds

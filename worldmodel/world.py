@@ -273,6 +273,17 @@ class World:
         out.sort(key=lambda item: item[0].id != obj.default_parking)
         return out
 
+    def chargers(self) -> list:
+        """The map's charging stations (``Charger`` nodes), in file order."""
+        return self.nodes("Charger")
+
+    def dock_pose(self, charger_id: str) -> Pose:
+        """The world base pose (x, y, yaw) the robot docks at on charger ``charger_id``."""
+        node = self.get(charger_id)
+        if getattr(node, "kind", "") != "Charger":
+            raise UnknownNode("not a charger", node=charger_id)
+        return Pose.planar(*planar_of(self.T_world(charger_id) @ node.dock.matrix()))
+
     def parking_pose(self, object_id: str, parking_id: str) -> Pose:
         for p, pose in self.parking_positions(object_id):
             if p.id == parking_id:

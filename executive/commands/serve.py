@@ -62,6 +62,10 @@ def register(sub) -> None:
     p.add_argument("--approval-timeout", default=120.0,
                    type=number_in(0, 86_400, "the approval timeout", lo_open=True),
                    help="seconds to wait for an approval before the skill fails")
+    p.add_argument("--schedule", default=None, metavar="DAY.yaml",
+                   help="run a day: this schedule's missions at their times, the battery "
+                        "watch, emergencies first, interrupted missions resumed "
+                        "(docs/day.md; /api/day)")
     add_groot2_arguments(p)
     from executive.cliutil import add_foxglove_arguments
     add_foxglove_arguments(p, wait=False)
@@ -102,6 +106,10 @@ def _serve(args: argparse.Namespace) -> int:
     from executive.command.server import bind_socket, make_server, make_service
     from hearth.robot.clock import WallClock
 
+    schedule = None
+    if args.schedule:
+        from executive.day import load_schedule
+        schedule = load_schedule(args.schedule)      # a bad file: one line, before anything
     clock = WallClock()
     path = belief_file(args)
     world, robot = make_world_and_robot(args, clock, path)
@@ -116,8 +124,10 @@ def _serve(args: argparse.Namespace) -> int:
     for line in service.catalogue_problems:
         print(f"hearth serve: skipped {line}", file=sys.stderr)
     names = ", ".join(sorted(service.vocabulary.catalogue)) or "none"
-    pub = None
+    pub = day = runner = None
     try:
+        if schedule is not None:
+            day, runner = _start_day(args, service, robot, schedule)
         pub = start_groot2(args, service.executive)
         try:
             sock = bind_socket(args.host, args.port)
@@ -136,9 +146,17 @@ def _serve(args: argparse.Namespace) -> int:
             if keeper is not None:
                 print(f"hearth serve: the map is kept in {keeper.path}", file=sys.stderr, flush=True)
         app = create_app(service, token=args.token, allowed_hosts=args.allowed_host)
+        if day is not None:
+            from executive.command.api import _check_token
+            from executive.command.day_api import day_router
+            app.include_router(day_router(day, _check_token(args.token)))
         make_server(app, tls_cert=args.tls_cert, tls_key=args.tls_key,
                     on_started=started).run(sockets=[sock])
     finally:
+        if runner is not None:
+            runner.close()
+        if day is not None:
+            day.close()
         if pub is not None:
             pub.close()
         service.executive.shutdown()
@@ -147,3 +165,22 @@ def _serve(args: argparse.Namespace) -> int:
             sink.close()
         close_map(keeper, quiet=True)
     return 0
+
+
+def _start_day(args: argparse.Namespace, service, robot, schedule):
+    """The Day over the service's executive (the catalogue's missions), stepped once a
+    second; its events go to the event stream (kind ``day``) and ``RUNS_DIR/day.jsonl``."""
+    from pathlib import Path
+
+    from executive.command.day_api import DayRunner
+    from executive.day import Day
+    missions = {n: e.mission for n, e in service.vocabulary.catalogue.items()}
+    log = None
+    if args.runs_dir:
+        Path(args.runs_dir).mkdir(parents=True, exist_ok=True)
+        log = Path(args.runs_dir) / "day.jsonl"
+    def submit(name, params, priority, source):
+        return service.submit(name, params, priority, source=f"day: {source}")[0].handle
+    day = Day(service.executive, robot, missions, schedule,
+              on_event=lambda e: service.hub.publish("day", e), log_path=log, submit=submit)
+    return day, DayRunner(day)

@@ -1,6 +1,7 @@
 """`hearth validate FILE...`: check world files (.xml) and mission files (.yaml/.yml).
 
-Check world files (XML, schema and semantics) and mission files (YAML). Prints nothing and
+Check world files (XML, schema and semantics), mission files (YAML) and day schedules (YAML
+with a top-level 'day:'). Prints nothing and
 exits 0 when all are valid; otherwise one 'path:line: message' line per problem (the first 50
 of a file, then a line counting the rest) and exit status 2.
 """
@@ -23,6 +24,9 @@ def problems_in(path: str) -> list[str]:
     if not Path(path).exists():
         return [f"{path}:0: no such file"]
     if suffix in (".yaml", ".yml"):
+        from executive.day import is_schedule_file, schedule_problems
+        if is_schedule_file(path):          # a day's schedule (docs/day.md)
+            return schedule_problems(path)
         from executive.missionfile import validate_file as validate_mission
         return [str(e) for e in validate_mission(path)]
     from worldmodel.io import validate_file as validate_world

@@ -93,6 +93,7 @@ class TimedAction(Action):
         super().__init__(name)
         self.clock = clock
         self.start = clock.now()
+        self.stopped_at: Optional[float] = None
         self.duration = max(float(duration), 0.0)
         self._on_done, self._on_progress, self._on_cancel = on_done, on_progress, on_cancel
         self._fail, self._fail_at = fail, fail_at
@@ -129,6 +130,7 @@ class TimedAction(Action):
         with self._lock:
             if self.status() != "running":
                 return
+            self.stopped_at = self.clock.now()
             f = self._fraction()
             self.progress = f
             if self._on_cancel:
@@ -206,6 +208,17 @@ class RobotAdapter(Protocol):
 
     def hand_over(self) -> Action:
         """Hand the held object to the person."""
+
+    # -- battery and charger (docs/day.md) --------------------------------------------------
+    def battery_state(self):
+        """The battery now: a ``robot.battery.BatteryState`` (level 0..1, charging, docked)."""
+
+    def dock(self) -> Action:
+        """Dock on the charger the robot stands in front of (at its dock pose); charging
+        starts once docked. Result: the charger's id."""
+
+    def undock(self) -> Action:
+        """Leave the charger (done at once when not docked)."""
 
     # -- speech and safety -----------------------------------------------------------------
     def say(self, text: str) -> Action:

@@ -715,6 +715,17 @@ class ReplayRobot(PanTiltHead, SpokenAndLogged):
     def hand_over(self) -> Action:
         return self._replayed("hand_over")
 
+    def battery_state(self):
+        """A recording carries no battery: reported full, never docked."""
+        from hearth.robot.battery import BatteryState
+        return BatteryState(1.0)
+
+    def dock(self) -> Action:
+        return self._replayed("dock")
+
+    def undock(self) -> Action:
+        return self._replayed("undock")
+
     def stop(self) -> None:
         self.stops += 1
         for a in self._actions:

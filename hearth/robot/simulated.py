@@ -14,6 +14,9 @@ an arm whose actions change the truth, on a (simulated) clock.
   grasped wherever the robot believes it stands; one whose pose was taken before the error
   changed (a correction applied, the base turned: the error is in the base's frame) or from
   the map is missed by as much as the error moves it.
+- Battery (robot/battery.py): drains standing, more while the base drives and the arm
+  moves, and charges on a charger's dock (``dock()`` at a map ``Charger``'s dock pose,
+  ``undock()``; driving off a dock undocks first). A flat battery refuses to move anything.
 - Time: every action takes simulated time on the injected clock (driving: path length over
   speed plus turning over turn speed; arm motions: approach time plus joint travel over joint
   speed). Actions are evaluated lazily from the clock, so a SimClock runs as fast as the CPU
@@ -22,12 +25,14 @@ an arm whose actions change the truth, on a (simulated) clock.
 from __future__ import annotations
 
 import math
+import threading
 from typing import Iterable, Optional
 
 import numpy as np
 
 from perception.camera import Intrinsics
-from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
+from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.battery import Battery, BatteryState
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.noise import KinectNoise
@@ -52,7 +57,15 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
     ``renderer``: what draws the camera's frames, "hearth" (perception/render.py) or
     "mujoco" (hearth/robot/mujoco_render.py); default ``$HEARTH_SIM_RENDERER``, else "hearth"
     (an environment variable so that a suite's worker processes inherit it).
+    ``battery``: a ``robot.battery.Battery`` (default: full, the default model);
+    ``dock_time`` / ``undock_time`` (s); ``person_room``: the room id the user is in (the
+    simulated person detector's truth, see ``look_for_person``; None: nobody home).
     """
+
+    #: How near (m, rad) the true base pose must be to a charger's dock pose to dock.
+    DOCK_TOLERANCE = (0.15, math.radians(10))
+    #: Seconds a look around a room for a person takes (the head sweeps the room).
+    LOOK_FOR_PERSON_S = 4.0
 
     def __init__(self, truth, clock=None, start_pose=None, localisation_error=Pose(),
                  intrinsics: Optional[Intrinsics] = None,
@@ -61,7 +74,9 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
                  locked: Iterable[str] = (), speed: float = 0.5, turn_speed: float = 1.0,
                  joint_speed: float = 0.5, drawer_speed: float = 0.15, approach_time: float = 2.0,
                  reach: float = 1.6, grasp_tolerance: float = 0.08,
-                 renderer: Optional[str] = None):
+                 renderer: Optional[str] = None,
+                 battery: Optional[Battery] = None, dock_time: float = 5.0,
+                 undock_time: float = 3.0, person_room: Optional[str] = None):
         import os
         self.truth = truth
         self.renderer = renderer or os.environ.get("HEARTH_SIM_RENDERER", "hearth")
@@ -91,6 +106,13 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self._scene_key = None
         self._dirty = True
         self._unsubscribe = truth.subscribe(self._on_truth_change)
+        self.battery = battery if battery is not None else Battery(now=self.clock.now())
+        # battery_state() may be asked from another thread than the one driving the robot
+        # (a day's watch under hearth serve): the integration is done under this lock.
+        self._battery_lock = threading.Lock()
+        self.battery.t = max(self.battery.t, self.clock.now())
+        self.dock_time, self.undock_time = float(dock_time), float(undock_time)
+        self.person_room = person_room
 
     # -- ground truth (for tests, scoring and recordings; skills must not use these) -------
     def true_pose(self) -> Pose:
@@ -128,13 +150,21 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         if not self._inside_home(goal_true):
             return self._refuse("navigate_to", f"goal ({goal.x:.2f}, {goal.y:.2f}) is outside "
                                                "every room")
+        flat = self._flat("navigate_to")
+        if flat:
+            return flat
         start = self._true
         dist = start.planar_distance(goal_true)
         turn = abs(wrap_angle(goal_true.yaw - start.yaw))
-        duration = dist / self.speed + turn / self.turn_speed
+        # Driving off a dock backs off it first (and charging stops).
+        off_dock = self.undock_time if self.battery.docked is not None else 0.0
+        self.battery.docked = None
+        drive = dist / self.speed + turn / self.turn_speed
+        duration = off_dock + drive
 
         def at(f: float) -> None:
-            self._true = _interpolate(start, goal_true, f)
+            g = 0.0 if duration <= 0 else max(f * duration - off_dock, 0.0) / max(drive, 1e-9)
+            self._true = _interpolate(start, goal_true, g)
 
         act = TimedAction("navigate_to", self.clock, duration, on_done=self._believed,
                           on_progress=at, on_cancel=at)
@@ -343,6 +373,102 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         act = TimedAction("hand_over", self.clock, self.approach_time * 1.5, on_done=done)
         return self._start("arm", act, object=obj.id)
 
+    # -- battery and charger ---------------------------------------------------------------
+    def battery_state(self) -> BatteryState:
+        """The battery now (level 0..1, charging, docked). Safe from any thread: it only
+        integrates the battery (under a lock), never polls or changes the actions."""
+        self._drain(self.clock.now())
+        return self.battery.state()
+
+    def dock(self) -> Action:
+        """Back onto the charger whose dock pose the robot stands at (within
+        ``DOCK_TOLERANCE``); charging starts when it is docked. Result: the charger's id."""
+        self._poll()
+        busy = self._busy("base", "dock")
+        if busy:
+            return busy
+        if self.battery.docked is not None:
+            return DoneAction("dock", result=self.battery.docked)
+        charger, far = self._charger_at(self._true)
+        if charger is None:
+            return self._refuse("dock", far)
+
+        def done():
+            self._settle()
+            self.battery.docked = charger
+            return charger
+
+        act = TimedAction("dock", self.clock, self.dock_time, on_done=done)
+        return self._start("base", act, charger=charger)
+
+    def undock(self) -> Action:
+        """Drive off the charger (charging stops at once); done at once when not docked."""
+        self._poll()
+        busy = self._busy("base", "undock")
+        if busy:
+            return busy
+        if self.battery.docked is None:
+            return DoneAction("undock")
+        charger, self.battery.docked = self.battery.docked, None
+        act = TimedAction("undock", self.clock, self.undock_time)
+        return self._start("base", act, charger=charger)
+
+    def look_for_person(self) -> Action:
+        """The simulated person detector (no person is drawn: rendering people is not part
+        of this simulator): after a ``LOOK_FOR_PERSON_S`` look around, succeeds with the
+        room id when the user is in the room the robot truly stands in, fails otherwise."""
+        self._poll()
+        room = room_at(self.truth, self._true.x, self._true.y, margin=0.05)
+        here = room.id if room is not None else None
+        user = self.person_room
+        fail = None if (here is not None and user == here) else (
+            f"no one in the {room.name or room.id}" if room is not None else "no one here")
+        act = TimedAction("look_for_person", self.clock, self.LOOK_FOR_PERSON_S,
+                          on_done=lambda: here, fail=fail)
+        return self._start("head", act, room=here)
+
+    def _charger_at(self, pose: Pose) -> tuple[Optional[str], str]:
+        best = None
+        for c in self.truth.chargers():
+            d = self.truth.dock_pose(c.id)
+            dist = d.planar_distance(pose)
+            if dist <= self.DOCK_TOLERANCE[0] and abs(d.yaw_difference(pose)) <= self.DOCK_TOLERANCE[1]:
+                return c.id, ""
+            if best is None or dist < best[0]:
+                best = (dist, c.id)
+        if best is None:
+            return None, "there is no charger in this home"
+        return None, f"not at a charger's dock ({best[1]}'s is {best[0]:.2f} m away)"
+
+    def _flat(self, name: str) -> Optional[Action]:
+        if self.battery.level <= 0.0:
+            return self._refuse(name, "the battery is flat")
+        return None
+
+    def _settle(self) -> None:
+        """Integrate the battery up to now (before its docked state changes)."""
+        self._drain(self.clock.now())
+
+    def _drain(self, now: float) -> None:
+        with self._battery_lock:
+            self._drain_locked(now)
+
+    def _drain_locked(self, now: float) -> None:
+        last = self.battery.t
+        if now <= last:
+            return
+        busy = {"base": 0.0, "arm": 0.0}
+        for res, act in list(self._actions):
+            start = getattr(act, "start", None)
+            if start is None or res not in busy:
+                continue
+            end = start + act.duration
+            stopped = getattr(act, "stopped_at", None)
+            if stopped is not None:
+                end = min(end, stopped)
+            busy[res] += max(min(end, now) - max(start, last), 0.0)
+        self.battery.update(now, driving_s=busy["base"], arm_s=busy["arm"])
+
     # -- speech and safety -------------------------------------------------------------------
     def stop(self) -> None:
         self.stops += 1
@@ -352,6 +478,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
 
     # -- helpers -----------------------------------------------------------------------------
     def _poll(self) -> None:
+        self._drain(self.clock.now())
         still = []
         for res, act in self._actions:
             if act.status() == "running":

@@ -14,7 +14,8 @@ MISSIONS = sorted(str(p) for p in Path(missions_dir()).glob("*.yaml")) + \
     [str(Path(missions_dir()) / "subtrees" / "search.yaml")]
 
 PARAMS = {"fetch_object": {"object": "blue cup"}, "search_object": {"object": "blue cup"},
-          "refine_localisation": {"at": "kitchen_table"}}
+          "refine_localisation": {"at": "kitchen_table"},
+          "deliver_reminder": {"text": "time for your pills"}}
 
 
 def branching_case(mission: str) -> Case:

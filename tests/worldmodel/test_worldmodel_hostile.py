@@ -112,7 +112,7 @@ def test_the_cli_refuses_a_nan_pose_in_one_line(world_dir):
     path = world_dir / "world.xml"
     path.write_text(HOSTILE["nan_pose"][0])
     r = validate(path)
-    assert (r.returncode, r.stderr) == (2, f"{path}:8: Element 'pose', attribute 'x': 'NaN' is "
+    assert (r.returncode, r.stderr) == (2, f"{path}:12: Element 'pose', attribute 'x': 'NaN' is "
                                            "not a finite number\n")
 
 

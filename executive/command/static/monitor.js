@@ -665,6 +665,13 @@ function onEvent(kind, ev, seq) {
   } else if (kind === "gap") {
     start();                                     // the stream fell behind: load afresh
     return;
+  } else if (kind === "day") {                   // hearth serve --schedule (docs/day.md)
+    const skip = new Set(["e", "kind", "t", "time", "params"]);
+    const rest = Object.entries(ev).filter(([k, v]) => !skip.has(k) && v !== "" && v !== null)
+      .map(([k, v]) => `${k} ${fmt(v)}`).join(", ");
+    const bad = ["battery_critical", "slot_missed", "interrupted", "emergency"].includes(ev.kind);
+    logLine("run" + (bad ? " bad" : ""), "day", `${ev.time} ${ev.kind}${rest ? " · " + rest : ""}`);
+    return;
   }
   if (kind === "submitted" || kind === "run") {
     const r = runs.get(ev.run);
@@ -712,7 +719,7 @@ async function start() {
   if (token) q.set("token", token);
   stream = new EventSource("/api/events?" + q);
   for (const kind of ["run", "submitted", "status", "feedback", "write", "param", "restart", "halted",
-                      "stopped", "map", "approval", "autonomy", "gap"])
+                      "stopped", "map", "approval", "autonomy", "gap", "day"])
     stream.addEventListener(kind, m => onEvent(kind, JSON.parse(m.data), Number(m.lastEventId)));
   stream.onopen = () => {
     $("conn").textContent = "live";
