@@ -99,6 +99,9 @@ def keyframe_cloud(depth: np.ndarray, K: Intrinsics, T_base_camera: np.ndarray,
     pcd = pcd.voxel_down_sample(options.voxel)
     pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=options.normal_radius,
                                                               max_nn=30))
+    # Normals face the camera: the two sides of a wall then disagree, and a view through a
+    # wall into the next room cannot match (registration pairs only agreeing normals).
+    pcd.orient_normals_towards_camera_location(np.zeros(3))
     pcd.transform(np.asarray(T_base_camera, float))
     P, N = np.asarray(pcd.points), np.asarray(pcd.normals)
     keep = np.abs(N[:, 2]) < options.max_normal_z if len(N) else np.zeros(0, bool)
@@ -123,6 +126,7 @@ class RegistrationOptions:
     max_correction_m: float = 0.30     #: change of the prior's translation, metres
     max_correction_deg: float = 10.0   #: change of the prior's yaw
     min_points: int = 50
+    min_normal_dot: float = 0.7        #: a correspondence's normals agree at least this much
 
 
 @dataclass(frozen=True)
@@ -172,14 +176,18 @@ def _about(D: np.ndarray, c: np.ndarray) -> np.ndarray:
     return np.r_[D[:2, 3] - c[:2] + D[:2, :2] @ c[:2], a]
 
 
-def information_6dof(info_c: np.ndarray, c: np.ndarray, stiff: float = 1e6) -> np.ndarray:
+def information_6dof(info_c: np.ndarray, c: np.ndarray, count: float = 1.0,
+                     stiff: float = 1e6) -> np.ndarray:
     """A 3x3 information over (x, y, yaw about the point c) as Open3D's 6x6 over (rx, ry, rz,
-    tx, ty, tz) about the origin; roll, pitch and height (a base on the floor) held by
-    ``stiff``."""
+    tx, ty, tz) about the origin, in Open3D's units (unit residual scale: one point adds its
+    Jacobian's outer product); roll and pitch (a base on the floor) held by ``stiff``. Open3D
+    reads the tz entry as the edge's number of correspondences when it weighs loop closures
+    against their residual (the line process), so that entry is ``count``: every edge is
+    planar, so height has nothing to hold."""
     A = np.array([[1.0, 0.0, c[1]], [0.0, 1.0, -c[0]], [0.0, 0.0, 1.0]])   # origin <- about c
     Ai = np.linalg.inv(A)
     L = Ai.T @ info_c @ Ai                                              # (x, y, yaw) at origin
-    out = np.diag([stiff, stiff, 0.0, 0.0, 0.0, stiff])
+    out = np.diag([stiff, stiff, 0.0, 0.0, 0.0, max(float(count), 1.0)])
     idx = [3, 4, 2]
     for a in range(3):
         for b in range(3):
@@ -187,30 +195,42 @@ def information_6dof(info_c: np.ndarray, c: np.ndarray, stiff: float = 1e6) -> n
     return out
 
 
+def _agreeing(T, source: KeyframeCloud, target: KeyframeCloud, moved: np.ndarray, gate: float,
+              min_dot: float) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-neighbour correspondences within ``gate`` whose normals agree."""
+    from perception.registration import associate
+    i_s, i_t, _ = associate(target.tree(), moved, gate)
+    dots = np.einsum("ij,ij->i", source.normals[i_s] @ T[:3, :3].T, target.normals[i_t])
+    keep = dots >= min_dot
+    return i_s[keep], i_t[keep]
+
+
 def register_pair(source: KeyframeCloud, target: KeyframeCloud, T_prior: np.ndarray,
                   prior_information: np.ndarray, options: RegistrationOptions
                   = RegistrationOptions(), ids: tuple[int, int] = (0, 1)) -> PairResult:
     """Register ``source`` onto ``target`` (both base frames) from ``T_prior``
     (``T_target_source``, planar) held by ``prior_information`` (3x3 over x, y, yaw)."""
-    from perception.registration import (associate, kernel_weights, normal_equations,
-                                         planar_delta, planar_plane_jacobian, point_to_plane,
-                                         transform)
+    from perception.registration import (kernel_weights, normal_equations, planar_delta,
+                                         planar_plane_jacobian, point_to_plane, transform)
     T_prior = np.asarray(T_prior, dtype=float)
-    fail = PairResult(ids[0], ids[1], T_prior, information_6dof(prior_information, np.zeros(3)),
+    # Open3D's pose graph takes information at a unit residual scale: everything here is
+    # divided by the point weight (so an odometry prior keeps its weight against the points).
+    w_data = 1.0 / options.sigma_point ** 2
+    fail = PairResult(ids[0], ids[1], T_prior,
+                      information_6dof(prior_information / w_data, np.zeros(3)),
                       0.0, math.inf, False)
     if len(source.points) < options.min_points or len(target.points) < options.min_points:
         return fail
-    tree, q_all, n_all = target.tree(), target.points, target.normals
+    q_all, n_all = target.points, target.normals
     c = target.points.mean(axis=0)
     c[2] = 0.0
     T = T_prior.copy()
-    w_data = 1.0 / options.sigma_point ** 2
     H_data = np.zeros((3, 3))
     last = len(options.gates) - 1
     for level, (gate, iterations) in enumerate(zip(options.gates, options.iterations)):
         for _ in range(iterations):
             p = transform(T, source.points)
-            i_s, i_t, _ = associate(tree, p, gate)
+            i_s, i_t = _agreeing(T, source, target, p, gate, options.min_normal_dot)
             if len(i_s) < 6:
                 break
             ps, q, n = p[i_s], q_all[i_t], n_all[i_t]
@@ -226,7 +246,7 @@ def register_pair(source: KeyframeCloud, target: KeyframeCloud, T_prior: np.ndar
             if abs(x[0]) + abs(x[1]) + abs(x[2]) < 1e-5:
                 break
     p = transform(T, source.points)
-    i_s, i_t, _ = associate(tree, p, options.gates[-1])
+    i_s, i_t = _agreeing(T, source, target, p, options.gates[-1], options.min_normal_dot)
     fitness = len(i_s) / max(len(source.points), 1)
     r = point_to_plane(p[i_s], q_all[i_t], n_all[i_t])
     rmse = float(np.sqrt(np.mean(r ** 2))) if len(r) else math.inf
@@ -239,7 +259,8 @@ def register_pair(source: KeyframeCloud, target: KeyframeCloud, T_prior: np.ndar
         fail.fitness, fail.rmse, fail.correction_m, fail.correction_deg = (fitness, rmse, corr_m,
                                                                            corr_deg)
         return fail
-    return PairResult(ids[0], ids[1], T, information_6dof(H_data + prior_information, c),
+    return PairResult(ids[0], ids[1], T,
+                      information_6dof((H_data + prior_information) / w_data, c, len(i_s)),
                       fitness, rmse, True, corr_m, corr_deg)
 
 
@@ -276,15 +297,15 @@ def chain(T_first: np.ndarray, edges: list[PairResult]) -> np.ndarray:
 @dataclass(frozen=True)
 class PoseGraphOptions:
     """Loop closures and the global optimisation."""
-    loop_radius: float = 1.0           #: camera centres at most this far apart, metres
+    loop_radius: float = 1.6           #: camera centres at most this far apart, metres
     loop_angle_deg: float = 35.0       #: optical axes at most this far apart
     min_separation: int = 6            #: keyframes apart in the sequence
     max_candidates: int = 2            #: loop closures tried per keyframe (nearest first)
-    loop_prior: MotionPrior = MotionPrior(sigma_m=0.3, sigma_deg=5.0, per_m=0.0, per_rad=0.0)
+    loop_prior: MotionPrior = MotionPrior(sigma_m=0.15, sigma_deg=3.0, per_m=0.0, per_rad=0.0)
     registration: RegistrationOptions = RegistrationOptions(
-        gates=(0.25, 0.12, 0.06, 0.04), iterations=(10, 10, 10, 10), min_fitness=0.35,
-        max_rmse=0.02, max_correction_m=0.6, max_correction_deg=12.0)
-    max_correspondence: float = 0.06   #: global optimisation, metres
+        gates=(0.15, 0.08, 0.04), iterations=(10, 10, 10), min_fitness=0.35,
+        max_rmse=0.02, max_correction_m=0.4, max_correction_deg=8.0)
+    max_correspondence: float = 0.03   #: global optimisation (line process), metres
     edge_prune_threshold: float = 0.25
     preference_loop_closure: float = 1.0
 
@@ -325,24 +346,62 @@ def find_loop_closures(clouds: list[KeyframeCloud], T_world_base: np.ndarray,
     return found, len(pairs)
 
 
+def _components(n: int, links: list[tuple[int, int]]) -> list[list[int]]:
+    parent = list(range(n))
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+    for a, b in links:
+        parent[root(a)] = root(b)
+    groups: dict[int, list[int]] = {}
+    for k in range(n):
+        groups.setdefault(root(k), []).append(k)
+    return sorted(groups.values(), key=lambda g: g[0])
+
+
 def optimise_pose_graph(T_odometry: np.ndarray, odometry_edges: list[PairResult],
                         loops: list[PairResult], options: PoseGraphOptions = PoseGraphOptions()
                         ) -> tuple[np.ndarray, dict, object]:
     """Open3D's global optimisation (Levenberg-Marquardt, line process on the loop closures)
     over the base poses of the odometry chain ``T_odometry`` (node 0 fixed). Returns the
-    optimised base poses (put back on the floor), a summary, and the ``PoseGraph``."""
+    optimised base poses (put back on the floor), a summary, and the whole ``PoseGraph``.
+
+    The keyframes fall into parts that views link (registered odometry edges and loop
+    closures); parts are linked only by odometry edges whose registration failed (a drive into
+    another room: no view spans it), whose relative placement nothing observes. Each part is
+    optimised on its own, its first keyframe placed by the odometry from the part before:
+    optimised together, the weak links (1e-5 of a registered edge's information) leave the
+    problem so ill-conditioned that Levenberg-Marquardt moved whole rooms by 15 cm on tours.
+    """
     import open3d as o3d
     reg = o3d.pipelines.registration
-    graph = reg.PoseGraph()
-    for T in T_odometry:
-        graph.nodes.append(reg.PoseGraphNode(np.asarray(T, float)))
-    for e in odometry_edges:
-        graph.edges.append(reg.PoseGraphEdge(e.source, e.target, e.T_target_source,
-                                             e.information, uncertain=False))
-    for e in loops:
-        graph.edges.append(reg.PoseGraphEdge(e.source, e.target, e.T_target_source,
-                                             e.information, uncertain=True))
-    if loops:
+    T = np.asarray(T_odometry, float).copy()
+    n = len(T)
+    edges = list(odometry_edges) + list(loops)
+    loop_ids = {id(e) for e in loops}
+    parts = _components(n, [(e.source, e.target) for e in edges if e.ok])
+    by_source = {e.source: e for e in odometry_edges}
+    kept = 0
+    for part in parts:
+        first = part[0]
+        if first > 0 and first in by_source:       # placed by the odometry from before
+            delta = (T[first - 1] @ by_source[first].T_target_source) @ np.linalg.inv(T[first])
+            T[part] = delta @ T[part]
+        index = {k: i for i, k in enumerate(part)}
+        inside = [e for e in edges if e.source in index and e.target in index]
+        part_loops = [e for e in inside if id(e) in loop_ids]
+        if not part_loops:
+            continue
+        graph = reg.PoseGraph()
+        for k in part:
+            graph.nodes.append(reg.PoseGraphNode(T[k]))
+        for e in inside:
+            graph.edges.append(reg.PoseGraphEdge(index[e.source], index[e.target],
+                                                 e.T_target_source, e.information,
+                                                 uncertain=id(e) in loop_ids))
         with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
             reg.global_optimization(
                 graph, reg.GlobalOptimizationLevenbergMarquardt(),
@@ -352,12 +411,20 @@ def optimise_pose_graph(T_odometry: np.ndarray, odometry_edges: list[PairResult]
                     edge_prune_threshold=options.edge_prune_threshold,
                     preference_loop_closure=options.preference_loop_closure,
                     reference_node=0))
-    T_opt = np.stack([floor_pose(np.asarray(n.pose)) for n in graph.nodes])
-    kept = sum(1 for e in graph.edges if e.uncertain)
-    summary = dict(nodes=len(graph.nodes), odometry_edges=len(odometry_edges),
+        kept += sum(1 for e in graph.edges if e.uncertain)
+        for k, node in zip(part, graph.nodes):
+            T[k] = np.asarray(node.pose)
+    T_opt = np.stack([floor_pose(t) for t in T])
+    whole = reg.PoseGraph()
+    for t in T_opt:
+        whole.nodes.append(reg.PoseGraphNode(t))
+    for e in edges:
+        whole.edges.append(reg.PoseGraphEdge(e.source, e.target, e.T_target_source,
+                                             e.information, uncertain=id(e) in loop_ids))
+    summary = dict(nodes=n, parts=parts, odometry_edges=len(odometry_edges),
                    odometry_edges_registered=sum(1 for e in odometry_edges if e.ok),
                    loop_closures_tried=None, loop_closures=len(loops), loop_closures_kept=kept)
-    return T_opt, summary, graph
+    return T_opt, summary, whole
 
 
 def floor_pose(T_world_base: np.ndarray) -> np.ndarray:
@@ -451,3 +518,21 @@ def yaw_rmse_deg(T_est: np.ndarray, T_true: np.ndarray) -> float:
     """RMSE of the rotation between estimated and true camera orientations (degrees)."""
     a = [_axis_angle_deg(a[:3, :3], b[:3, :3]) for a, b in zip(T_est, T_true)]
     return float(np.sqrt(np.mean(np.square(a)))) if a else math.nan
+
+
+def ate_rmse_parts(T_est: np.ndarray, T_true: np.ndarray, parts: list[list[int]]) -> float:
+    """ATE (metres) with each part (keyframes views link, e.g. one room) aligned to the truth
+    on its own by the best planar rigid motion of its camera centres (2-D Kabsch): how well
+    the map holds together where it could be observed, apart from where the parts sit."""
+    sq, n = 0.0, 0
+    for part in parts:
+        a = np.asarray(T_est)[part][:, :2, 3]
+        b = np.asarray(T_true)[part][:, :2, 3]
+        ca, cb = a.mean(axis=0), b.mean(axis=0)
+        H = (a - ca).T @ (b - cb)
+        t = math.atan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+        R = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+        d = (a - ca) @ R.T + cb - b
+        sq += float(np.sum(d ** 2))
+        n += len(part)
+    return math.sqrt(sq / n) if n else math.nan

@@ -129,9 +129,17 @@ def run_posegraph(ctx: BuildContext) -> dict:
     ctx.write_json("posegraph/poses.json", dict(keyframes=kf, T_world_base=T_opt,
                                                 T_world_camera=T_opt @ C))
     ctx.write_json("posegraph/summary.json", summary)
-    return dict(loop_closures_tried=tried, loop_closures=len(loops),
-                loop_closures_kept=summary["loop_closures_kept"]) \
-        | _truth_figures(ctx, kf, T_opt @ C, "posegraph")
+    out = dict(loop_closures_tried=tried, loop_closures=len(loops),
+               loop_closures_kept=summary["loop_closures_kept"],
+               parts=len(summary["parts"])) | _truth_figures(ctx, kf, T_opt @ C, "posegraph")
+    from hearth.mapping.inputs import true_cameras
+    T_true = true_cameras(ctx.recording)
+    if T_true is not None:
+        # each part (a room, in a home without doorways) aligned on its own
+        parts = summary["parts"]
+        for key, T in (("odometry", _stack(data["T_world_camera"])), ("posegraph", T_opt @ C)):
+            out[f"ate_in_parts_{key}_m"] = round(pm.ate_rmse_parts(T, T_true[kf], parts), 4)
+    return out
 
 
 # -- fusion --------------------------------------------------------------------------------------
