@@ -124,3 +124,15 @@ def test_a_bag_with_depth_images_missing_their_colour_is_refused(monkeypatch, tm
     with pytest.raises(MappingError, match="2 of 12 frames are missing") as err:
         inputs.open_tour(Bag.path)
     assert str(err.value).startswith(str(Bag.path))
+
+
+def test_a_tour_recorded_as_a_ros2_bag_builds_with_its_truth(home, tmp_path):
+    pytest.importorskip("rosbags")
+    from hearth.mapping.build import build
+    bag = tmp_path / "tour-bag"   # (a .bag name is a ROS 1 bag to rosbags)
+    summary = record_tour(home, bag, TourOptions(max_stops_per_room=1), format="mcap",
+                          intrinsics=Intrinsics.kinect(160, 120))
+    result = build(bag, tmp_path / "map", only=["odometry"])
+    odo = result.stages["odometry"]
+    assert result.failed == [] and odo["captures"] == summary.frames
+    assert odo["ate_odometry_m"] < 0.05          # the bag's /hearth/truth was read
