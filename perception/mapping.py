@@ -2,21 +2,26 @@
 loop closures, TSDF fusion (docs/mapping.md).
 
 The stages follow Open3D's reconstruction system and call its pipelines rather than re-derive
-them: ``open3d.pipelines.registration`` (point-to-plane ICP, ``PoseGraph``,
-``global_optimization``) and ``open3d.pipelines.integration.ScalableTSDFVolume``. Each stage
-is a function with one options dataclass, arrays in and out, no hidden state and no files
-(hearth/mapping/ reads the recording and writes each stage's output).
+them: ``open3d.pipelines.registration`` (``PoseGraph``, ``global_optimization`` with its line
+process) and Open3D's TSDF integration (``open3d.t.geometry.VoxelBlockGrid``). Pairwise
+registration is point-to-plane ICP over the base's x, y and yaw with the odometry as a prior,
+built from the pieces of perception/registration.py, because Open3D's ICP has no prior term
+(see ``RegistrationOptions``). Each stage is a function with one options dataclass, arrays in
+and out, no hidden state and no files (hearth/mapping/ reads the recording and writes each
+stage's output).
 
 Frames: ``T_world_camera`` maps camera points (OpenCV axes: x right, y down, z forward) into
 the map frame (z up, floor at z = 0, metres; the recording's world frame, in which the robot's
-start pose is known). Keyframe poses are (K, 4, 4) arrays. An edge ``(i, j, T_j_i)`` maps
-points of keyframe i's camera into keyframe j's camera (Open3D's source -> target).
+start pose is known). Keyframe poses are (K, 4, 4) arrays; the pose graph is over base poses
+``T_world_base`` (on the floor), cameras follow as ``T_world_base @ T_base_camera``. An edge
+``(i, j, T_j_i)`` maps points of keyframe i's base frame into keyframe j's (Open3D's source ->
+target).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Iterable, Optional
+from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 

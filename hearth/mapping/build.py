@@ -138,8 +138,11 @@ def build(recording_path, out, config: Optional[dict] = None, only: Optional[lis
             raise MappingError(f"unknown stage {', '.join(unknown)} (stages: {', '.join(names)})")
     run = [s for s in all_stages if not only or s.name in only]
     t_start = time.perf_counter()
-    rec = open_tour(recording_path, topics=topics)
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise MappingError("exists and is not a directory: the build writes a directory",
+                           file=str(out))
+    rec = open_tour(recording_path, topics=topics)
     out.mkdir(parents=True, exist_ok=True)
     ctx = BuildContext(recording=rec, source=Path(recording_path), out=out,
                        config=dict(config or {}), progress=progress)
