@@ -6,8 +6,10 @@ import sys
 
 
 def register(sub) -> None:
-    p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words",
-                       description="Inspect the hierarchical semantic map of a world file.")
+    p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words; "
+                                   "build a map from a tour",
+                       description="Inspect the hierarchical semantic map of a world file, or "
+                                   "build a map from a tour recording (docs/mapping.md).")
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", required=True)
     show = msub.add_parser("show", help="print the hierarchy with states")
     show.add_argument("world", metavar="WORLD")
