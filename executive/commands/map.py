@@ -1,4 +1,4 @@
-"""`hearth map show|find|draw`: look at a world file."""
+"""`hearth map show|find|draw`: look at a world file; `hearth map build`: a map from a tour."""
 from __future__ import annotations
 
 import json
@@ -6,8 +6,10 @@ import sys
 
 
 def register(sub) -> None:
-    p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words",
-                       description="Inspect the hierarchical semantic map of a world file.")
+    p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words; "
+                                   "build a map from a tour",
+                       description="Inspect the hierarchical semantic map of a world file, or "
+                                   "build a map from a tour recording (docs/mapping.md).")
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", required=True)
     show = msub.add_parser("show", help="print the hierarchy with states")
     show.add_argument("world", metavar="WORLD")
@@ -25,6 +27,24 @@ def register(sub) -> None:
     draw.add_argument("-o", "--out", required=True, metavar="PNG", help="the PNG file to write")
     draw.add_argument("--px-per-m", type=int, default=90, help="pixels per metre (default 90)")
     draw.set_defaults(func=_draw)
+    build = msub.add_parser(
+        "build", help="build a map from a tour recording (docs/mapping.md)",
+        description="Build a map from a tour recording (a Hearth recording or a ROS 2 bag, "
+                    "e.g. from `hearth tour`) in named stages, each writing under DIR so one "
+                    "can be rerun alone (--stages): odometry (keyframes, ICP on the odometry), "
+                    "posegraph (loop closures, global optimisation), fuse (TSDF: "
+                    "fused/map.ply, fused/mesh.ply), picture (map.png); DIR/build.json holds "
+                    "each stage's timing, counts and warnings. Exit 0 when every stage "
+                    "succeeded, 1 when one failed (the others still wrote what they found), "
+                    "2 for a recording a map cannot be built from.")
+    build.add_argument("recording", metavar="REC", help="tour recording directory or bag")
+    build.add_argument("--out", required=True, metavar="DIR", help="build directory")
+    build.add_argument("--stages", default=None, metavar="NAME,...",
+                       help="run only these stages (their inputs from DIR)")
+    build.add_argument("--topics", default=None, metavar="MAP",
+                       help="a bag's topic and frame mapping (docs/ros2-foxglove.md)")
+    build.add_argument("--quiet", action="store_true", help="print only the outcome")
+    build.set_defaults(func=_build)
 
 
 def _show(args) -> int:
@@ -78,3 +98,19 @@ def _draw(args) -> int:
         return 2
     print(f"wrote {out} ({img.shape[1]}x{img.shape[0]} px)")
     return 0
+
+
+def _build(args) -> int:
+    from hearth.mapping.build import build
+    only = [x.strip() for x in args.stages.split(",") if x.strip()] if args.stages else None
+    progress = (lambda text: None) if args.quiet else (lambda text: print(text, flush=True))
+    topics = None
+    if args.topics:
+        from hearth.robot.rosbag import load_topic_map
+        topics = load_topic_map(args.topics)
+    result = build(args.recording, args.out, only=only, topics=topics, progress=progress)
+    state = (f"failed in {', '.join(result.failed)} (the other stages wrote what they found)"
+             if result.failed else "built")
+    print(f"{args.out}: {state} in {result.seconds:.1f} s; {len(result.warnings)} warning"
+          f"{'' if len(result.warnings) == 1 else 's'}; see {args.out}/build.json")
+    return 1 if result.failed else 0

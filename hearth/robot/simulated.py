@@ -139,6 +139,12 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         self._error = _planar(np.linalg.inv(self._true.matrix()) @ believed.matrix())
         self._log("apply_correction", pose=believed.as_dict())
 
+    def drift_odometry(self, believed) -> None:
+        """Set the believed pose as dead reckoning left it (odometry drift, e.g. during a
+        tour: hearth/robot/tour.py); unlike ``apply_correction`` it is not a logged action."""
+        self._poll()
+        self._error = _planar(np.linalg.inv(self._true.matrix()) @ as_base_pose(believed).matrix())
+
     # -- base and head ---------------------------------------------------------------------
     def navigate_to(self, pose) -> Action:
         self._poll()
