@@ -159,7 +159,14 @@ class LearnObject(Skill):
             from worldmodel.learned import support_colour
             model = build_model(self.views, given=len(self.views),
                                 reference_rgb=support_colour(self.world, self.parent, self.centre))
-            colour = colour_name(model.colours[0][0], COLOURS) if model.colours else ""
+            colour = ""
+            if model.colours:
+                import colorsys
+                rgb = model.colours[0][0]
+                # A grey, white or black differs from another in brightness only, which the
+                # light decides as much as the object: named only when it has a hue.
+                if colorsys.rgb_to_hsv(*rgb)[1] >= 0.25:
+                    colour = colour_name(rgb, COLOURS)
             obj = add_learned_object(self.world, model, name, self.parent,
                                      kind=str(self.input("kind") or ""),
                                      words=str(self.input("words") or ""), colour=colour,
@@ -169,7 +176,7 @@ class LearnObject(Skill):
         self.set_output("object_id", obj.id)
         a, b, h = (100 * v for v in model.size)
         self.set_output("summary", f"I know your {name} now: {a:.0f} by {b:.0f} cm and "
-                                   f"{h:.0f} cm high, mostly {colour or 'one colour'}. Ask me to "
+                                   f"{h:.0f} cm high, mostly {colour or 'white, grey or black'}. Ask me to "
                                    "bring it to you.")
         self.feedback_message = (f"learned the {name}: {a:.0f} x {b:.0f} x {h:.0f} cm, mostly "
                                  f"{colour or 'one colour'}, from {model.views_used} of "
