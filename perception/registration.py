@@ -554,10 +554,43 @@ class DepthAgreement:
         self.depth, self.K, self.tau = depth, K, tau
         self.T_camera_world = np.linalg.inv(T_world_camera)
 
-    def __call__(self, Cs) -> np.ndarray:
+    def __call__(self, Cs, common: bool = False) -> np.ndarray:
+        """Scores of corrections ``Cs`` (M, 4, 4). ``common``: score only the model points
+        that fall on a reading in every candidate: candidates that push different points off
+        the image (the reference is rendered at the believed pose, so a long front cut by the
+        image's edge loses points at the right correction) are compared on the same points."""
+        p = self.points_camera(Cs)
+        mask = None
+        if common:
+            mask = np.broadcast_to(self.on_reading(p).all(axis=0), p.shape[:2])
+        return depth_agreement(p, self.depth, self.K, self.tau, mask=mask)
+
+    def points_camera(self, Cs) -> np.ndarray:
+        """(M, N, 3) the model points moved by each correction's inverse, camera frame."""
         A = self.T_camera_world[None] @ np.linalg.inv(np.asarray(Cs))      # (M, 4, 4)
-        p = np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
-        return depth_agreement(p, self.depth, self.K, self.tau)
+        return np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
+
+    def on_reading(self, points_camera: np.ndarray) -> np.ndarray:
+        """(M, N) whether each point projects into the image onto a depth reading."""
+        z = points_camera[..., 2]
+        zs = np.where(z > 0.05, z, 1.0)
+        H, W = self.depth.shape
+        u = np.rint(self.K.fx * points_camera[..., 0] / zs + self.K.cx).astype(np.int64)
+        v = np.rint(self.K.fy * points_camera[..., 1] / zs + self.K.cy).astype(np.int64)
+        inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        return inside & (self.depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)] > 0)
+
+    def seen_through(self, C) -> tuple[int, int]:
+        """(points the camera sees through, points on a reading) of the model at ``C``."""
+        p = self.points_camera(np.asarray(C)[None])
+        valid = self.on_reading(p)[0]
+        H, W = self.depth.shape
+        z = p[0, :, 2]
+        zs = np.where(z > 0.05, z, 1.0)
+        u = np.clip(np.rint(self.K.fx * p[0, :, 0] / zs + self.K.cx).astype(np.int64), 0, W - 1)
+        v = np.clip(np.rint(self.K.fy * p[0, :, 1] / zs + self.K.cy).astype(np.int64), 0, H - 1)
+        through = valid & (self.depth[v, u] > z + self.tau)
+        return int(through.sum()), int(valid.sum())
 
 
 # -- views: the rendered reference and the observed cloud -----------------------------------
