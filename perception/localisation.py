@@ -68,7 +68,7 @@ class LocalisationConfig:
     #: directions (no turn), its depth agreement drops by less than ``min_ring_drop`` (a
     #: share), compared on the model points that fall on a reading at every probe: a long
     #: flat front slides along itself (a worktop fix 9.6 cm off and a bookshelf fix 8 cm off
-    #: were trusted; docs/registration.md, "Loose fixes" and "Rings on common points"). It is
+    #: were trusted; docs/registration.md, "Loose fixes" and "Never a wrong corrected"). It is
     #: still the best pose the view gives (the skill applies it) but not one to say
     #: "corrected" on.
     ring_radii: tuple = (0.03, 0.06, 0.09, 0.12)
@@ -82,7 +82,7 @@ class LocalisationConfig:
     #: from an earlier view's estimate by more than ``max_contradiction_m`` along a direction
     #: that view pins down (an eigenvector of its information matrix with an eigenvalue of at
     #: least ``min_weakest``; ``contradiction``): twice the 2 cm a fix may be off, so that two
-    #: estimates further apart cannot both be right. docs/registration.md, "Two views".
+    #: estimates further apart cannot both be right. docs/registration.md, "Never a wrong corrected".
     max_contradiction_m: float = 0.04
     #: The corrected pose must explain at least this share of what the believed pose explains
     #: (depth agreement of the landmarks' points).

@@ -74,7 +74,7 @@ class RefineLocalisation(_PerceptionSkill):
     """Correct the robot's base pose on the landmarks in view (x, y, yaw). ``earlier``: what
     the views taken before from the same base pose said (their ``views`` output); a fix
     that one of them contradicts along a direction it pins down is not reported as a
-    correction (docs/registration.md, "Two views")."""
+    correction (docs/registration.md, "Never a wrong corrected")."""
 
     NAME = "RefineLocalisation"
     AUTONOMY = 0
