@@ -136,3 +136,39 @@ def test_a_view_that_fails_leaves_the_earlier_views_not_a_stale_list(demo_world)
     s.tick_once()
     assert s.status == S.FAILURE
     assert py_trees.blackboard.Blackboard.get("/v") == earlier
+
+
+def _long_front_scene():
+    """A 4 m front (a worktop run) 1.5 m ahead, wider than the image: nothing along it but
+    where the image cuts it. The believed camera is 9 cm along it from the true one."""
+    import open3d as o3d
+    from perception.camera import Intrinsics, look_at
+    from perception.registration import render_reference
+    from perception.render import Scene
+    from worldmodel.geometry import LabelledMesh
+    box = o3d.geometry.TriangleMesh.create_box(4.0, 0.6, 0.9).translate((-2.0, 1.5, 0.0))
+    box.compute_triangle_normals()
+    meshes = [LabelledMesh("counter", "counter", box, (0.6, 0.6, 0.6))]
+    K = Intrinsics.kinect()
+    T_true = look_at((0.0, 0.0, 1.2), (0.0, 1.5, 0.6))
+    T_bel = planar(0.09, 0.0, 0.0) @ T_true
+    depth = Scene(meshes).render(K, T_true).depth
+    ref = render_reference(meshes, K, T_bel)
+    return K, T_true, T_bel, depth, ref
+
+
+def test_a_front_cut_by_the_image_is_scored_on_common_points():
+    """On all points the wrong fix (the believed pose, 9 cm along the front) outscores the
+    right correction, whose points at the image's edge fall off it; on the points on a
+    reading at both, the two tie, so the ring finds the fix loose."""
+    from perception.localisation import LocalisationConfig, _ring_drop
+    from perception.registration import DepthAgreement
+    K, T_true, T_bel, depth, ref = _long_front_scene()
+    agree = DepthAgreement(ref.points, depth, K, T_bel)
+    wrong, right = np.eye(4), T_true @ np.linalg.inv(T_bel)
+    s_all = agree(np.stack([wrong, right]))
+    s_common = agree(np.stack([wrong, right]), common=True)
+    assert s_all[0] > 1.03 * s_all[1]
+    assert abs(s_common[0] - s_common[1]) <= 0.01 * s_common[0]
+    drop, _ = _ring_drop(wrong, agree, ref.points.mean(axis=0), LocalisationConfig())
+    assert drop < LocalisationConfig().min_ring_drop
