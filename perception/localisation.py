@@ -27,7 +27,7 @@ from perception.registration import (
     DepthAgreement, ICPConfig, ICPResult, RegistrationFailed, crop_box, observed_view,
     planar_params, register_planar, render_reference, single_threaded_blas,
 )
-from worldmodel.frames import planar_about, room_at
+from worldmodel.frames import planar_T, planar_about, room_at
 from worldmodel.geometry import object_meshes, room_visuals, visual_mesh, LabelledMesh
 
 
@@ -269,14 +269,13 @@ def fix_evidence(landmarks, T_world_base: np.ndarray, target_points: np.ndarray,
     rotation (the target points' mean, as ``register_planar`` turns about it), ``radius`` (m,
     their spread) and ``information`` (3x3 nested lists, J^T J / n over x, y and radius * yaw:
     metres in every direction, as ``weakest`` reads it)."""
-    c = np.asarray(target_points, dtype=float).mean(axis=0)
-    radius = float(np.sqrt(np.mean(np.sum((target_points[:, :2] - c[:2]) ** 2, axis=1))))
-    S = np.diag([1.0, 1.0, 1.0 / max(radius, 1e-6)])
+    pts = np.asarray(target_points, dtype=float)
+    c, radius = _spread(pts)
     T = np.asarray(T_world_base, dtype=float)
     return dict(landmarks=list(landmarks),
                 pose=[float(T[0, 3]), float(T[1, 3]), math.atan2(T[1, 0], T[0, 0])],
                 centre=[float(c[0]), float(c[1])], radius=radius,
-                information=(S @ np.asarray(information, dtype=float) @ S).tolist())
+                information=_scaled(np.asarray(information, dtype=float), pts).tolist())
 
 
 def contradiction(earlier: dict, later: dict, min_weakest: float) -> float:
@@ -287,11 +286,7 @@ def contradiction(earlier: dict, later: dict, min_weakest: float) -> float:
     of ``earlier``'s information matrix whose eigenvalue is at least ``min_weakest``: a
     direction the view leaves free (along a flat front) carries no evidence, as in the
     degeneracy analysis of Zhang, Kaess and Singh (ICRA 2016). 0 when it pins down none."""
-    def T_of(pose):
-        x, y, a = pose
-        co, si = math.cos(a), math.sin(a)
-        return np.array([[co, -si, 0, x], [si, co, 0, y], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-    D = T_of(later["pose"]) @ np.linalg.inv(T_of(earlier["pose"]))
+    D = planar_T(*later["pose"]) @ np.linalg.inv(planar_T(*earlier["pose"]))
     c = np.array([*earlier["centre"], 0.0, 1.0])
     moved = (D @ c)[:2] - c[:2]
     d = np.array([moved[0], moved[1], earlier["radius"] * math.atan2(D[1, 0], D[0, 0])])
@@ -403,10 +398,8 @@ def _weakest_direction(information, pts: np.ndarray):
     a flat front slides along); None without one."""
     if information is None or not np.any(information):
         return None
-    c = pts.mean(axis=0)
-    radius = max(float(np.sqrt(np.mean(np.sum((pts[:, :2] - c[:2]) ** 2, axis=1)))), 1e-6)
-    S = np.diag([1.0, 1.0, 1.0 / radius])
-    _, vectors = np.linalg.eigh(S @ np.asarray(information, dtype=float) @ S)
+    radius = max(_spread(pts)[1], 1e-6)
+    _, vectors = np.linalg.eigh(_scaled(np.asarray(information, dtype=float), pts))
     v = vectors[:, 0]
     return np.array([v[0], v[1], v[2] / radius])
 
@@ -467,9 +460,16 @@ def _distinct(A: np.ndarray, B: np.ndarray, base: np.ndarray, metres: float, deg
     return float(np.linalg.norm((pa - pb)[:2])) > metres or dyaw > degrees
 
 
-def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
+def _spread(pts: np.ndarray) -> tuple[np.ndarray, float]:
+    """The points' mean and their RMS distance from it across the floor (m)."""
     c = pts.mean(axis=0)
-    radius = float(np.sqrt(np.mean(np.sum((pts[:, :2] - c[:2]) ** 2, axis=1))))
+    return c, float(np.sqrt(np.mean(np.sum((pts[:, :2] - c[:2]) ** 2, axis=1))))
+
+
+def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """The information matrix over x, y, yaw [rad] as over x, y and yaw times the points'
+    spread (metres in every direction)."""
+    radius = _spread(pts)[1]
     S = np.diag([1.0, 1.0, 1.0 / max(radius, 1e-6)])
     return S @ info @ S
 
