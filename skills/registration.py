@@ -108,9 +108,9 @@ class RefineLocalisation(_PerceptionSkill):
         against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier),
                       key=lambda t: t[0], default=(0.0, None))
         if against[0] > cfg.max_contradiction_m:
-            # Two views of one pose that disagree: one of them is wrong and neither says
-            # which. The trusted one was the wrong one in every case measured (an earlier
-            # view is kept only when it is an estimate at all), so the pose is left alone.
+            # Two views of one pose further apart than twice the error a fix may have: one
+            # of them is wrong and neither says which (the trusted one was, at home 5; the
+            # earlier one, at home 23), so the pose is left as it was.
             raise PerceptionError(
                 f"fix on {', '.join(fix.landmarks)} not trusted: the view of "
                 f"{', '.join(against[1]['landmarks'])} puts the robot {100 * against[0]:.1f} cm "
