@@ -105,8 +105,8 @@ class RefineLocalisation(_PerceptionSkill):
             why = "; ".join(fix.quality.get("doubts") or ()) or "too weak"
             raise PerceptionError(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
                                   f"(fitness {fix.quality['fitness']:.2f}); pose left unchanged")
-        against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier),
-                      key=lambda t: t[0], default=(0.0, None))
+        against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier
+                       if fix.evidence is not None), key=lambda t: t[0], default=(0.0, None))
         if against[0] > cfg.max_contradiction_m:
             # Two views of one pose further apart than twice the error a fix may have: one
             # of them is wrong and neither says which (the trusted one was, at home 5; the
