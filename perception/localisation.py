@@ -77,7 +77,8 @@ class LocalisationConfig:
     #: from an earlier view's estimate by more than ``max_contradiction_m`` along a direction
     #: that view pins down (an eigenvector of its information matrix with an eigenvalue of at
     #: least ``min_weakest``; ``contradiction``): twice the 2 cm a fix may be off, so that two
-    #: estimates further apart cannot both be right. docs/registration.md, "Never a wrong corrected".
+    #: estimates further apart cannot both be right (docs/registration.md, "Never a wrong
+    #: corrected").
     max_contradiction_m: float = 0.04
     #: The corrected pose must explain at least this share of what the believed pose explains
     #: (depth agreement of the landmarks' points).
