@@ -517,6 +517,23 @@ def planar_params(T: np.ndarray) -> tuple[float, float, float]:
     return float(T[0, 3]), float(T[1, 3]), float(np.arctan2(T[1, 0], T[0, 0]))
 
 
+def point_agreement(points_camera: np.ndarray, depth: np.ndarray, K, tau: float = 0.02
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per point of ``depth_agreement``: (scores (M, N) of +1, -1 or 0, and whether each
+    point falls on a reading in the image)."""
+    z = points_camera[..., 2]
+    zs = np.where(z > 0.05, z, 1.0)
+    H, W = depth.shape
+    u = np.rint(K.fx * points_camera[..., 0] / zs + K.cx).astype(np.int64)
+    v = np.rint(K.fy * points_camera[..., 1] / zs + K.cy).astype(np.int64)
+    inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    d = depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
+    valid = inside & (d > 0)
+    agree = valid & (np.abs(d - z) < tau)
+    through = valid & (d > z + tau)
+    return agree.astype(np.int64) - through.astype(np.int64), valid
+
+
 def depth_agreement(points_camera: np.ndarray, depth: np.ndarray, K, tau: float = 0.02,
                     mask: Optional[np.ndarray] = None) -> np.ndarray:
     """How well placements of a model agree with an observed depth image (metres, 0: no
@@ -525,19 +542,10 @@ def depth_agreement(points_camera: np.ndarray, depth: np.ndarray, K, tau: float 
     one the camera sees through (the observed depth is behind it by more than ``tau``); a point
     hidden behind something nearer, off the image or without a reading scores 0, as does one
     that ``mask`` (M, N) leaves out (back faces, say). Returns (M,) integer scores."""
-    z = points_camera[..., 2]
-    zs = np.where(z > 0.05, z, 1.0)
-    H, W = depth.shape
-    u = np.rint(K.fx * points_camera[..., 0] / zs + K.cx).astype(np.int64)
-    v = np.rint(K.fy * points_camera[..., 1] / zs + K.cy).astype(np.int64)
-    inside = (z > 0.05) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    scores, _ = point_agreement(points_camera, depth, K, tau)
     if mask is not None:
-        inside &= mask
-    d = depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)]
-    valid = inside & (d > 0)
-    agree = valid & (np.abs(d - z) < tau)
-    through = valid & (d > z + tau)
-    return agree.sum(axis=1) - through.sum(axis=1)
+        scores = np.where(mask, scores, 0)
+    return scores.sum(axis=1)
 
 
 class DepthAgreement:
@@ -555,9 +563,31 @@ class DepthAgreement:
         self.T_camera_world = np.linalg.inv(T_world_camera)
 
     def __call__(self, Cs) -> np.ndarray:
+        return depth_agreement(self.points_camera(Cs), self.depth, self.K, self.tau)
+
+    def points_camera(self, Cs) -> np.ndarray:
+        """(M, N, 3) the model points moved by each correction's inverse, camera frame."""
         A = self.T_camera_world[None] @ np.linalg.inv(np.asarray(Cs))      # (M, 4, 4)
-        p = np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
-        return depth_agreement(p, self.depth, self.K, self.tau)
+        return np.einsum("mij,nj->mni", A[:, :3, :3], self.ref) + A[:, None, :3, 3]
+
+    def against(self, C, Cs) -> tuple[np.ndarray, np.ndarray]:
+        """The correction ``C`` against each of ``Cs`` (M, 4, 4), each pair scored on the
+        model points that fall on a reading at both: (M,) scores of ``C``, (M,) of ``Cs``.
+        The reference is rendered at the believed pose, so a correction that pushes points
+        off the image (at the right correction, the stretch of a long front the believed
+        camera saw beyond the true one's edge) loses them while a wrong slide along the
+        front keeps them; compared on the same points, neither is favoured."""
+        scores, valid = point_agreement(self.points_camera(np.concatenate(
+            [np.asarray(C)[None], np.asarray(Cs)])), self.depth, self.K, self.tau)
+        both = valid[1:] & valid[0]
+        return (np.where(both, scores[0], 0).sum(axis=1),
+                np.where(both, scores[1:], 0).sum(axis=1))
+
+    def seen_through(self, C) -> tuple[int, int]:
+        """(points the camera sees through, points on a reading) of the model at ``C``."""
+        scores, valid = point_agreement(self.points_camera(np.asarray(C)[None]), self.depth,
+                                         self.K, self.tau)
+        return int((scores[0] < 0).sum()), int(valid[0].sum())
 
 
 # -- views: the rendered reference and the observed cloud -----------------------------------

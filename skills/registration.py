@@ -71,26 +71,50 @@ class RegisterLargeObject(_PerceptionSkill):
 
 
 class RefineLocalisation(_PerceptionSkill):
-    """Correct the robot's base pose on the landmarks in view (x, y, yaw)."""
+    """Correct the robot's base pose on the landmarks in view (x, y, yaw). ``earlier``: what
+    the views taken before from the same base pose said (their ``views`` output); a fix
+    that one of them contradicts along a direction it pins down is not reported as a
+    correction (docs/registration.md, "Never a wrong corrected")."""
 
     NAME = "RefineLocalisation"
     AUTONOMY = 0
     DESCRIPTION = "refine the robot's localisation on landmark objects in view"
     INPUTS = (Port("landmarks", "list", required=False, default=None,
-                   description="landmark ids (default: fixed large objects in view)"),)
-    OUTPUTS = (Port("correction", "dict", required=False), Port("quality", "dict", required=False))
+                   description="landmark ids (default: fixed large objects in view)"),
+              Port("earlier", "list", required=False, default=None,
+                   description="the views output of earlier fixes from this base pose"))
+    OUTPUTS = (Port("correction", "dict", required=False), Port("quality", "dict", required=False),
+               Port("views", "list", required=False,
+                    description="earlier plus this view's estimate of the pose"))
 
     def perceive(self) -> str:
-        from perception.localisation import refine_localisation
+        from perception.localisation import LocalisationConfig, contradiction, refine_localisation
+        earlier = list(self.input("earlier") or [])
+        # written first: a view that raises leaves the earlier ones, never a stale list
+        # from another place
+        self.set_output("views", earlier)
         depth, K, T_wc = capture(self.robot)
         T_wb = self.robot.base_pose().matrix()
-        fix = refine_localisation(self.world, depth, K, T_wc, T_wb,
+        cfg = LocalisationConfig()
+        fix = refine_localisation(self.world, depth, K, T_wc, T_wb, cfg,
                                   landmarks=self.input("landmarks"))
+        if fix.evidence is not None:
+            self.set_output("views", earlier + [fix.evidence])
         self.set_output("quality", fix.quality)
         if not fix.ok:
             why = "; ".join(fix.quality.get("doubts") or ()) or "too weak"
             raise PerceptionError(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
                                   f"(fitness {fix.quality['fitness']:.2f}); pose left unchanged")
+        against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier
+                       if fix.evidence is not None), key=lambda t: t[0], default=(0.0, None))
+        if against[0] > cfg.max_contradiction_m:
+            # Two views of one pose further apart than twice the error a fix may have: one
+            # of them is wrong and neither says which (the trusted one was, at home 5; the
+            # earlier one, at home 23), so the pose is left as it was.
+            raise PerceptionError(
+                f"fix on {', '.join(fix.landmarks)} not trusted: the view of "
+                f"{', '.join(against[1]['landmarks'])} puts the robot {100 * against[0]:.1f} cm "
+                f"away along a direction it pins down; pose left unchanged")
         self.robot.apply_correction(Pose.from_matrix(fix.T_world_base))
         corr = dict(dx=fix.dx, dy=fix.dy, dyaw=fix.dyaw)
         self.set_output("correction", corr)
