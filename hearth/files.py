@@ -38,3 +38,80 @@ def read_limited(path, limit: int, error: type[HearthError], too_large: str) -> 
     if len(data) > limit:           # it grew between the check and the read
         raise error(too_large, file=name, line=0)
     return data
+
+
+#: The longest integer a JSON file Hearth reads may hold, in digits (a 64-bit integer has at
+#: most 20). Python's own limit (4300 digits) is a ValueError far from the file's line, and
+#: a number that long is never data.
+MAX_INT_DIGITS = 40
+
+
+class BadJSON(ValueError):
+    """Why a JSON text was refused: ``message`` and, where known, ``line`` (1-based)."""
+
+    def __init__(self, message: str, line: int = 0):
+        super().__init__(message)
+        self.message, self.line = message, line
+
+
+def _bounded_int(text: str) -> int:
+    digits = len(text.lstrip("-"))
+    if digits > MAX_INT_DIGITS:
+        raise BadJSON(f"an integer of {digits} digits (at most {MAX_INT_DIGITS})")
+    return int(text)
+
+
+def _no_constant(name: str):
+    raise BadJSON(f"{name} is not a JSON number")
+
+
+def _unique_keys(pairs):
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise BadJSON(f"the key {k[:40]!r} is given twice")
+        out[k] = v
+    return out
+
+
+def load_json(text: str | bytes, *, finite: bool = False, unique_keys: bool = False):
+    """``json.loads`` for text from a file or a request, with every problem one ``BadJSON``:
+    integers bounded (``MAX_INT_DIGITS``), nesting bounded (Python's recursion limit, said in
+    words), and with ``finite`` NaN and Infinity refused, with ``unique_keys`` a key given
+    twice in one object refused (plain ``json`` keeps the last silently). Strings are checked
+    to be encodable UTF-8 (``"\\ud800"`` decodes to a lone surrogate that no file, log or
+    answer can hold)."""
+    import json
+    try:
+        value = json.loads(text, parse_int=_bounded_int,
+                           parse_constant=_no_constant if finite else None,
+                           object_pairs_hook=_unique_keys if unique_keys else None)
+    except BadJSON:
+        raise
+    except json.JSONDecodeError as err:
+        raise BadJSON(f"{err.msg} (column {err.colno})", err.lineno) from None
+    except RecursionError:
+        raise BadJSON("nested too deeply") from None
+    except UnicodeDecodeError:
+        raise BadJSON("not UTF-8 text") from None
+    except ValueError as err:           # e.g. a float literal too long for the parser
+        raise BadJSON(str(err)[:120]) from None
+    _check_strings(value)
+    return value
+
+
+def _check_strings(value) -> None:
+    stack = [value]
+    while stack:
+        cur = stack.pop()
+        if isinstance(cur, str):
+            try:
+                cur.encode("utf-8")
+            except UnicodeEncodeError:
+                raise BadJSON("a string holds a lone surrogate (\\ud800-\\udfff), which is "
+                              "not text") from None
+        elif isinstance(cur, dict):
+            stack.extend(cur.keys())
+            stack.extend(cur.values())
+        elif isinstance(cur, list):
+            stack.extend(cur)
