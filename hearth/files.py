@@ -49,9 +49,10 @@ MAX_INT_DIGITS = 40
 class BadJSON(ValueError):
     """Why a JSON text was refused: ``message`` and, where known, ``line`` (1-based)."""
 
-    def __init__(self, message: str, line: int = 0):
+    def __init__(self, message: str, line: int = 0, syntax=None):
         super().__init__(message)
         self.message, self.line = message, line
+        self.syntax = syntax    # the json.JSONDecodeError, when the text is not JSON at all
 
 
 def _bounded_int(text: str) -> int:
@@ -63,6 +64,13 @@ def _bounded_int(text: str) -> int:
 
 def _no_constant(name: str):
     raise BadJSON(f"{name} is not a JSON number")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if value in (float("inf"), float("-inf")):
+        raise BadJSON(f"the number {text[:40]} is beyond a float's range")
+    return value
 
 
 def _unique_keys(pairs):
@@ -84,12 +92,13 @@ def load_json(text: str | bytes, *, finite: bool = False, unique_keys: bool = Fa
     import json
     try:
         value = json.loads(text, parse_int=_bounded_int,
+                           parse_float=_finite_float if finite else None,
                            parse_constant=_no_constant if finite else None,
                            object_pairs_hook=_unique_keys if unique_keys else None)
     except BadJSON:
         raise
     except json.JSONDecodeError as err:
-        raise BadJSON(f"{err.msg} (column {err.colno})", err.lineno) from None
+        raise BadJSON(f"{err.msg} (column {err.colno})", err.lineno, syntax=err) from None
     except RecursionError:
         raise BadJSON("nested too deeply") from None
     except UnicodeDecodeError:
