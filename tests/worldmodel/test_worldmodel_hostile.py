@@ -49,6 +49,11 @@ def with_mesh(path):
     return first(r"(<model>)", rf'\1<mesh file="{path}" color="0.5 0.5 0.5"/>')
 
 
+#: A small valid mesh (one triangle).
+PLY = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+       b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+       b"0 0 0\n0.1 0 0\n0 0.1 0\n3 0 1 2\n")
+
 HOSTILE = {
     "nan_pose": (first(r'<pose x="3" y="2.2"/>', '<pose x="NaN" y="2.2"/>'),
                  "'NaN' is not a finite number"),
@@ -118,7 +123,7 @@ def test_the_cli_refuses_a_nan_pose_in_one_line(world_dir):
 
 def test_mesh_inside_the_world_folder_is_accepted(tmp_path):
     (tmp_path / "meshes").mkdir()
-    (tmp_path / "meshes" / "leg.ply").write_bytes(b"ply\n")
+    (tmp_path / "meshes" / "leg.ply").write_bytes(PLY)
     path = tmp_path / "world.xml"
     path.write_text(with_mesh("meshes/leg.ply"))
     assert load_world(path).get("kitchen_table").model.visuals[0].file == "meshes/leg.ply"
@@ -325,7 +330,8 @@ def apartments(draw):
         rooms.append(Room(next(ids), draw(word), pose=draw(poses), bounds=bounds,
                           switches=switches, objects=objects))
     history = [HistoryEntry(draw(st.floats(0, 2e9)), "x", "pose", draw(word), draw(word), "t")]
-    stats = [SearchStat("cup", "table", draw(st.integers(0, 10**9)), draw(st.integers(0, 10**9)))]
+    searched = draw(st.integers(0, 10**9))     # found <= searched, at a node of the map
+    stats = [SearchStat("cup", rooms[0].id, searched, draw(st.integers(0, searched)))]
     lib = {"mug": Model(draw(st.lists(visuals, min_size=1, max_size=2)))}
     return Apartment("home", draw(word), rooms=rooms, library=lib, history=history,
                      search_stats=stats)
