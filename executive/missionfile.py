@@ -1525,6 +1525,9 @@ def _schema_message(err: jsonschema.ValidationError) -> str:
         msg = f"{_short(err.instance)} is not one of {_short(allowed)}"
     elif err.validator == "type":
         msg = f"{_short(err.instance)} is not of type {_short(err.validator_value)}"
+    elif err.validator == "maxLength":
+        msg = (f"{_short(err.instance)} is too long ({len(err.instance)} characters; at most "
+               f"{err.validator_value})")
     else:
         msg = err.message
     if len(msg) > 240:

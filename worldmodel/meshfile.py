@@ -15,9 +15,11 @@ names, and reads ``nan`` and ``inf`` vertices as they are. So, before open3d is 
 - every file an ``.obj`` names (``mtllib``) and every texture its ``.mtl`` names is resolved
   as the world's own mesh paths are: inside the world's folder, a regular file;
 
-then open3d reads it (its own warnings silenced: the problem is said in one line here) and
-every vertex or point must be finite. The answer is cached per file version (device, inode,
-size, modification time), so a world is not re-read on every save.
+then the vertices (or points) are read here, with numpy, and must all be finite; a body
+shorter than its header declares is refused. (Reading them with open3d instead printed
+RPly's complaints on stderr, a second line, and stopped at the first "inf".) The answer is
+cached per file version (device, inode, size, modification time), so a world is not re-read
+on every save.
 """
 from __future__ import annotations
 
@@ -26,6 +28,8 @@ import re
 import stat
 from functools import lru_cache
 from typing import Callable, Optional
+
+import numpy as np
 
 from hearth.errors import HearthError
 from hearth.files import read_limited
@@ -38,9 +42,11 @@ MAX_ASSET_BYTES = 64 << 20
 MAX_ASSET_ELEMENTS = 4_000_000
 #: A header is read from this many first bytes.
 _HEAD_BYTES = 64 << 10
-_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
-              "int16": 2, "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4,
-              "float": 4, "float32": 4, "double": 8, "float64": 8}
+#: PLY scalar types -> numpy (the last character is the size in bytes).
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short": "i2",
+              "ushort": "u2", "int16": "i2", "uint16": "u2", "int": "i4", "uint": "u4",
+              "int32": "i4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+              "float64": "f8"}
 
 
 class _Refused(HearthError):
@@ -81,9 +87,11 @@ def _check(full: str, base: str, kind: str) -> None:
     except _Refused as err:
         raise _Refused(err.message if err.message.startswith("the file") else
                        f"cannot be read ({err.message})") from None
-    declared = {".ply": _ply, ".obj": _obj, ".stl": _stl, ".off": _off, ".pcd": _pcd}[suffix](
+    xyz = {".ply": _ply, ".obj": _obj, ".stl": _stl, ".off": _off, ".pcd": _pcd}[suffix](
         data, full, base)
-    _finite(full, kind, declared)
+    bad = int((~np.isfinite(xyz)).any(axis=1).sum()) if xyz.size else 0
+    if bad:
+        raise _Refused(f"has {bad} vertices that are not finite (nan or inf)")
 
 
 def _bound(count: int, what: str, room: int, per_item: int) -> None:
@@ -118,12 +126,27 @@ def _count(text: str, what: str) -> int:
     return int(text)
 
 
-def _ply(data: bytes, full: str, base: str) -> int:
+def _numbers(rows: list[list[bytes]], what: str) -> np.ndarray:
+    """(n, 3) floats from rows of at least three words (the first three taken)."""
+    if any(len(r) < 3 for r in rows):
+        raise _Refused(f"has a {what} with fewer than three numbers")
+    try:
+        return np.array([r[:3] for r in rows], dtype=float).reshape(-1, 3)
+    except ValueError:
+        raise _Refused(f"has a {what} that is not three numbers") from None
+
+
+def _text_lines(data: bytes) -> list[bytes]:
+    """Non-empty lines, comments (#) dropped."""
+    return [l for l in (raw.strip() for raw in data.splitlines()) if l and not l.startswith(b"#")]
+
+
+def _ply(data: bytes, full: str, base: str) -> np.ndarray:
     if not data.startswith(b"ply"):
         raise _Refused("is not a PLY file (it does not start with 'ply')")
     lines, start = _header_lines(data, lambda l: l == "end_header", "PLY")
     fmt = None
-    elements: list[list] = []        # [name, count, row bytes or None for lists/ascii]
+    elements: list[tuple[str, int, list[tuple[str, Optional[str]]]]] = []
     for line in lines[1:-1]:
         words = line.split()
         if not words or words[0] in ("comment", "obj_info"):
@@ -131,26 +154,52 @@ def _ply(data: bytes, full: str, base: str) -> int:
         if words[0] == "format" and len(words) == 3:
             fmt = words[1]
         elif words[0] == "element" and len(words) == 3:
-            elements.append([words[1], _count(words[2], f"element {words[1]}"), 0])
+            elements.append((words[1], _count(words[2], f"element {words[1]}"), []))
         elif words[0] == "property" and elements and len(words) >= 3:
             if words[1] == "list":
-                elements[-1][2] = None
-            elif words[1] in _PLY_SIZES and elements[-1][2] is not None:
-                elements[-1][2] += _PLY_SIZES[words[1]]
-            elif words[1] not in _PLY_SIZES:
+                elements[-1][2].append((words[-1], None))
+            elif words[1] in _PLY_TYPES:
+                elements[-1][2].append((words[2], _PLY_TYPES[words[1]]))
+            else:
                 raise _Refused(f"has a PLY property of unknown type {words[1][:20]!r}")
         else:
             raise _Refused(f"has a PLY header line Hearth does not read: {line[:40]!r}")
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise _Refused(f"has no PLY format Hearth reads (format {fmt!r})")
-    total = sum(e[1] for e in elements)
     room = len(data) - start
+    for name, count, props in elements:
+        # an ascii row is at least one digit and a separator; a binary row its scalars' bytes
+        row = 2 if fmt == "ascii" else max(1, sum(int(t[-1]) for _, t in props if t))
+        _bound(count, f"{name} elements", room, row)
+    total = sum(e[1] for e in elements)
     if total > MAX_ASSET_ELEMENTS:
         raise _Refused(f"declares {total} PLY elements (at most {MAX_ASSET_ELEMENTS})")
-    for name, count, row in elements:
-        # an ascii row is at least one digit and a separator; a list row at least its count
-        _bound(count, f"{name} elements", room, 2 if fmt == "ascii" else (row or 1))
-    return next((e[1] for e in elements if e[0] == "vertex"), 0)
+    index = next((i for i, e in enumerate(elements) if e[0] == "vertex"), None)
+    if index is None:
+        return np.zeros((0, 3))
+    _, n, props = elements[index]
+    names = [p for p, _ in props]
+    if not {"x", "y", "z"} <= set(names) or any(t is None for _, t in props):
+        raise _Refused("has a PLY vertex element without scalar x, y, z properties")
+    cols = [names.index(c) for c in ("x", "y", "z")]
+    if fmt == "ascii":
+        body = data[start:].splitlines()
+        skip = sum(e[1] for e in elements[:index])
+        rows = [r.split() for r in body[skip:skip + n]]
+        if len(rows) < n or any(len(r) < len(props) for r in rows):
+            raise _Refused("is a truncated PLY file (fewer vertex values than its header "
+                           "declares)")
+        return _numbers([[r[c] for c in cols] for r in rows], "PLY vertex")
+    if any(t is None for e in elements[:index] for _, t in e[2]):
+        raise _Refused("has a PLY list element before its vertices (Hearth reads PLY files "
+                       "whose vertices come before any list)")
+    order = "<" if fmt == "binary_little_endian" else ">"
+    offset = start + sum(e[1] * sum(int(t[-1]) for _, t in e[2]) for e in elements[:index])
+    dtype = np.dtype([(f"p{i}", order + t) for i, (_, t) in enumerate(props)])
+    if offset + n * dtype.itemsize > len(data):
+        raise _Refused("is a truncated PLY file (fewer vertex bytes than its header declares)")
+    rows = np.frombuffer(data, dtype, count=n, offset=offset)
+    return np.stack([rows[f"p{c}"].astype(float) for c in cols], axis=1)
 
 
 def _resolve_inside(ref: str, folder: str, base: str, what: str) -> str:
@@ -176,18 +225,19 @@ def _resolve_inside(ref: str, folder: str, base: str, what: str) -> str:
 _TEXTURE = re.compile(r"(?:map_\w+|bump|disp|decal|refl|norm)\Z", re.IGNORECASE)
 
 
-def _obj(data: bytes, full: str, base: str) -> int:
+def _obj(data: bytes, full: str, base: str) -> np.ndarray:
     folder = os.path.dirname(full)
-    vertices = 0
-    for raw in data.splitlines():
-        line = raw.strip()
+    rows = []
+    for line in _text_lines(data):
         if line.startswith(b"v "):
-            vertices += 1
+            rows.append(line.split()[1:])
+            if len(rows) > MAX_ASSET_ELEMENTS:
+                raise _Refused(f"has more than {MAX_ASSET_ELEMENTS} vertices")
         elif line.startswith(b"mtllib"):
             for ref in line.decode("utf-8", "replace").split()[1:]:
                 mtl = _resolve_inside(ref, folder, base, "the material library")
                 _mtl(mtl, base)
-    return vertices
+    return _numbers(rows, "vertex (v)")
 
 
 def _mtl(path: str, base: str) -> None:
@@ -199,59 +249,69 @@ def _mtl(path: str, base: str) -> None:
             _resolve_inside(words[-1], folder, base, f"(in {name[:40]}) the texture")
 
 
-def _stl(data: bytes, full: str, base: str) -> int:
+def _stl(data: bytes, full: str, base: str) -> np.ndarray:
     if len(data) >= 84:
         n = int.from_bytes(data[80:84], "little")
         if 84 + 50 * n == len(data):            # binary: the size says it
             _bound(n, "triangles", len(data) - 84, 50)
-            return 3 * n
+            tri = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+            return np.frombuffer(data, tri, count=n, offset=84)["v"].reshape(-1, 3).astype(float)
     if data.lstrip()[:5].lower() != b"solid":
         raise _Refused("is not an STL file (neither binary of its declared size nor ASCII)")
-    return data.count(b"vertex")
+    rows = [l.split()[1:] for l in _text_lines(data) if l.startswith(b"vertex")]
+    if len(rows) > MAX_ASSET_ELEMENTS:
+        raise _Refused(f"has more than {MAX_ASSET_ELEMENTS} vertices")
+    return _numbers(rows, "vertex")
 
 
-def _off(data: bytes, full: str, base: str) -> int:
-    lines = [l for l in data[:_HEAD_BYTES].decode("ascii", "replace").splitlines()
-             if l.strip() and not l.lstrip().startswith("#")]
-    if not lines or not lines[0].strip().startswith("OFF"):
+def _off(data: bytes, full: str, base: str) -> np.ndarray:
+    lines = _text_lines(data)
+    if not lines or not lines[0].startswith(b"OFF"):
         raise _Refused("is not an OFF file (it does not start with 'OFF')")
-    rest = lines[0].strip()[3:].split() or (lines[1].split() if len(lines) > 1 else [])
-    if len(rest) < 2:
+    counts, body = (lines[0][3:].split(), lines[1:]) if lines[0][3:].split() else \
+        ((lines[1].split() if len(lines) > 1 else []), lines[2:])
+    if len(counts) < 2:
         raise _Refused("is not an OFF file (no vertex and face counts)")
-    nv, nf = _count(rest[0], "vertices"), _count(rest[1], "faces")
+    nv = _count(counts[0].decode("ascii", "replace"), "vertices")
+    nf = _count(counts[1].decode("ascii", "replace"), "faces")
     _bound(nv + nf, "vertices and faces", len(data), 2)
-    return nv
+    if len(body) < nv:
+        raise _Refused("is a truncated OFF file (fewer vertices than its header declares)")
+    return _numbers([l.split() for l in body[:nv]], "vertex")
 
 
-def _pcd(data: bytes, full: str, base: str) -> int:
+_PCD_TYPES = {("F", "4"): "f4", ("F", "8"): "f8", ("I", "1"): "i1", ("I", "2"): "i2",
+              ("I", "4"): "i4", ("I", "8"): "i8", ("U", "1"): "u1", ("U", "2"): "u2",
+              ("U", "4"): "u4", ("U", "8"): "u8"}
+
+
+def _pcd(data: bytes, full: str, base: str) -> np.ndarray:
     lines, start = _header_lines(data, lambda l: l.upper().startswith("DATA"), "PCD")
-    fields = {l.split()[0].upper(): l.split()[1:] for l in lines if l.split()}
+    fields = {l.split()[0].upper(): l.split()[1:] for l in lines
+              if l.split() and not l.startswith("#")}
     points = _count((fields.get("POINTS") or ["?"])[0], "points")
     mode = (fields.get("DATA") or ["?"])[0].lower()
+    names = fields.get("FIELDS", [])
+    sizes, types = fields.get("SIZE", []), fields.get("TYPE", [])
+    counts = fields.get("COUNT", ["1"] * len(names))
+    if not {"x", "y", "z"} <= set(names) or not len(names) == len(sizes) == len(types) == \
+            len(counts) or any(c != "1" for c in counts):
+        raise _Refused("has a PCD header without x, y, z fields of one value each")
     if mode not in ("ascii", "binary"):
         raise _Refused(f"has PCD data {mode!r}; Hearth reads ascii and binary")
-    row = 2
-    if mode == "binary":
-        try:
-            row = sum(int(s) * int(c) for s, c in zip(fields.get("SIZE", []),
-                                                       fields.get("COUNT", ["1"] * 64)))
-        except ValueError:
-            raise _Refused("has a PCD SIZE or COUNT that is not a whole number") from None
-    _bound(points, "points", len(data) - start, max(row, 1))
-    return points
-
-
-def _finite(full: str, kind: str, declared: int) -> None:
-    import numpy as np
-    import open3d as o3d
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        if kind == "mesh":
-            xyz = np.asarray(o3d.io.read_triangle_mesh(full).vertices)
-        else:
-            xyz = np.asarray(o3d.io.read_point_cloud(full).points)
-    if declared and not len(xyz):
-        raise _Refused(f"does not read as a {kind} (its header declares {declared} "
-                       f"{'vertices' if kind == 'mesh' else 'points'}, none could be read)")
-    if xyz.size and not np.isfinite(xyz).all():
-        raise _Refused(f"has {int((~np.isfinite(xyz)).any(axis=1).sum())} vertices that are "
-                       "not finite (nan or inf)")
+    cols = [names.index(c) for c in ("x", "y", "z")]
+    if mode == "ascii":
+        _bound(points, "points", len(data) - start, 2)
+        rows = [l.split() for l in _text_lines(data[start:])[:points]]
+        if len(rows) < points:
+            raise _Refused("is a truncated PCD file (fewer points than its header declares)")
+        return _numbers([[r[c] for c in cols] if len(r) == len(names) else [] for r in rows],
+                        "point")
+    try:
+        dtype = np.dtype([(f"p{i}", "<" + _PCD_TYPES[(t.upper(), s)])
+                          for i, (t, s) in enumerate(zip(types, sizes))])
+    except KeyError:
+        raise _Refused("has a PCD field TYPE and SIZE Hearth does not read") from None
+    _bound(points, "points", len(data) - start, dtype.itemsize)
+    rows = np.frombuffer(data, dtype, count=points, offset=start)
+    return np.stack([rows[f"p{c}"].astype(float) for c in cols], axis=1)
