@@ -15,8 +15,9 @@ def read_limited(path, limit: int, error: type[HearthError], too_large: str) -> 
     """The bytes of the regular file ``path``, of at most ``limit`` bytes.
 
     A device, a directory or a FIFO is refused before anything is read (so ``/dev/zero``
-    cannot hang a load). Every problem raises ``error(message, file=str(path), line=0)``; a
-    file over the limit says ``too_large``.
+    cannot hang a load). Every problem raises ``error(message, file=str(path), line=None)``
+    (printed ``path:0: message`` by a family whose file problems carry a line, ``path:
+    message`` by one whose do not); a file over the limit says ``too_large``.
     """
     name = str(path)
     try:
@@ -25,18 +26,18 @@ def read_limited(path, limit: int, error: type[HearthError], too_large: str) -> 
         with os.fdopen(fd, "rb") as f:
             st = os.fstat(f.fileno())
             if not stat.S_ISREG(st.st_mode):
-                raise error("not a regular file", file=name, line=0)
+                raise error("not a regular file", file=name, line=None)
             if st.st_size > limit:
-                raise error(too_large, file=name, line=0)
+                raise error(too_large, file=name, line=None)
             data = f.read(limit + 1)
     except FileNotFoundError:
-        raise error("no such file", file=name, line=0) from None
+        raise error("no such file", file=name, line=None) from None
     except IsADirectoryError:
-        raise error("not a regular file (a directory)", file=name, line=0) from None
+        raise error("not a regular file (a directory)", file=name, line=None) from None
     except OSError as err:
-        raise error(f"cannot read: {err.strerror or err}", file=name, line=0) from None
+        raise error(f"cannot read: {err.strerror or err}", file=name, line=None) from None
     if len(data) > limit:           # it grew between the check and the read
-        raise error(too_large, file=name, line=0)
+        raise error(too_large, file=name, line=None)
     return data
 
 
@@ -95,7 +96,13 @@ def load_json(text: str | bytes, *, finite: bool = False, unique_keys: bool = Fa
                            parse_float=_finite_float if finite else None,
                            parse_constant=_no_constant if finite else None,
                            object_pairs_hook=_unique_keys if unique_keys else None)
-    except BadJSON:
+    except BadJSON as err:
+        if err.message.startswith("an integer"):     # say where: the first such run of digits
+            import re
+            raw = text.decode("utf-8", "replace") if isinstance(text, bytes) else text
+            m = re.search(r"[0-9]{%d,}" % (MAX_INT_DIGITS + 1), raw)
+            if m is not None:
+                err.line = raw.count("\n", 0, m.start()) + 1
         raise
     except json.JSONDecodeError as err:
         raise BadJSON(f"{err.msg} (column {err.colno})", err.lineno, syntax=err) from None

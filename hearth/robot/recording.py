@@ -348,7 +348,7 @@ class Recording:
             data = load_json(raw)
         except BadJSON as err:
             raise RobotError(f"corrupt manifest: {err.message}", file=str(self.path),
-                             line=err.line) from None
+                             line=err.line or None) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise RobotError(f"corrupt manifest: not a {FORMAT} manifest", file=str(self.path))
         self.version = data.get("version")
@@ -358,7 +358,7 @@ class Recording:
                              file=str(self.path))
         try:
             self.depth_scale = _number(data.get("depth_scale", DEPTH_SCALE), "depth_scale",
-                                       positive=True)
+                                       positive=True, bound=math.inf)
             lo, hi = DEPTH_SCALE_RANGE
             if not lo <= self.depth_scale <= hi:
                 raise _Bad(f"depth_scale {self.depth_scale:g} is not between {lo:g} and {hi:g} "
