@@ -112,8 +112,22 @@ def load_json(text: str | bytes, *, finite: bool = False, unique_keys: bool = Fa
         raise BadJSON("not UTF-8 text") from None
     except ValueError as err:           # e.g. a float literal too long for the parser
         raise BadJSON(str(err)[:120]) from None
-    _check_strings(value)
+    if _may_hold_surrogates(text):
+        _check_strings(value)
     return value
+
+
+def _may_hold_surrogates(text: str | bytes) -> bool:
+    """Whether a JSON text can decode to a lone surrogate: only through a \\uD800-\\uDFFF
+    escape (or, in a ``str``, the character itself)."""
+    import re
+    if isinstance(text, bytes):
+        return re.search(rb"\\u[dD][89abcdefABCDEF]", text) is not None
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return True
+    return re.search(r"\\u[dD][89abcdefABCDEF]", text) is not None
 
 
 def _check_strings(value) -> None:

@@ -35,6 +35,7 @@ from hearth.errors import HearthError
 from hearth.files import read_limited
 
 MESH_SUFFIXES = (".ply", ".obj", ".stl", ".off")
+TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 CLOUD_SUFFIXES = (".ply", ".pcd")
 #: One mesh or point-cloud file, in bytes (a generated home's largest mesh is ~100 kB).
 MAX_ASSET_BYTES = 64 << 20
@@ -247,6 +248,9 @@ def _mtl(path: str, base: str) -> None:
         words = raw.decode("utf-8", "replace").split()
         if len(words) >= 2 and _TEXTURE.match(words[0]):
             _resolve_inside(words[-1], folder, base, f"(in {name[:40]}) the texture")
+            if not words[-1].lower().endswith(TEXTURE_SUFFIXES):
+                raise _Refused(f"names (in {name[:40]}) the texture {words[-1][:60]!r}, which "
+                               f"is not an image open3d reads ({', '.join(TEXTURE_SUFFIXES)})")
 
 
 def _stl(data: bytes, full: str, base: str) -> np.ndarray:

@@ -364,7 +364,7 @@ class BagRecording:
             raise RobotError("no such bag (an .mcap file or a rosbag2 directory)", file=where)
         self.topics = load_topic_map(topics, self.path)
         source = self.path
-        if self.path.is_dir() and not (self.path / "metadata.yaml").is_file():
+        if self.path.is_dir() and not os.path.lexists(self.path / "metadata.yaml"):
             files = sorted(self.path.glob("*.mcap"))
             if len(files) != 1:
                 raise RobotError("a bag directory needs its metadata.yaml (or one .mcap file)",
