@@ -52,7 +52,7 @@ from typing import Any, Iterable, Iterator, Optional
 LOADERS = ("world", "mission", "recording", "bag")
 #: Classes of hostile input the fixed cases are sorted into (issue 44 added the last six).
 CLASSES = ("numbers", "paths", "size", "structure", "mesh-content", "fifo", "nul",
-           "huge-integer", "cross-site", "template")
+           "huge-integer", "cross-site", "template", "host")
 FAILURES = ("tracebacks", "hangs", "crashes", "accepted_then_unloadable",
             "accepted_out_of_bounds", "paths_outside_world")
 _OUTCOME_KEY = {"traceback": "tracebacks", "hang": "hangs", "crash": "crashes",
@@ -71,6 +71,9 @@ def add_arguments(parser) -> None:
                              "--quick 200); recordings get a quarter")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="seconds a case may take before it counts as a hang")
+    parser.add_argument("--http-requests", type=int, default=None,
+                        help="schema-generated requests to the HTTP API (default 500; --quick "
+                             "100), besides the hand-made hostile ones")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -747,7 +750,8 @@ def _mission_value(rng: random.Random):
             "/proc/self/environ#x", "subtrees/search.yaml#nope", "subtrees/search.yaml",
             "../missions/go_to_rest.yaml", "subtrees", 1.5, "sequence", {"succeed": None},
             {"inverter": {"succeed": "x"}}, 3, 1000, 1001, 86400, 86401, 1e-300, "1e400",
-            "{x} < .nan", "$presence == home", "not {x}", "[1, 2", "{a: [}", 0.0, -0.0]
+            "{x} < .nan", "$presence == home", "not {x}", "[1, 2", "{a: [}", 0.0, -0.0,
+            "subtrees/search.yaml\x00#note", "a\x00b", "n" * 300, 10 ** 4000]
     if r < 0.9:
         return copy.deepcopy(rng.choice(pool))
     value: Any = "x"
@@ -829,6 +833,14 @@ def mutate_mission(rng: random.Random, files: dict[str, bytes]) -> tuple[str, di
                         node["policy"] = "threshold"
                 cont[key] = node
                 done.append(f"wrap in {wrap}")
+            elif op < 0.88 and isinstance(data, dict):
+                k = rng.choice((3, 30, 60, 99, 200))
+                data["utterances"] = [rng.choice([
+                    "(x) " * k + "go", "(x|y) " * k + "{%s} go" % rng.choice(
+                        list(data.get("parameters") or {"nope": 0})),
+                    "{a} {b}", "(" + "|".join(["x"] * k) + ") go", "", "\x00", "(" * k,
+                    "x" * (100 * k)])]
+                done.append(f"utterance of {k} groups")
             elif op < 0.92 and isinstance(cont[key], dict):
                 n = rng.choice((2, 50, 2500))
                 cont[key] = {"sequence": [copy.deepcopy(cont[key]) for _ in range(n)]}
@@ -921,6 +933,26 @@ def mutate_recording(rng: random.Random, base: dict[str, Any]) -> tuple[str, dic
                 files[f] = ("fifo",)
                 done.append(f"{f} is a FIFO")
     files["rec/manifest.json"] = json.dumps(manifest).encode()
+    if "rec/captures.jsonl" in files and rng.random() < 0.3:    # version 2's own files
+        name = rng.choice(["rec/captures.jsonl", "rec/actions.jsonl", "rec/manifest.json"])
+        op = rng.random()
+        if op < 0.4 and isinstance(files[name], bytes):
+            files[name], what = _mutate_bytes(rng, files[name], [
+                b"9" * 5000, b"-" + b"9" * 41, b"\\u0000", b"\\ud800", b"1e400", b"NaN",
+                b"[" * 3000, b"\n{}\n", b"\x00"])
+            done.append(f"{name}: {what}")
+        elif op < 0.55:
+            files[name] = ("fifo",)
+            done.append(f"{name} is a FIFO")
+        elif op < 0.7:
+            files[name] = ("symlink", rng.choice(["/dev/zero", "/etc/passwd", "../x"]))
+            done.append(f"{name} is a link out")
+        elif op < 0.8:
+            files[name] = ("sparse", rng.choice((1 << 20, 200 << 20, 3 << 30)))
+            done.append(f"{name} is sparse")
+        else:
+            files[name] = ("dir",)
+            done.append(f"{name} is a directory")
     if rng.random() < 0.1:
         files["rec/manifest.json"], what = _mutate_bytes(
             rng, files["rec/manifest.json"], [b"NaN", b"Infinity", b"[" * 5000, b"\xff"])
@@ -1169,10 +1201,10 @@ def generated_cases(loader: str, n: int, seed: int) -> Iterator[Case]:
         for _ in range(n):
             what, files, entry = mutate_mission(rng, base)
             yield Case("mission", what, files, entry)
-    else:
-        base = _recording_files()
-        for _ in range(n):
-            what, files = mutate_recording(rng, base)
+    elif loader == "recording":
+        bases = (_recording_files(), _recording_files(version=2))
+        for i in range(n):
+            what, files = mutate_recording(rng, bases[i % 2])
             yield Case("recording", what, files, "rec")
 
 
@@ -1277,6 +1309,110 @@ def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
 
 
 # ---------------------------------------------------------------------------------------------
+# The HTTP API (issue 44): hostile requests to a real server
+
+_WORST_MISSION = ("hearth: 1\nname: worst\nutterances: ['" + "(x) " * 60 + "go']\n"
+                  "tree:\n  skill: Act\n")
+
+
+def _http_cases(port: int, run_id: str) -> list[tuple[str, str, str, str, dict, bytes, int]]:
+    """(class, name, method, path, headers, body, expected status) of the hand-made requests."""
+    js = {"content-type": "application/json"}
+    out = []
+    for origin in ("http://evil.com", "null", f"http://127.0.0.1:{port + 1}"):
+        for method, path in (("POST", "/api/stop"), ("POST", f"/api/runs/{run_id}/cancel"),
+                             ("POST", "/api/runs"), ("PUT", "/api/autonomy")):
+            body = b'{"mission": "bench_chores"}' if path == "/api/runs" else \
+                b'{"level": 3}' if path == "/api/autonomy" else b""
+            out.append(("cross-site", f"{method} {path} from {origin}", method, path,
+                        {"Origin": origin, **js}, body, 403))
+    out.append(("cross-site", "POST /api/stop with Sec-Fetch-Site: cross-site", "POST",
+                "/api/stop", {"Sec-Fetch-Site": "cross-site"}, b"", 403))
+    for host in ("localhost:80@evil.com", f"localhost:{port}@evil.com", "localhost:99999",
+                 f"127.0.0.1:{port + 1}", "a b", "localhost, evil.com"):
+        out.append(("host", f"Host {host}", "GET", "/api/health", {"Host": host}, b"", 421))
+    for name, value in (("infinity", b"Infinity"), ("nan", b"NaN"), ("1e400", b"1e400"),
+                        ("5000_digits", b"9" * 5000)):
+        out.append(("huge-integer" if "digit" in name else "numbers", f"priority {name}",
+                    "POST", "/api/runs", js, b'{"mission":"bench_chores","priority":' + value
+                    + b"}", 422))
+    out.append(("nul", "parameter value with NUL and a lone surrogate", "PUT",
+                "/api/parameters/presence", js, b'{"value":"\\u0000\\ud800"}', 422))
+    out.append(("structure", "a key twice", "POST", "/api/runs", js,
+                b'{"mission":"bench_chores","mission":"worst"}', 422))
+    out.append(("template", "the worst template's utterance", "POST", "/api/commands", js,
+                ('{"text": "%s"}' % WORST_UTTERANCE).encode(), 200))
+    return out
+
+
+def check_http(n: int, seed: int) -> dict:
+    """The hand-made hostile requests and ``n`` schema-generated ones (with hostile bodies and
+    foreign origins) against a real server over the demo home; health asked while the worst
+    template is matched. Failures: a 5xx, an answer other than the expected one, a foreign
+    page's state change accepted."""
+    import threading
+
+    import httpx
+
+    from executive.command.api import create_app
+    from executive.command.fuzz import run_fuzz
+    from executive.command.server import ServerThread
+    from hearth.benchmarks.api import _service
+    from hearth.robot.clock import SimClock
+
+    report: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "worst.yaml").write_text(_WORST_MISSION)
+        service, _ = _service(tmp, SimClock(), 10.0)
+        try:
+            with ServerThread(create_app(service)) as srv, \
+                    httpx.Client(base_url=srv.url, timeout=60.0) as c:
+                run_id = c.post("/api/runs", json={"mission": "bench_chores"}).json()["run"]["id"]
+                by_class: dict[str, dict[str, int]] = {}
+                failures = []
+                for klass, name, method, path, headers, body, expect in _http_cases(
+                        srv.port, run_id):
+                    r = c.request(method, path, headers=headers, content=body)
+                    row = by_class.setdefault(klass, {"requests": 0, "failures": 0})
+                    row["requests"] += 1
+                    if r.status_code != expect:
+                        row["failures"] += 1
+                        failures.append({"class": klass, "case": name, "status": r.status_code,
+                                         "expected": expect, "answer": r.text[:200]})
+                # health while the worst template is matched (figures, not a gate)
+                t0 = time.perf_counter()
+                done: dict[str, float] = {}
+
+                def worst() -> None:
+                    c.post("/api/commands", json={"text": WORST_UTTERANCE})
+                    done["ms"] = (time.perf_counter() - t0) * 1000
+                th = threading.Thread(target=worst)
+                th.start()
+                health = c.get("/api/health")
+                health_ms = (time.perf_counter() - t0) * 1000
+                th.join(120)
+                schema = c.get("/openapi.json").json()
+                fuzz = run_fuzz(c, schema, ["bench_chores", "worst", "presence", run_id,
+                                            WORST_UTTERANCE, "x x go", ""], n, seed=seed)
+        finally:
+            service.executive.shutdown()
+            service.close()
+    fixed_5xx = sum(f["status"] >= 500 for f in failures)
+    report.update(
+        fixed_requests=sum(r["requests"] for r in by_class.values()), by_class=by_class,
+        fixed_failures=failures[:20], generated_requests=fuzz["requests"],
+        generated_by_status=fuzz["by_class"], generated_failures=fuzz["failures"][:20],
+        cross_site_accepted=fuzz["cross_site_accepted"] + sum(
+            f["status"] < 400 for f in failures if f["class"] == "cross-site"),
+        **{"5xx": fixed_5xx + sum(f["status"] >= 500 for f in fuzz["failures"])},
+        health_ok_during_worst_template=health.status_code == 200,
+        health_ms_during_worst_template=round(health_ms, 1),
+        worst_template_command_ms=round(done.get("ms", float("nan")), 1))
+    report["failures"] = len(failures) + len(fuzz["failures"])
+    return report
+
+
+# ---------------------------------------------------------------------------------------------
 # Report
 
 def summarise(results: list[tuple[Case, Verdict]]) -> dict:
@@ -1303,6 +1439,18 @@ def failures(results: list[tuple[Case, Verdict]], limit: int = 12) -> list[dict]
     return out[:limit]
 
 
+def by_class(results: list[tuple[Case, Verdict]]) -> dict:
+    """The fixed cases by class: cases, and those that did not end as expected."""
+    out: dict[str, dict[str, int]] = {}
+    for c, v in results:
+        if c.expect is None or not c.klass:
+            continue
+        row = out.setdefault(c.klass, {"cases": 0, "failed": 0})
+        row["cases"] += 1
+        row["failed"] += v.outcome != c.expect or bool(v.outside)
+    return out
+
+
 def run(args) -> dict:
     quick = getattr(args, "quick", False)
     n = getattr(args, "cases", None) or (200 if quick else 2000)
@@ -1310,7 +1458,7 @@ def run(args) -> dict:
     jobs = max(1, getattr(args, "jobs", 1) or 1)
     timeout = getattr(args, "timeout", 60.0) or 60.0
     t0 = time.perf_counter()
-    sizes = {"world": n, "mission": n, "recording": max(50, n // 4)}
+    sizes = {"world": n, "mission": n, "recording": max(50, n // 4), "bag": 0}
     fixed = fixed_cases()
     cases = itertools.chain(*(generated_cases(l, sizes[l], seed) for l in LOADERS), fixed)
     results = run_cases(cases, jobs=jobs, timeout=timeout)
@@ -1332,7 +1480,12 @@ def run(args) -> dict:
             fixed_failed.append(f"{c.loader}/{c.name}")
     out["fixed"] = fixed_report
     out["fixed_failed"] = fixed_failed
+    out["fixed_by_class"] = by_class(results)
+    http_n = getattr(args, "http_requests", None) or (100 if quick else 500)
+    out["http"] = check_http(http_n, seed)
+    out["total"]["5xx"] = out["http"]["5xx"]
+    out["total"]["cross_site_accepted"] = out["http"]["cross_site_accepted"]
     out["failures"] = failures(results, limit=40)
-    out["targets"] = {k: 0 for k in FAILURES}
+    out["targets"] = {**{k: 0 for k in FAILURES}, "5xx": 0, "cross_site_accepted": 0}
     out["seconds"] = round(time.perf_counter() - t0, 1)
     return out
