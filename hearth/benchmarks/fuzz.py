@@ -24,9 +24,23 @@ ends as one of:
 - ``traceback`` (any other exception), ``hang`` (over the time limit), ``crash`` (the worker
   died, e.g. in open3d).
 
-The hand-made cases of issue 19 run as fixed cases with an expected outcome (``fixed``).
+The hand-made cases of issues 19 and 44 run as fixed cases with an expected outcome
+(``fixed``); issue 44's carry a class (``CLASSES``: mesh-content, fifo, nul, huge-integer,
+template, size, ...) and are counted by class (``fixed_by_class``). A fourth loader, ``bag``,
+runs hand-made ROS 2 bag cases (when the ``ros`` extra is installed). Accepted missions also
+have their utterance templates compiled and matched against the worst known utterance.
+
+The ``http`` block sends hostile requests to a real server over the demo home (issue 44):
+hand-made ones by class (cross-site POST/PUT with foreign ``Origin`` or ``Sec-Fetch-Site``,
+malformed ``Host``, bodies with Infinity, NaN, 1e400, 5,000-digit integers, lone surrogates,
+a key twice, the worst template's utterance) with the answer each must get, and
+``--http-requests`` schema-generated ones (executive/command/fuzz.py) with hostile bodies and
+foreign origins mixed in; it counts ``5xx`` and ``cross_site_accepted`` and reports how long
+``/api/health`` took while the worst template was matched.
+
 Targets: ``tracebacks``, ``hangs``, ``crashes``, ``accepted_then_unloadable``,
-``accepted_out_of_bounds``, ``paths_outside_world`` all 0, per loader and in total.
+``accepted_out_of_bounds``, ``paths_outside_world``, ``5xx``, ``cross_site_accepted`` all 0,
+per loader and in total.
 
 ``tests/fuzz/test_fuzz_loaders.py`` runs the same generators in-process on a few hundred cases.
 """
