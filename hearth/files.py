@@ -41,6 +41,39 @@ def read_limited(path, limit: int, error: type[HearthError], too_large: str) -> 
     return data
 
 
+def file_inside(base, rel, start=None) -> tuple[str, str | None]:
+    """Where ``rel``, a path relative to the folder ``start`` (default ``base``), leads
+    (symbolic links followed), and why a file named by a file from elsewhere may not be read
+    there (None: it may): it must lie inside ``base``.
+
+    The one rule for every path a world, a mesh, a material library or a recording names:
+    relative, inside the folder once links are followed, a regular file (not a directory, a
+    FIFO that would block, a device that never ends). The reasons are codes the callers turn
+    into their own sentences: ``"not relative"`` (empty, absolute, ``~``, a NUL byte),
+    ``"leaves"`` (``..`` out of the folder), ``"leaves through a link"``, ``"missing"``,
+    ``"not regular"``, ``"unreadable: STRERROR"``.
+    """
+    if not isinstance(rel, str) or not rel or "\x00" in rel or os.path.isabs(rel) \
+            or rel.startswith("~"):
+        return "", "not relative"
+    norm = os.path.normpath(rel)
+    if start is None and (norm == ".." or norm.startswith(".." + os.sep)):
+        return "", "leaves"
+    real_base = os.path.realpath(base)
+    full = os.path.realpath(os.path.join(start or real_base, rel))
+    if os.path.commonpath([real_base, full]) != real_base:
+        return full, "leaves through a link"
+    try:
+        st = os.stat(full)
+    except FileNotFoundError:
+        return full, "missing"
+    except OSError as err:
+        return full, f"unreadable: {err.strerror}"
+    if not stat.S_ISREG(st.st_mode):
+        return full, "not regular"
+    return full, None
+
+
 #: The longest integer a JSON file Hearth reads may hold, in digits (a 64-bit integer has at
 #: most 20). Python's own limit (4300 digits) is a ValueError far from the file's line, and
 #: a number that long is never data.

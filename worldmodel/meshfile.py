@@ -25,14 +25,13 @@ from __future__ import annotations
 
 import os
 import re
-import stat
 from functools import lru_cache
 from typing import Callable, Optional
 
 import numpy as np
 
 from hearth.errors import HearthError
-from hearth.files import read_limited
+from hearth.files import file_inside, read_limited
 
 MESH_SUFFIXES = (".ply", ".obj", ".stl", ".off")
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -205,21 +204,16 @@ def _ply(data: bytes, full: str, base: str) -> np.ndarray:
 
 def _resolve_inside(ref: str, folder: str, base: str, what: str) -> str:
     """The path ``ref`` names relative to ``folder``; refused unless it stays in ``base``
-    (symbolic links followed) and names a regular file."""
-    if not ref or "\x00" in ref or os.path.isabs(ref) or ref.startswith("~"):
-        raise _Refused(f"names {what} {ref[:60]!r}, which is not a path relative to the "
-                       f"world file's folder")
-    full = os.path.realpath(os.path.join(folder, ref))
-    if os.path.commonpath([base, full]) != base:
-        raise _Refused(f"names {what} {ref[:60]!r}, which leaves the world file's folder")
-    try:
-        st = os.stat(full)
-    except OSError:
-        raise _Refused(f"names {what} {ref[:60]!r}, which is not in the world file's "
-                       "folder") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise _Refused(f"names {what} {ref[:60]!r}, which is not a regular file")
-    return full
+    (symbolic links followed) and names a regular file (``hearth.files.file_inside``)."""
+    full, why = file_inside(base, ref, start=folder)
+    if why is None:
+        return full
+    said = {"not relative": "is not a path relative to the world file's folder",
+            "leaves": "leaves the world file's folder",
+            "leaves through a link": "leaves the world file's folder",
+            "missing": "is not in the world file's folder",
+            "not regular": "is not a regular file"}.get(why, "cannot be read")
+    raise _Refused(f"names {what} {ref[:60]!r}, which {said}")
 
 
 #: Keywords of a .mtl line whose last word is a texture file (what tinyobjloader reads).

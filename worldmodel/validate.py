@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 import os
 import re
-import stat
 from pathlib import Path
 from typing import Iterator, Optional
 
+from hearth.files import file_inside
 from worldmodel.errors import WorldError
 from worldmodel.nodes import KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
 from worldmodel.pose import Pose
@@ -277,6 +277,14 @@ def _apartment_value_problems(apartment: Apartment) -> Iterator[str]:
 
 # -- files a map names -----------------------------------------------------------------------
 
+_ASSET_REASONS = {"not relative": "must be a path relative to the world file's folder",
+                  "leaves": "leaves the world file's folder",
+                  "leaves through a link": "leaves the world file's folder (through a "
+                                           "symbolic link)",
+                  "missing": "is not in the world file's folder",
+                  "not regular": "is not a regular file"}
+
+
 def asset_problem(rel, base_dir: Optional[Path], kind: str = "mesh") -> Optional[str]:
     """Why a mesh or point-cloud path may not be used (None: it may).
 
@@ -289,25 +297,12 @@ def asset_problem(rel, base_dir: Optional[Path], kind: str = "mesh") -> Optional
     """
     if not isinstance(rel, str) or not rel:
         return "is empty"
-    if "\x00" in rel or os.path.isabs(rel) or rel.startswith("~"):
-        return "must be a path relative to the world file's folder"
-    norm = os.path.normpath(rel)
-    if norm == ".." or norm.startswith(".." + os.sep):
-        return "leaves the world file's folder"
     if base_dir is None:
         return "cannot be checked: the world was not loaded from a folder"
+    full, why = file_inside(base_dir, rel)
+    if why is not None:
+        return _ASSET_REASONS.get(why) or f"cannot be read ({why.partition(': ')[2]})"
     base = os.path.realpath(base_dir)
-    full = os.path.realpath(os.path.join(base, rel))
-    if os.path.commonpath([base, full]) != base:
-        return "leaves the world file's folder (through a symbolic link)"
-    try:
-        st = os.stat(full)
-    except FileNotFoundError:
-        return "is not in the world file's folder"
-    except OSError as err:
-        return f"cannot be read ({err.strerror})"
-    if not stat.S_ISREG(st.st_mode):
-        return "is not a regular file"
     from worldmodel.meshfile import content_problem
     return content_problem(full, base, kind)
 

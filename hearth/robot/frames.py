@@ -14,7 +14,6 @@ recording's folder (no absolute paths, no ``..`` out of it, no symlink out of it
 from __future__ import annotations
 
 import os
-import stat
 import struct
 import zlib
 from dataclasses import dataclass
@@ -22,6 +21,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+from hearth.files import file_inside
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MAX_FRAME_BYTES = 256 << 20          # one frame file; a 4k 16-bit PNG is ~20 MB
@@ -65,22 +66,21 @@ def inside(directory: Path, relative: str, limit: int = MAX_FRAME_BYTES,
     if os.path.isabs(relative):
         raise FrameFileError(f"{what} path {relative[:80]!r} is absolute; paths are relative "
                              "to the recording's folder")
-    root = directory.resolve()
-    path = (directory / relative).resolve()
-    if path != root and root not in path.parents:
+    full, why = file_inside(directory, relative)
+    if why in ("leaves", "leaves through a link", "not relative"):
         raise FrameFileError(f"{what} path {relative[:80]!r} leaves the recording's folder")
+    if why == "missing":
+        raise FrameFileError("missing")
+    if why == "not regular":
+        raise FrameFileError(f"{what} path {relative[:80]!r} is not a regular file")
     try:
-        st = path.stat()
-    except FileNotFoundError:
-        raise FrameFileError("missing") from None
+        st = os.stat(full)
     except OSError as err:
         raise FrameFileError(f"unreadable ({err.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise FrameFileError(f"{what} path {relative[:80]!r} is not a regular file")
     if st.st_size > limit:
         raise FrameFileError(f"{st.st_size} bytes, more than the {limit >> 20} MiB "
                              f"a {what} file may have")
-    return path
+    return Path(full)
 
 
 def check_png(data: bytes) -> PngInfo:
