@@ -249,8 +249,11 @@ def _transform(m, what: str) -> np.ndarray:
     if np.abs(T[:3, 3]).max() > MAX_COORD:
         raise _Bad(f"{what}: the position is beyond +-{MAX_COORD:g} m")
     R = T[:3, :3]
-    # (np.allclose, twice per capture, was most of the time to open 20,000 captures)
-    if not (float(np.abs(R @ R.T - _EYE3).max()) <= 1e-4
+    # (np.allclose, twice per capture, was most of the time to open 20,000 captures; a
+    # rotation's entries are within +-1, and checking that first keeps 1e308 entries from
+    # overflowing the product with a RuntimeWarning on stderr)
+    if not (float(np.abs(R).max()) <= 1.0 + 1e-4
+            and float(np.abs(R @ R.T - _EYE3).max()) <= 1e-4
             and float(np.abs(T[3] - _BOTTOM).max()) <= 1e-4 and np.linalg.det(R) > 0):
         raise _Bad(f"{what} is not a rigid transform")
     return T

@@ -311,3 +311,14 @@ def test_a_frame_named_by_twenty_thousand_captures_is_checked_once(rec, monkeypa
     monkeypatch.setattr(recording, "check_depth_png", lambda data: calls.append(1) or real(data))
     r = Recording(rec)
     assert len(r) == 20_000 and len(calls) == 1
+
+
+def test_a_rotation_of_huge_numbers_is_not_rigid_and_prints_no_warning(rec):
+    import warnings
+    T = np.eye(4)
+    T[0, 0] = T[1, 1] = 1e308
+    _rewrite(rec, 1, T_world_camera=T.tolist())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        message = _refused(rec)
+    assert message.endswith("capture 1: T_world_camera is not a rigid transform")
