@@ -32,6 +32,8 @@ def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
             known = ", ".join(sorted(mission.parameters)) or "none"
             raise MissionError(f"unknown parameter of mission {mission.name} (known: {known})",
                                param=name)
+        if name in out:     # the last would silently win: say which one was meant
+            raise MissionError(f"given twice (--param {name}=...); give it once", param=name)
         out[name] = parse_param_text(name, spec.type, text)
     mission.resolve_parameters(out)   # enum, required and item checks before anything starts
     return out

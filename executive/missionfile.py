@@ -22,6 +22,7 @@ import math
 import os
 import re
 import reprlib
+import unicodedata
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -272,11 +273,11 @@ def load_yaml(path: str | Path) -> Any:
     return load_yaml_text(text, path)
 
 
-def load_yaml_text(text: str, path: str = "<string>") -> Any:
+def load_yaml_text(text: str, path: str = "<string>", loader: Any = None) -> Any:
     if len(text) > MAX_FILE_CHARS:
         raise MissionError(f"file is larger than {MAX_FILE_CHARS} characters", file=path, line=0)
     try:
-        return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+        return yaml.load(text, Loader=loader or _Loader)  # noqa: S506 - a SafeLoader
     except MissionError as err:
         raise MissionError(err.message, file=path, line=err.line) from None
     except yaml.MarkedYAMLError as err:
@@ -388,16 +389,60 @@ def infer_type(value: Any) -> str:
     return "any"
 
 
+def _control_character(value: Any, depth: int = 0) -> str | None:
+    """The first control character (or lone surrogate) in a string of ``value``, if any: a
+    value with one is never what a person meant ("kitchen\x01" would resolve to kitchen)."""
+    if isinstance(value, str):
+        for ch in value:
+            if unicodedata.category(ch) in ("Cc", "Cs"):
+                return ch
+        return None
+    if depth < MAX_YAML_DEPTH and isinstance(value, dict):
+        value = [*value.keys(), *value.values()]
+    if depth < MAX_YAML_DEPTH and isinstance(value, (list, tuple)):
+        for v in value:
+            bad = _control_character(v, depth + 1)
+            if bad is not None:
+                return bad
+    return None
+
+
+#: Numbers in a parameter's text are decimal: YAML 1.1 also reads 0x10 as 16, 010 as 8,
+#: 1_000 as 1000 and 1:30 as 90, which no one typing max_places=0x10 means.
+_DECIMAL_INT = re.compile(r"[-+]?(?:0|[1-9][0-9]*)")
+_DECIMAL_FLOAT = re.compile(r"[-+]?(?:[0-9]+\.[0-9]*|\.[0-9]+|[0-9]+)(?:[eE][-+]?[0-9]+)?"
+                            r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN)")
+
+
+class _ParamLoader(_Loader):
+    """The mission loader, with numbers read in decimal only (``_DECIMAL_INT``)."""
+
+    yaml_implicit_resolvers = {
+        first: [(tag, rx) for tag, rx in resolvers
+                if tag not in ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")]
+        for first, resolvers in _Loader.yaml_implicit_resolvers.items()}
+
+
+for _tag, _rx in (("tag:yaml.org,2002:int", _DECIMAL_INT), ("tag:yaml.org,2002:float", _DECIMAL_FLOAT)):
+    _ParamLoader.add_implicit_resolver(_tag, re.compile(f"^(?:{_rx.pattern})$"),
+                                       list("-+0123456789."))
+
+
 def parse_param_text(name: str, type_name: str, text: str) -> Any:
     """Turn a command-line ``--param name=text`` into a value of ``type_name``.
 
     Strings and node ids are taken verbatim; other types are read as YAML scalars/flow
-    collections (``[1, 2, 0.5]``, ``{x: 1, y: 2}``, ``true``). Raises MissionError(param=).
+    collections (``[1, 2, 0.5]``, ``{x: 1, y: 2}``, ``true``), numbers in decimal only. A
+    control character anywhere is refused. Raises MissionError(param=).
     """
+    bad = _control_character(text)
+    if bad is not None:
+        raise MissionError(f"{_short(text)} holds the control character U+{ord(bad):04X}",
+                           param=name)
     if any(t in ("string", "node_id") for t in _alternatives(type_name)):
         return text
     try:
-        value = plain(load_yaml_text(text, "<parameter>"))
+        value = plain(load_yaml_text(text, "<parameter>", loader=_ParamLoader))
     except MissionError as err:
         raise MissionError(f"cannot read {text[:80]!r} as {type_name}: {err.message}",
                            param=name) from None
@@ -555,6 +600,10 @@ class ParamSpec:
         enum, bounds; the map is checked by :meth:`check_in_map`)."""
         if not check_value(self.type, value):
             raise MissionError(f"expected {self.type}, got {_short(value)}", param=self.name)
+        bad = _control_character(value)
+        if bad is not None:
+            raise MissionError(f"{_short(value)} holds the control character U+{ord(bad):04X}",
+                               param=self.name)
         if self.items and isinstance(value, (list, tuple)):
             for item in value:
                 if not check_value(self.items, item):
@@ -1354,6 +1403,9 @@ class _Compiler:
         target = data["include"]
         line = data.key_lines["include"]
         file, sub = scope.file, target
+        if "\x00" in target:
+            self.error(f"include {_short(target)}: the path holds a NUL byte", scope.file, line)
+            return None
         if "#" in target or target.endswith((".yaml", ".yml")):
             fpart, _, sub = target.partition("#")
             file = str((Path(scope.file).parent / fpart).resolve()) if fpart else scope.file
@@ -1561,6 +1613,9 @@ def _schema_message(err: jsonschema.ValidationError) -> str:
         msg = f"{_short(err.instance)} is not one of {_short(allowed)}"
     elif err.validator == "type":
         msg = f"{_short(err.instance)} is not of type {_short(err.validator_value)}"
+    elif err.validator == "maxLength":
+        msg = (f"{_short(err.instance)} is too long ({len(err.instance)} characters; at most "
+               f"{err.validator_value})")
     else:
         msg = err.message
     if len(msg) > 240:

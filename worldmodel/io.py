@@ -46,6 +46,10 @@ _TOO_LARGE = f"file is larger than {MAX_FILE_BYTES} bytes"
 MAX_ELEMENTS = 1_000_000
 #: Deepest element nesting (the apartment is level 1; each nested part adds one).
 MAX_DEPTH = 32
+#: Most attributes on one element (the schema's elements have at most about 20). libxml2
+#: compares each attribute of an element with the others while it parses: one element of
+#: 100,000 attributes (1.1 MB) took minutes, so this is checked on the bytes, before parsing.
+MAX_ATTRIBUTES = 256
 
 
 def _parser() -> etree.XMLParser:
@@ -62,11 +66,25 @@ def _schema() -> etree.XMLSchema:
 # --------------------------------------------------------------------------------------
 # reading
 
+# A start tag long enough to hold more than MAX_ATTRIBUTES attributes (each at least ` a=""`).
+_LONG_TAG = re.compile(rb"<[^>]{%d,}" % (5 * MAX_ATTRIBUTES))
+
+
+def _check_attribute_counts(data: bytes, name: str) -> None:
+    """One WorldError at the first start tag with more than MAX_ATTRIBUTES attributes."""
+    for m in _LONG_TAG.finditer(data):
+        tag = m.group()
+        if tag.count(b'="') + tag.count(b"='") > MAX_ATTRIBUTES:
+            raise WorldError(f"an element with more than {MAX_ATTRIBUTES} attributes", file=name,
+                             line=data.count(b"\n", 0, m.start()) + 1)
+
+
 def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
     # Refuse DTDs before libxml2 sees them: no entity is ever declared, let alone expanded.
     if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
         raise WorldError("DOCTYPE declarations (DTDs and entities) are not allowed",
                          file=name, line=_doctype_line(data))
+    _check_attribute_counts(data, name)
     try:
         tree = etree.ElementTree(etree.fromstring(data, _parser()))
     except etree.XMLSyntaxError as err:
@@ -299,7 +317,8 @@ class _Reader:
                              c.get("new"), c.get("source", ""))
                 for c in root.findall("history/change")]
         stats = [SearchStat(s.get("object"), s.get("place"), int(s.get("searched", 0)),
-                            int(s.get("found", 0))) for s in root.findall("searchStats/stat")]
+                            int(s.get("found", 0)), line=s.sourceline)
+                 for s in root.findall("searchStats/stat")]
         return Apartment(id=root.get("id"), name=root.get("name", ""),
                          rooms=[self.room(r) for r in root.findall("room")], library=lib,
                          history=hist, search_stats=stats, version=root.get("version"),

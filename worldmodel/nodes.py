@@ -344,6 +344,7 @@ class SearchStat:
     place: str
     searched: int = 0
     found: int = 0
+    line: Optional[int] = _line()
 
 
 @dataclass

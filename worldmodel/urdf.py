@@ -26,8 +26,9 @@ from typing import Optional
 
 import numpy as np
 
+from hearth.files import read_limited
 from worldmodel.errors import WorldError
-from worldmodel.io import _parse_tree
+from worldmodel.io import _TOO_LARGE, MAX_FILE_BYTES, _parse_tree
 from worldmodel.nodes import (
     Handle, Joint, LargeArticulatedObject, Model, ParkingPosition, Part, Visual,
 )
@@ -131,7 +132,8 @@ def import_urdf(source, object_id: str, object_type: str = "cupboard",
         data, fname = bytes(source), "<urdf>"
     else:
         fname = str(source)
-        data = Path(source).read_bytes()
+        # a regular file of at most a world file's size (a FIFO or /dev/zero is refused)
+        data = read_limited(source, MAX_FILE_BYTES, WorldError, _TOO_LARGE)
     root = _parse_tree(data, fname).getroot()
     if root.tag != "robot":
         raise WorldError("URDF root element must be <robot>", file=fname, line=root.sourceline)

@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 import os
 import re
-import stat
 from pathlib import Path
 from typing import Iterator, Optional
 
+from hearth.files import file_inside
 from worldmodel.errors import WorldError
 from worldmodel.nodes import KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
 from worldmodel.pose import Pose
@@ -302,39 +302,47 @@ def _apartment_value_problems(apartment: Apartment) -> Iterator[str]:
 
 # -- files a map names -----------------------------------------------------------------------
 
-def asset_problem(rel, base_dir: Optional[Path]) -> Optional[str]:
+_ASSET_REASONS = {"not relative": "must be a path relative to the world file's folder",
+                  "leaves": "leaves the world file's folder",
+                  "leaves through a link": "leaves the world file's folder (through a "
+                                           "symbolic link)",
+                  "missing": "is not in the world file's folder",
+                  "not regular": "is not a regular file"}
+
+
+def asset_problem(rel, base_dir: Optional[Path], kind: str = "mesh") -> Optional[str]:
     """Why a mesh or point-cloud path may not be used (None: it may).
 
     Paths are relative to the world file's folder and must stay inside it (after following
     symbolic links) and name a regular file: a world file from elsewhere must not make Hearth
     read ``/etc/passwd``, block on ``/dev/zero`` or wander through ``/proc``. Without a folder
-    (``parse_world`` on bytes) nothing can be checked, so no file is accepted.
+    (``parse_world`` on bytes) nothing can be checked, so no file is accepted. What the file
+    holds is checked too (``worldmodel.meshfile``: format, declared counts, the files an
+    ``.obj`` names, finite vertices); ``kind`` is "mesh" or "pointcloud".
     """
     if not isinstance(rel, str) or not rel:
         return "is empty"
-    if "\x00" in rel or os.path.isabs(rel) or rel.startswith("~"):
-        return "must be a path relative to the world file's folder"
-    norm = os.path.normpath(rel)
-    if norm == ".." or norm.startswith(".." + os.sep):
-        return "leaves the world file's folder"
     if base_dir is None:
         return "cannot be checked: the world was not loaded from a folder"
+    full, why = file_inside(base_dir, rel)
+    if why is not None:
+        return _ASSET_REASONS.get(why) or f"cannot be read ({why.partition(': ')[2]})"
     base = os.path.realpath(base_dir)
-    full = os.path.realpath(os.path.join(base, rel))
-    if os.path.commonpath([base, full]) != base:
-        return "leaves the world file's folder (through a symbolic link)"
-    try:
-        st = os.stat(full)
-    except FileNotFoundError:
-        return "is not in the world file's folder"
-    except OSError as err:
-        return f"cannot be read ({err.strerror})"
-    if not stat.S_ISREG(st.st_mode):
-        return "is not a regular file"
-    return None
+    from worldmodel.meshfile import content_problem
+    return content_problem(full, base, kind)
 
 
 # -- the checks ------------------------------------------------------------------------------
+
+def _unique_surfaces(node, bad) -> None:
+    """A surface is named by its object and its id (where an object stands, what a search
+    looks at): two of one object with one id could not be told apart."""
+    seen: set[str] = set()
+    for srf in getattr(node, "surfaces", ()):
+        if srf.id in seen:
+            bad(f"{node.id}: duplicate surface id {srf.id!r}", srf)
+        seen.add(srf.id)
+
 
 def semantic_problems(apartment: Apartment, name: Optional[str],
                       base_dir: Optional[Path]) -> list[WorldError]:
@@ -367,6 +375,19 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
     for mid in apartment.library:
         if mid in seen:
             bad(f"library model id {mid!r} is also a node id", apartment)
+
+    # What the schema cannot say about the learned search statistics: a count of finds
+    # within the count of searches, a place that is in this map, one entry per pair.
+    pairs: set[tuple[str, str]] = set()
+    for st in apartment.search_stats:
+        where = f"search stat of {st.object!r} at {st.place!r}"
+        if isinstance(st.found, int) and isinstance(st.searched, int) and st.found > st.searched:
+            bad(f"{where}: found {st.found} times in {st.searched} searches", st)
+        if isinstance(st.place, str) and st.place not in seen:
+            bad(f"{where}: no node {st.place!r} in the map", st)
+        if (st.object, st.place) in pairs:
+            bad(f"{where}: given twice", st)
+        pairs.add((st.object, st.place))
 
     if name is None:
         # A file went through the schema, which bounds every number and string; a map in
@@ -440,6 +461,7 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                     f"of {ids}", node)
             if len(set(ids)) != len(ids):
                 bad(f"{node.id}: duplicate parking position ids", node)
+            _unique_surfaces(node, bad)
             check_model(node.model, node)
         elif kind == "Part":
             j = node.joint
@@ -452,6 +474,7 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 elif not (j.lower - LIMIT_EPS <= j.state <= j.upper + LIMIT_EPS):
                     bad(f"part {node.id!r}: joint state {j.state} is outside its limits "
                         f"[{j.lower}, {j.upper}]", j)
+            _unique_surfaces(node, bad)
             check_model(node.model, node)
         elif kind == "Knob":
             check_knob(node)
@@ -473,7 +496,7 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 if x0 >= x1 or y0 >= y1:
                     bad(f"room {node.id!r}: bounds must be xmin ymin xmax ymax", node)
             if node.pointcloud is not None:
-                why = asset_problem(node.pointcloud, base_dir)
+                why = asset_problem(node.pointcloud, base_dir, "pointcloud")
                 if why:
                     bad(f"room {node.id!r}: point cloud {node.pointcloud!r} {why}", node)
     return problems

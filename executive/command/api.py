@@ -20,14 +20,19 @@ import functools
 import ipaddress
 import json
 import hmac
+import math
+import re
 from collections.abc import AsyncIterator, Iterable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
-from fastapi import APIRouter, Depends, FastAPI, Header, Path, Query, Request
+from fastapi import APIRouter, Depends, FastAPI, Header, HTTPException, Path, Query, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.routing import APIRoute
 from fastapi.responses import HTMLResponse, JSONResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
@@ -35,6 +40,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from executive.command.service import CommandService, Conflict, NotFound
 from executive.errors import MissionError, MissionValidationError
+from hearth.files import BadJSON, load_json
 
 #: A request body, in bytes: refused from its Content-Length before it is read, and by counting
 #: as it arrives when it has none (chunked). 413.
@@ -178,19 +184,84 @@ class _Unauthorised(Exception):
     pass
 
 
+class _BadBody(HTTPException):
+    """A body that is not strict JSON; an HTTPException so that FastAPI passes it on (any
+    other exception while it reads a body becomes its own 400 without a reason)."""
+
+    def __init__(self, message: str):
+        super().__init__(status_code=422, detail=message)
+        self.message = message
+
+
+class _StrictJSONRequest(Request):
+    """A request whose JSON body is read by ``hearth.files.load_json``: NaN and Infinity,
+    integers of thousands of digits, a key given twice and strings with lone surrogates are
+    refused (422) instead of reaching the models, the runs and the logs, where they ended as
+    500s (a reply holding Infinity is not JSON; "\\ud800" cannot be encoded)."""
+
+    async def json(self) -> Any:
+        if not hasattr(self, "_json"):
+            try:
+                self._json = load_json(await self.body(), finite=True, unique_keys=True)
+            except BadJSON as err:
+                if err.syntax is not None:
+                    raise err.syntax from None      # not JSON: FastAPI's own 422 (json_invalid)
+                raise _BadBody(f"the request body is not strict JSON: {err.message}") from None
+        return self._json
+
+
+class _StrictJSONRoute(APIRoute):
+    def get_route_handler(self) -> Any:
+        handler = super().get_route_handler()
+
+        async def strict(request: Request) -> Any:
+            return await handler(_StrictJSONRequest(request.scope, request.receive))
+        return strict
+
+
+def _json_safe(value: Any) -> Any:
+    """``value`` with non-finite floats and unencodable strings made printable (what
+    FastAPI's validation errors echo back of a request must itself be JSON)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, str):
+        return value.encode("utf-8", "backslashreplace").decode("utf-8")
+    if isinstance(value, dict):
+        return {_json_safe(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
 class _TooManyStreams(Exception):
     pass
 
 
+#: A Host header (RFC 9110 7.2): a name of letters, digits, dots, hyphens (and underscores,
+#: which some local names carry), or an IPv4 address, or an IPv6 address in brackets;
+#: optionally ":" and a port. Nothing else: no userinfo ("localhost:80@evil.com"), no path,
+#: no second host, no spaces.
+_HOST_RE = re.compile(r"(?:\[(?P<v6>[0-9a-f:.]+)\]|(?P<name>[a-z0-9._-]+))(?::(?P<port>[0-9]{1,5}))?")
+
+
+def parse_host(value: str) -> tuple[str, int | None] | None:
+    """(name, port) of a Host header, lower case, without brackets or a trailing dot; None
+    when it is not a host (then nothing is served)."""
+    m = _HOST_RE.fullmatch(value.strip().lower())
+    if m is None:
+        return None
+    port = int(m["port"]) if m["port"] is not None else None
+    if port is not None and not 0 < port < 65536:
+        return None
+    name = m["v6"] if m["v6"] is not None else m["name"].rstrip(".")
+    return (name, port) if name else None
+
+
 def _host_name(value: str) -> str:
-    """The name in a Host header, without port, brackets, case or a trailing dot."""
-    value = value.strip().lower()
-    if value.startswith("["):
-        end = value.find("]")
-        return value[1:end] if end > 0 else value
-    if value.count(":") == 1:
-        value = value.split(":", 1)[0]
-    return value.rstrip(".")
+    """The name in a Host header, without port, brackets, case or a trailing dot (the header
+    itself, shortened, when it is no host: for messages)."""
+    parsed = parse_host(value)
+    return parsed[0] if parsed is not None else value.strip()[:80]
 
 
 def _ip(name: str | None) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
@@ -202,20 +273,66 @@ def _ip(name: str | None) -> ipaddress.IPv4Address | ipaddress.IPv6Address | Non
     return mapped or ip
 
 
-def host_is_served(host: str, local: str | None, allowed: Iterable[str] = ()) -> bool:
+def host_is_served(host: str, local: str | None, allowed: Iterable[str] = (),
+                   local_port: int | None = None) -> bool:
     """Whether a request whose Host header is ``host``, arriving on the local address
-    ``local`` (the connection's own, ``scope["server"]``), is for this server: that address
-    itself, ``localhost`` and loopback addresses when the connection is on loopback, or a
-    configured name (``*``: any)."""
-    name = _host_name(host)
+    ``local`` and port ``local_port`` (the connection's own, ``scope["server"]``), is for
+    this server: that address itself, ``localhost`` and loopback addresses when the
+    connection is on loopback (with the connection's port, when the header names one), or a
+    configured name (``*``: any). A header that does not parse as a host is never served."""
     allowed = {_host_name(a) if a != "*" else a for a in allowed}
-    if "*" in allowed or name in allowed:
+    if "*" in allowed:
         return True
+    parsed = parse_host(host)
+    if parsed is None:
+        return False
+    name, port = parsed
+    if name in allowed:
+        return True
+    if port is not None and local_port is not None and port != local_port:
+        return False
     ip, here = _ip(name), _ip(local)
     if ip is not None and here is not None and ip == here:
         return True
     on_loopback = here is None or here.is_loopback
     return on_loopback and (name == "localhost" or (ip is not None and ip.is_loopback))
+
+
+#: Methods that change state: refused when a browser says another site's page sent them.
+_UNSAFE = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+
+
+def cross_site(method: str, host: str | None, origin: str | None, fetch_site: str | None,
+               allowed: Iterable[str] = ()) -> str | None:
+    """Why a request is a cross-site request that may not change state (None: it may).
+
+    A page on any site can make its visitor's browser POST here without a preflight (a body
+    of no type, or a "simple" one), so ``/api/stop`` worked from every web page. Browsers
+    say where a request comes from: ``Sec-Fetch-Site`` (anything but ``same-origin`` or
+    ``none``, a typed address or a bookmark, is another site) and ``Origin`` (its host and
+    port must be this request's Host, or a name given with ``--allowed-host``). Clients that
+    send neither (curl, httpx, the Python client, other programs) are not browsers and are
+    not asked; the token, when set, is what guards against them."""
+    if method not in _UNSAFE:
+        return None
+    if fetch_site is not None and fetch_site.strip().lower() not in ("same-origin", "none"):
+        return f"Sec-Fetch-Site is {fetch_site.strip()[:40]!r}"
+    if origin is None:
+        return None
+    origin = origin.strip()
+    m = re.fullmatch(r"(?i)(https?)://([^/?#]+)", origin)
+    if m is None:
+        return f"the page's origin {origin[:80]!r} is not this server"
+    scheme, authority = m[1].lower(), m[2]
+    page, here = parse_host(authority), parse_host(host or "")
+    if page is None or here is None:
+        return f"the page's origin {origin[:80]!r} is not this server"
+    default = 443 if scheme == "https" else 80
+    if (page[0], page[1] or default) == (here[0], here[1] or default):
+        return None
+    if page[0] in {_host_name(a) for a in allowed if a != "*"}:
+        return None
+    return f"the page at {origin[:80]} is another site"
 
 
 class Guard:
@@ -242,20 +359,25 @@ class Guard:
         # (parsing both as IP addresses was ~3% of a submit's CPU). Bounded: hosts are
         # whatever clients send.
         self._served = functools.lru_cache(maxsize=256)(
-            lambda host, local: host_is_served(host, local, self.allowed_hosts))
+            lambda host, local, port: host_is_served(host, local, self.allowed_hosts, port))
 
     async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
         if scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)
             return
-        host = length = None
+        host = length = origin = fetch_site = None
         for key, value in scope.get("headers", ()):
             if key == b"host":
                 host = value.decode("latin-1")
             elif key == b"content-length":
                 length = value.decode("latin-1")
-        local = (scope.get("server") or (None,))[0]
-        if host is not None and not self._served(host, local):
+            elif key == b"origin":
+                origin = value.decode("latin-1")
+            elif key == b"sec-fetch-site":
+                fetch_site = value.decode("latin-1")
+        server = tuple(scope.get("server") or (None, None)) + (None,)
+        local, local_port = server[0], server[1]
+        if host is not None and not self._served(host, local, local_port):
             here = _ip(local)
             names = [str(here)] if here is not None else []
             names += ["localhost"] if here is None or here.is_loopback else []
@@ -267,6 +389,14 @@ class Guard:
             return
         if scope["type"] != "http":
             await self.app(scope, receive, send)
+            return
+        why = cross_site(scope.get("method", "GET"), host, origin, fetch_site,
+                         self.allowed_hosts)
+        if why is not None:
+            await _refuse(scope, receive, send, 403,
+                          f"a cross-site request may not change this server's state ({why}); "
+                          f"use the monitor page this server serves, or a client that is not "
+                          f"a browser")
             return
         if length is not None and length.strip().isdigit() and int(length) > self.max_body:
             await _refuse(scope, receive, send, 413, self._too_large(int(length)))
@@ -392,7 +522,8 @@ def create_app(service: CommandService, token: str | None = None, *,
                               "for; operator approvals. See docs/command-layer.md.",
                   lifespan=lifespan, docs_url=None, redoc_url=None)
     app.add_middleware(Guard, allowed_hosts=tuple(allowed_hosts), max_body=max_body)
-    api = APIRouter(prefix="/api", dependencies=[Depends(_check_token(token))])
+    api = APIRouter(prefix="/api", dependencies=[Depends(_check_token(token))],
+                    route_class=_StrictJSONRoute)
     # EventSource cannot set headers: the stream alone also takes ?token=.
     stream = APIRouter(prefix="/api", dependencies=[Depends(_check_token(token, in_query=True))])
     streams = _Streams(max_streams)
@@ -408,6 +539,16 @@ def create_app(service: CommandService, token: str | None = None, *,
                                f"keeps; close one or retry later")
         response.headers["Retry-After"] = "5"
         return response
+
+    @app.exception_handler(_BadBody)
+    async def bad_body(request: Request, exc: _BadBody):
+        return _error(422, exc.message)
+
+    @app.exception_handler(RequestValidationError)
+    async def invalid(request: Request, exc: RequestValidationError):
+        # FastAPI's own answer, its echo of the request made JSON whatever was sent
+        return JSONResponse(status_code=422,
+                            content={"detail": _json_safe(jsonable_encoder(exc.errors()))})
 
     @app.exception_handler(NotFound)
     async def not_found(request: Request, exc: NotFound):

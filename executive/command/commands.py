@@ -99,7 +99,7 @@ def resolve_slot(world: Any, words: str, cls: str, param: str) -> _Resolution:
 
 def _specificity(t: Template) -> int:
     """Literal characters in a template: the more, the more specific it is."""
-    return len(t.pattern.pattern) - 40 * len(t.slots)
+    return len(t.source) - 40 * len(t.slots)
 
 
 def interpret(text: str, templates: list[Template], world: Any,

@@ -4,7 +4,10 @@ sent over a real socket; any 5xx answer is a failure.
 Each request picks an operation, fills its path and query parameters and its JSON body from
 their schemas (mostly valid values, some out of range, some of the wrong type, some junk),
 with words the API knows mixed in (mission names, utterances, parameter names) so that
-requests also get past the first checks. The streaming endpoint (/api/events) is left out.
+requests also get past the first checks. Some bodies are raw JSON no client library writes
+(Infinity, NaN, 1e400, 5000-digit integers, lone surrogates, a key twice: ``HOSTILE_JSON``)
+and some state-changing requests carry a foreign ``Origin`` (a page on another site): the
+first must be 4xx, the second refused. The streaming endpoint (/api/events) is left out.
 
 The values come from a seeded ``random.Random``: the same requests for the same seed, and
 nothing beyond the standard library at run time, so ``hearth bench api`` runs without the
@@ -104,6 +107,28 @@ def from_schema(rng: random.Random, schema: dict, root: dict, hints: list[str],
     return junk(rng)
 
 
+#: Raw JSON a client library would not send (issue 44): each made a 500 once.
+HOSTILE_JSON = [b"Infinity", b"-Infinity", b"NaN", b"1e400", b"9" * 5000, b'"\\ud800"',
+                b'"\\udfff x"', b'"a\\u0000b"']
+#: Pages on other sites, as browsers name them in Origin (and Sec-Fetch-Site).
+FOREIGN_ORIGINS = ["http://evil.example", "null", "https://127.0.0.1.evil.example"]
+
+
+def hostile_body(rng: random.Random, body: Any) -> bytes:
+    """``body`` as JSON text with one value replaced by a token of ``HOSTILE_JSON``, or with a
+    key given twice."""
+    import json
+    text = json.dumps(body, separators=(",", ":"), default=repr)
+    if isinstance(body, dict) and body and rng.random() < 0.3:
+        k = rng.choice(list(body))
+        return (text[:-1] + "," + json.dumps(k) + ":1}").encode()
+    tok = rng.choice(HOSTILE_JSON).decode()
+    if isinstance(body, dict) and body:
+        k = rng.choice(list(body))
+        return json.dumps({**body, k: "@@"}, default=repr).replace('"@@"', tok).encode()
+    return tok.encode()
+
+
 def operations(schema: dict) -> list[tuple[str, str, dict]]:
     ops = []
     for path, item in schema["paths"].items():
@@ -139,26 +164,41 @@ def make_request(rng: random.Random, schema: dict, hints: list[str]
     if rb is not None:
         content = rb.get("content", {}).get("application/json", {})
         body = from_schema(rng, content.get("schema", {}), schema, hints)
+        if rng.random() < 0.15:
+            body = hostile_body(rng, body)      # raw bytes: sent as they are
+    if method != "GET" and rng.random() < 0.1:
+        headers["Origin"] = rng.choice(FOREIGN_ORIGINS)
     return method, url, query, headers, body
 
 
 def run_fuzz(client: Any, schema: dict, hints: list[str], examples: int = 100,
              seed: int = 0) -> dict[str, Any]:
     """Send ``examples`` generated requests with ``client`` (an httpx.Client on the server);
-    returns counts by status class and the requests answered with 5xx. The same requests for
-    the same ``seed``."""
+    returns counts by status class and the failures: requests answered with 5xx, and
+    state-changing requests from a foreign ``Origin`` that were not refused
+    (``cross_site_accepted``). The same requests for the same ``seed``."""
     rng = random.Random(seed)
     counts: dict[str, int] = {}
     failures: list[dict[str, Any]] = []
+    cross_site = 0
     for _ in range(examples):
         method, url, query, headers, body = make_request(rng, schema, hints)
         kw: dict[str, Any] = {"params": query, "headers": headers}
-        if body is not None:
+        if isinstance(body, bytes):
+            kw["content"] = body
+            kw["headers"] = {**headers, "content-type": "application/json"}
+        elif body is not None:
             kw["json"] = body
         r = client.request(method, url, **kw)
         key = f"{r.status_code // 100}xx"
         counts[key] = counts.get(key, 0) + 1
-        if r.status_code >= 500:
-            failures.append({"method": method, "url": url, "query": query, "body": body,
-                             "status": r.status_code, "answer": r.text[:300]})
-    return {"requests": sum(counts.values()), "by_class": counts, "failures": failures}
+        foreign = "Origin" in headers
+        if r.status_code >= 500 or (foreign and r.status_code < 400):
+            cross_site += foreign and r.status_code < 400
+            failures.append({"method": method, "url": url, "query": query,
+                             "body": body.decode("utf-8", "replace")[:300]
+                             if isinstance(body, bytes) else body,
+                             "headers": headers, "status": r.status_code,
+                             "answer": r.text[:300]})
+    return {"requests": sum(counts.values()), "by_class": counts, "failures": failures,
+            "cross_site_accepted": cross_site}

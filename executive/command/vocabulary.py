@@ -16,6 +16,15 @@ Utterance templates (top-level ``utterances:`` in a mission file)::
 ``(a|b)`` is an optional group of alternative words, ``(the)`` one optional word; ``{name}``
 takes the words for parameter ``name`` (at least one); ``:class`` says which map nodes the
 words must name (``SLOT_CLASSES``). A node_id parameter without a class names any node.
+
+Matching is a table over (template token, word position), filled backwards, then read
+forwards taking at each token the choice a backtracking regular expression would try first
+(an optional group's alternatives in order, then skipping it; a slot's shortest words):
+the same answer as the regular expression the templates were once compiled to, in time
+linear in the template's tokens times the utterance's words. (That regular expression
+backtracked exponentially: a template of 60 optional groups froze the server on one
+22-word command, issue 44.) Templates are also bounded when loaded (``MAX_TEMPLATE_CHARS``,
+``MAX_TEMPLATE_TOKENS``).
 """
 from __future__ import annotations
 
@@ -40,6 +49,11 @@ SLOT_CLASSES: dict[str, tuple[str, ...]] = {
     "switch": ("Switch",),
     "node": (),        # any kind
 }
+
+#: A template's length and its tokens (words, groups, slots): what a person says in one
+#: breath is far shorter.
+MAX_TEMPLATE_CHARS = 500
+MAX_TEMPLATE_TOKENS = 100
 
 _TOKEN_RE = re.compile(r"\(([^()]*)\)|\{([A-Za-z_][A-Za-z0-9_]*)(?::([A-Za-z_]+))?\}|([^\s(){}]+)")
 _WORD_RE = re.compile(r"^[a-z0-9']+$")
@@ -70,22 +84,71 @@ class Slot:
     cls: str | None          # a SLOT_CLASSES key, or None: the words are the value
 
 
+#: A compiled token: ("words", (w, ...)), ("group", ((w, ...), ...)) or ("slot", param).
+Token = tuple[str, Any]
+
+
+def match_tokens(tokens: tuple[Token, ...], words: list[str]) -> dict[str, str] | None:
+    """The slots' words when ``words`` match ``tokens`` (None: they do not), chosen as a
+    backtracking matcher would: a group's first fitting alternative, else none; a slot's
+    fewest words. O(tokens x words x group words)."""
+    T, n = len(tokens), len(words)
+    if n == 0:
+        return None     # nothing said matches nothing (even a template of optional words)
+    # ok[i][j]: tokens[i:] can match words[j:]
+    ok = [[False] * (n + 1) for _ in range(T + 1)]
+    ok[T][n] = True
+
+    def fits(seq: tuple[str, ...], j: int) -> bool:
+        return j + len(seq) <= n and tuple(words[j:j + len(seq)]) == seq
+
+    for i in range(T - 1, -1, -1):
+        kind, val = tokens[i]
+        nxt, row = ok[i + 1], ok[i]
+        if kind == "slot":
+            later = False
+            for j in range(n - 1, -1, -1):
+                later = later or nxt[j + 1]
+                row[j] = later
+        elif kind == "words":
+            k = len(val)
+            for j in range(n + 1 - k):
+                row[j] = nxt[j + k] and fits(val, j)
+        else:
+            for j in range(n + 1):
+                row[j] = nxt[j] or any(fits(alt, j) and nxt[j + len(alt)] for alt in val)
+    if not ok[0][0]:
+        return None
+    out: dict[str, str] = {}
+    j = 0
+    for i, (kind, val) in enumerate(tokens):
+        nxt = ok[i + 1]
+        if kind == "words":
+            j += len(val)
+        elif kind == "group":
+            j += next((len(alt) for alt in val if fits(alt, j) and nxt[j + len(alt)]), 0)
+        else:
+            k = next(k for k in range(j + 1, n + 1) if nxt[k])
+            out[val] = " ".join(words[j:k])
+            j = k
+    return out
+
+
 @dataclass
 class Template:
-    """One compiled utterance template of a mission."""
+    """One compiled utterance template of a mission. ``source`` is the regular expression
+    the template stands for (its length ranks templates by how specific they are)."""
     mission: str
     text: str
-    pattern: re.Pattern
+    tokens: tuple[Token, ...]
+    source: str
     slots: tuple[Slot, ...]
     params: dict[str, Any]
     file: str
     line: int
 
     def match(self, normalised: str) -> dict[str, str] | None:
-        m = self.pattern.match(f" {normalised} ")
-        if m is None:
-            return None
-        return {s.param: m.group(s.param).strip() for s in self.slots}
+        return match_tokens(self.tokens, normalised.split())
 
     def to_json(self) -> dict[str, Any]:
         return {"say": self.text, "slots": {s.param: s.cls or "value" for s in self.slots},
@@ -127,6 +190,9 @@ def compile_template(text: str, mission: Mission, file: str, line: int,
         return MissionError(f"utterance {text!r}: {msg}", file=file, line=line)
 
     params = dict(params or {})
+    if len(text) > MAX_TEMPLATE_CHARS:
+        raise MissionError(f"utterance {text[:40]!r}...: {len(text)} characters (at most "
+                           f"{MAX_TEMPLATE_CHARS})", file=file, line=line)
     for name, value in params.items():
         spec = mission.parameters.get(name)
         if spec is None:
@@ -136,6 +202,7 @@ def compile_template(text: str, mission: Mission, file: str, line: int,
         except MissionError as err:
             raise bad(f"params: {name}: {err.message}") from None
     regex = ["^ "]
+    tokens: list[Token] = []
     slots: list[Slot] = []
     last_was_slot = False
     pos = 0
@@ -143,12 +210,15 @@ def compile_template(text: str, mission: Mission, file: str, line: int,
         if text[pos:m.start()].strip():
             raise bad(f"cannot read {text[pos:m.start()].strip()!r}")
         pos = m.end()
+        if len(tokens) == MAX_TEMPLATE_TOKENS:
+            raise bad(f"more than {MAX_TEMPLATE_TOKENS} words, groups and slots")
         group, slot, cls, word = m.groups()
         if group is not None:
             alts = [normalise(a) for a in group.split("|")]
             if not all(alts):
                 raise bad(f"empty alternative in ({group})")
             regex.append("(?:(?:" + "|".join(re.escape(a) + " " for a in alts) + "))?")
+            tokens.append(("group", tuple(tuple(a.split()) for a in alts)))
             continue
         if slot is not None:
             if last_was_slot:
@@ -166,19 +236,22 @@ def compile_template(text: str, mission: Mission, file: str, line: int,
                 cls = "node"
             slots.append(Slot(slot, cls))
             regex.append(f"(?P<{slot}>(?:[a-z0-9]+ )+?)")
+            tokens.append(("slot", slot))
             last_was_slot = True
             continue
         w = normalise(word)
         if w:
             regex.append(re.escape(w) + " ")
+            tokens.append(("words", tuple(w.split())))
             last_was_slot = False
     if text[pos:].strip():
         raise bad(f"cannot read {text[pos:].strip()!r}")
     if not slots and len(regex) == 1:
         raise bad("no words")
     regex.append("$")
-    return Template(mission=mission.name, text=text, pattern=re.compile("".join(regex)),
-                    slots=tuple(slots), params=params, file=file, line=line)
+    return Template(mission=mission.name, text=text, tokens=tuple(tokens),
+                    source="".join(regex), slots=tuple(slots), params=params, file=file,
+                    line=line)
 
 
 @dataclass

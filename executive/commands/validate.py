@@ -1,7 +1,8 @@
 """`hearth validate FILE...`: check world files (.xml) and mission files (.yaml/.yml).
 
-Check world files (XML, schema and semantics), mission files (YAML) and day schedules (YAML
-with a top-level 'day:'). Prints nothing and
+Check world files (XML, schema and semantics), mission files (YAML, with their utterance
+templates as `hearth serve` compiles them) and day schedules (YAML with a top-level 'day:').
+Prints nothing and
 exits 0 when all are valid; otherwise one 'path:line: message' line per problem (the first 50
 of a file, then a line counting the rest) and exit status 2.
 """
@@ -28,7 +29,21 @@ def problems_in(path: str) -> list[str]:
         if is_schedule_file(path):          # a day's schedule (docs/day.md)
             return schedule_problems(path)
         from executive.missionfile import validate_file as validate_mission
-        return [str(e) for e in validate_mission(path)]
+        problems = [str(e) for e in validate_mission(path)]
+        if problems:
+            return problems
+        # The utterance templates too, as `hearth serve` compiles them (bounded, slots that
+        # are parameters): a file that validates is one the server takes.
+        from executive.command.vocabulary import read_templates
+        from executive.errors import MissionError
+        from executive.missionfile import LineDict, load_mission, load_yaml
+        if not isinstance(load_yaml(path), LineDict) or "tree" not in load_yaml(path):
+            return []       # a library of subtrees: no utterances of its own
+        try:
+            read_templates(load_mission(path), path)
+        except MissionError as err:
+            return [str(err)]
+        return []
     from worldmodel.io import validate_file as validate_world
     return [str(e) for e in validate_world(path)]
 

@@ -24,9 +24,23 @@ ends as one of:
 - ``traceback`` (any other exception), ``hang`` (over the time limit), ``crash`` (the worker
   died, e.g. in open3d).
 
-The hand-made cases of issue 19 run as fixed cases with an expected outcome (``fixed``).
+The hand-made cases of issues 19 and 44 run as fixed cases with an expected outcome
+(``fixed``); issue 44's carry a class (``CLASSES``: mesh-content, fifo, nul, huge-integer,
+template, size, ...) and are counted by class (``fixed_by_class``). A fourth loader, ``bag``,
+runs hand-made ROS 2 bag cases (when the ``ros`` extra is installed). Accepted missions also
+have their utterance templates compiled and matched against the worst known utterance.
+
+The ``http`` block sends hostile requests to a real server over the demo home (issue 44):
+hand-made ones by class (cross-site POST/PUT with foreign ``Origin`` or ``Sec-Fetch-Site``,
+malformed ``Host``, bodies with Infinity, NaN, 1e400, 5,000-digit integers, lone surrogates,
+a key twice, the worst template's utterance) with the answer each must get, and
+``--http-requests`` schema-generated ones (executive/command/fuzz.py) with hostile bodies and
+foreign origins mixed in; it counts ``5xx`` and ``cross_site_accepted`` and reports how long
+``/api/health`` took while the worst template was matched.
+
 Targets: ``tracebacks``, ``hangs``, ``crashes``, ``accepted_then_unloadable``,
-``accepted_out_of_bounds``, ``paths_outside_world`` all 0, per loader and in total.
+``accepted_out_of_bounds``, ``paths_outside_world``, ``5xx``, ``cross_site_accepted`` all 0,
+per loader and in total.
 
 ``tests/fuzz/test_fuzz_loaders.py`` runs the same generators in-process on a few hundred cases.
 """
@@ -49,7 +63,10 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Optional
 
-LOADERS = ("world", "mission", "recording")
+LOADERS = ("world", "mission", "recording", "bag")
+#: Classes of hostile input the fixed cases are sorted into (issue 44 added the last six).
+CLASSES = ("numbers", "paths", "size", "structure", "mesh-content", "fifo", "nul",
+           "huge-integer", "cross-site", "template", "host")
 FAILURES = ("tracebacks", "hangs", "crashes", "accepted_then_unloadable",
             "accepted_out_of_bounds", "paths_outside_world")
 _OUTCOME_KEY = {"traceback": "tracebacks", "hang": "hangs", "crash": "crashes",
@@ -68,6 +85,9 @@ def add_arguments(parser) -> None:
                              "--quick 200); recordings get a quarter")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="seconds a case may take before it counts as a hang")
+    parser.add_argument("--http-requests", type=int, default=None,
+                        help="schema-generated requests to the HTTP API (default 500; --quick "
+                             "100), besides the hand-made hostile ones")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -77,8 +97,8 @@ def add_arguments(parser) -> None:
 class Case:
     """A folder of files and what to load from it.
 
-    ``files`` maps a relative path to bytes, or to ``("symlink", target)``, ``("dir",)`` or
-    ``("fifo",)``. ``entry`` is the file (or, for a recording, the folder) the loader opens.
+    ``files`` maps a relative path to bytes, or to ``("symlink", target)``, ``("dir",)``,
+    ``("fifo",)`` or ``("sparse", size)`` (a file of ``size`` bytes that takes no disk). ``entry`` is the file (or, for a recording, the folder) the loader opens.
     ``expect`` is set for fixed cases: "refused" or "accepted".
     """
     loader: str
@@ -86,6 +106,7 @@ class Case:
     files: dict[str, Any]
     entry: str
     expect: Optional[str] = None
+    klass: str = ""          # fixed cases: the class of hostile input (CLASSES)
 
 
 @dataclass
@@ -109,6 +130,9 @@ def materialise(case: Case, root: Path) -> Path:
             p.mkdir(exist_ok=True)
         elif content[0] == "fifo":
             os.mkfifo(p)
+        elif content[0] == "sparse":
+            with open(p, "wb") as f:
+                f.truncate(content[1])
     return root / case.entry
 
 
@@ -121,8 +145,8 @@ class _Hang(BaseException):
 
 def run_case(case: Case, timeout: float = 30.0) -> Verdict:
     """Materialise ``case`` in a temporary folder and check it, with an alarm for hangs."""
-    check = {"world": check_world, "mission": check_mission, "recording": check_recording}[
-        case.loader]
+    check = {"world": check_world, "mission": check_mission, "recording": check_recording,
+             "bag": check_bag}[case.loader]
     with tempfile.TemporaryDirectory(prefix="hearth-fuzz-") as d:
         root = Path(d)
         entry = materialise(case, root)
@@ -231,6 +255,37 @@ def _world_files(apartment) -> list[str]:
     return out
 
 
+def _mesh_references(base: Path, rel: str) -> list[str]:
+    """The files an accepted ``.obj`` names (``mtllib``) and the textures those name, relative
+    to ``base``: read here independently of the loader, so that a file a mesh would make the
+    renderer open counts in ``paths_outside_world`` too."""
+    out: list[str] = []
+    todo = [rel] if rel.lower().endswith(".obj") else []
+    while todo:
+        cur = todo.pop()
+        full = os.path.join(base, cur)
+        if not _inside(base, cur) or not os.path.isfile(full) or os.path.getsize(full) > 1 << 20:
+            continue
+        for raw in Path(full).read_bytes().splitlines():
+            words = raw.decode("utf-8", "replace").split()
+            if not words:
+                continue
+            key = words[0].lower()
+            if key == "mtllib":
+                refs = words[1:]
+            elif cur.lower().endswith(".mtl") and (key.startswith("map_") or key in
+                                                   ("bump", "disp", "decal", "refl", "norm")):
+                refs = words[-1:]
+            else:
+                continue
+            for ref in refs:
+                r = os.path.normpath(os.path.join(os.path.dirname(cur), ref))
+                out.append(r)
+                if r.lower().endswith(".mtl"):
+                    todo.append(r)
+    return out
+
+
 def check_world(root: Path, entry: Path) -> Verdict:
     from worldmodel.errors import WorldError
     from worldmodel.io import load_world, save_world
@@ -243,6 +298,7 @@ def check_world(root: Path, entry: Path) -> Verdict:
     except Exception as err:  # noqa: BLE001 - the point of the check
         return Verdict("traceback", _describe(err))
     files = _world_files(world.apartment)
+    files += [r for f in files for r in _mesh_references(entry.parent, f)]
     outside = sum(not _inside(root, f, entry.parent) for f in files)
     bad = _world_out_of_bounds(world.apartment)
     if bad:
@@ -392,6 +448,21 @@ def check_mission(root: Path, entry: Path) -> Verdict:
     finally:
         if built is not None:
             built.teardown()
+            built = None
+    try:     # what `hearth serve` does with the file's utterances: compile, then match
+        from executive.command.vocabulary import normalise, read_templates
+        templates = read_templates(mission, str(entry))
+    except MissionError as err:
+        why = _one_line_each(str(err))
+        return Verdict("traceback", why) if why else Verdict("refused", str(err).splitlines()[0])
+    except Exception as err:  # noqa: BLE001
+        return Verdict("traceback", "utterances: " + _describe(err), outside)
+    try:
+        for t in templates:
+            for said in (t.example(), WORST_UTTERANCE, " ".join([t.example()] * 8)):
+                t.match(normalise(said)[:500])
+    except Exception as err:  # noqa: BLE001
+        return Verdict("unloadable", "matching an utterance: " + _describe(err), outside)
     return Verdict("accepted", "", outside)
 
 
@@ -427,14 +498,45 @@ def check_recording(root: Path, entry: Path) -> Verdict:
             nums += list(c.base_pose.as_tuple())
     if not all(math.isfinite(x) for x in nums):
         return Verdict("out_of_bounds", "a non-finite number", outside)
-    try:
-        for i in range(len(rec)):
-            rec.frame(i)
+    try:    # every distinct frame (20,000 captures of one frame: that frame once)
+        seen: set[tuple[str, str]] = set()
+        for i, c in enumerate(rec.captures):
+            if (c.color, c.depth) not in seen:
+                seen.add((c.color, c.depth))
+                rec.frame(i)
     except RobotError as err:
         return Verdict("unloadable", "mid-mission: " + str(err).splitlines()[0], outside)
     except Exception as err:  # noqa: BLE001
         return Verdict("traceback", "mid-mission: " + _describe(err), outside)
     return Verdict("accepted", "", outside)
+
+
+# -- bags --------------------------------------------------------------------------------------
+
+def check_bag(root: Path, entry: Path) -> Verdict:
+    """Open a ROS 2 bag as ``hearth run --recording BAG`` does (with its side file)."""
+    from hearth.robot.errors import RobotError
+    from hearth.robot.recording import open_recording
+    try:
+        rec = open_recording(entry)
+    except RobotError as err:
+        why = _one_line_each(str(err))
+        return Verdict("traceback", why) if why else Verdict("refused", str(err).splitlines()[0])
+    except Exception as err:  # noqa: BLE001
+        return Verdict("traceback", _describe(err))
+    try:
+        for i in range(len(rec)):
+            rec.frame(i)
+    except RobotError as err:
+        return Verdict("unloadable", "mid-mission: " + str(err).splitlines()[0])
+    except Exception as err:  # noqa: BLE001
+        return Verdict("traceback", "mid-mission: " + _describe(err))
+    return Verdict("accepted")
+
+
+def _has_ros() -> bool:
+    import importlib.util
+    return importlib.util.find_spec("rosbags") is not None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -455,16 +557,48 @@ _PLY = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty fl
         b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
         b"0 0 0\n0.1 0 0\n0 0.1 0\n3 0 1 2\n")
 
-#: What sits next to a fuzzed world file: meshes a hostile path may name.
+def _tiny_png() -> bytes:
+    import zlib
+    import struct
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return (struct.pack(">I", len(body)) + kind + body
+                + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 1, 1, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00\xff\x00\x00")) + chunk(b"IEND", b""))
+
+
+_OBJ = b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"
+
+#: What sits next to a fuzzed world file: meshes a hostile path may name, and meshes whose
+#: contents are hostile (issue 44: material libraries and textures out of the folder or FIFOs,
+#: counts that allocate gigabytes, non-finite vertices, formats naming external files).
 WORLD_NEIGHBOURS: dict[str, Any] = {
     "ok.ply": _PLY, "sub/inner.ply": _PLY, "emptydir": ("dir",), "fifo.ply": ("fifo",),
     "escape.ply": ("symlink", "/etc/passwd"), "etc": ("symlink", "/etc"),
+    "ok.obj": b"mtllib ok.mtl\n" + _OBJ, "ok.mtl": b"newmtl a\nKd 1 0 0\nmap_Kd tex.png\n", "tex.png": _tiny_png(),
+    "passwd.obj": b"mtllib ../../../../../../etc/passwd\n" + _OBJ,
+    "pipe.mtl": ("fifo",), "fifo_mtl.obj": b"mtllib pipe.mtl\n" + _OBJ,
+    "tex.mtl": b"newmtl a\nmap_Kd -s 1 1 1 ../../../../etc/shadow\n",
+    "texture.obj": b"mtllib tex.mtl\n" + _OBJ,
+    "nan.obj": b"v nan 0 0\n" + _OBJ,
+    "huge.ply": _PLY.replace(b"element vertex 3", b"element vertex 2000000000"),
+    "nan.ply": _PLY.replace(b"0 0 0\n0.1 0 0", b"nan 0 0\ninf 0 0"),
+    "truncated.ply": _PLY[:-12],
+    "m.gltf": b'{"buffers": [{"uri": "/etc/passwd"}]}',
 }
+#: The neighbours whose contents are hostile (mesh-content class).
+HOSTILE_MESHES = ["passwd.obj", "fifo_mtl.obj", "texture.obj", "nan.obj", "huge.ply",
+                  "nan.ply", "truncated.ply", "m.gltf"]
+#: The utterance that froze the server against a template of 60 optional groups (issue 44).
+WORST_UTTERANCE = "x " * 21 + "y"
 
 
-def _recording_files(n: int = 2, width: int = 32, height: int = 24) -> dict[str, Any]:
+def _recording_files(n: int = 2, width: int = 32, height: int = 24,
+                     version: int = 1) -> dict[str, Any]:
     """A small valid recording, written per docs/recording-format.md (not through Hearth's
-    writer, so the reader is tested against the documented format)."""
+    writer, so the reader is tested against the documented format): ``version`` 1 (all in
+    manifest.json) or 2 (captures.jsonl and actions.jsonl beside it)."""
     import cv2
     import numpy as np
     files: dict[str, Any] = {}
@@ -486,6 +620,11 @@ def _recording_files(n: int = 2, width: int = 32, height: int = 24) -> dict[str,
                                "cy": (height - 1) / 2, "width": width, "height": height},
                 "info": {"mission": "fuzz"}, "start_pose": {"x": 1.0, "y": 2.0, "yaw": 0.0},
                 "captures": caps, "actions": []}
+    if version == 2:
+        manifest.update(version=2, captures="captures.jsonl", actions="actions.jsonl")
+        files["rec/captures.jsonl"] = "".join(json.dumps(c) + "\n" for c in caps).encode()
+        files["rec/actions.jsonl"] = (b'{"i": 0, "time": 1.0, "action": "say", "args": {}}\n'
+                                      b'{"i": 0, "status": "succeeded", "reason": ""}\n')
     files["rec/manifest.json"] = json.dumps(manifest, indent=1).encode()
     return files
 
@@ -500,7 +639,8 @@ HOSTILE_NUMBERS = ["NaN", "INF", "-INF", "1e308", "-1e308", "1e999", "1e-400", "
 HOSTILE_PATHS = ["../../etc/passwd", "/etc/passwd", "/dev/zero", "/proc/self/environ",
                  "../../../../proc/self/maps", "emptydir", "escape.ply", "fifo.ply", "ok.ply",
                  "missing.ply", "./ok.ply", "sub/../ok.ply", "sub/../../x.ply", "~/x.ply",
-                 "C:\\x.ply", "etc/passwd", "sub/inner.ply", "//etc/passwd", ".", ""]
+                 "C:\\x.ply", "etc/passwd", "sub/inner.ply", "//etc/passwd", ".", "",
+                 "ok.obj", *HOSTILE_MESHES]
 HOSTILE_TEXT = ["", " ", "x" * 5000, "\u202e", "\u00e9t\u00e9", "a b", "<", "&", "1abc", "_",
                 "a" * 4097, "kitchen", "no_such_cup", "no_such_knob_1", "\U0001F600", "true", "off"]
 _ATTRS = ["x", "y", "z", "roll", "pitch", "yaw", "radius", "length", "size", "scale", "color",
@@ -624,7 +764,8 @@ def _mission_value(rng: random.Random):
             "/proc/self/environ#x", "subtrees/search.yaml#nope", "subtrees/search.yaml",
             "../missions/go_to_rest.yaml", "subtrees", 1.5, "sequence", {"succeed": None},
             {"inverter": {"succeed": "x"}}, 3, 1000, 1001, 86400, 86401, 1e-300, "1e400",
-            "{x} < .nan", "$presence == home", "not {x}", "[1, 2", "{a: [}", 0.0, -0.0]
+            "{x} < .nan", "$presence == home", "not {x}", "[1, 2", "{a: [}", 0.0, -0.0,
+            "subtrees/search.yaml\x00#note", "a\x00b", "n" * 300, 10 ** 4000]
     if r < 0.9:
         return copy.deepcopy(rng.choice(pool))
     value: Any = "x"
@@ -706,6 +847,14 @@ def mutate_mission(rng: random.Random, files: dict[str, bytes]) -> tuple[str, di
                         node["policy"] = "threshold"
                 cont[key] = node
                 done.append(f"wrap in {wrap}")
+            elif op < 0.88 and isinstance(data, dict):
+                k = rng.choice((3, 30, 60, 99, 200))
+                data["utterances"] = [rng.choice([
+                    "(x) " * k + "go", "(x|y) " * k + "{%s} go" % rng.choice(
+                        list(data.get("parameters") or {"nope": 0})),
+                    "{a} {b}", "(" + "|".join(["x"] * k) + ") go", "", "\x00", "(" * k,
+                    "x" * (100 * k)])]
+                done.append(f"utterance of {k} groups")
             elif op < 0.92 and isinstance(cont[key], dict):
                 n = rng.choice((2, 50, 2500))
                 cont[key] = {"sequence": [copy.deepcopy(cont[key]) for _ in range(n)]}
@@ -798,6 +947,26 @@ def mutate_recording(rng: random.Random, base: dict[str, Any]) -> tuple[str, dic
                 files[f] = ("fifo",)
                 done.append(f"{f} is a FIFO")
     files["rec/manifest.json"] = json.dumps(manifest).encode()
+    if "rec/captures.jsonl" in files and rng.random() < 0.3:    # version 2's own files
+        name = rng.choice(["rec/captures.jsonl", "rec/actions.jsonl", "rec/manifest.json"])
+        op = rng.random()
+        if op < 0.4 and isinstance(files[name], bytes):
+            files[name], what = _mutate_bytes(rng, files[name], [
+                b"9" * 5000, b"-" + b"9" * 41, b"\\u0000", b"\\ud800", b"1e400", b"NaN",
+                b"[" * 3000, b"\n{}\n", b"\x00"])
+            done.append(f"{name}: {what}")
+        elif op < 0.55:
+            files[name] = ("fifo",)
+            done.append(f"{name} is a FIFO")
+        elif op < 0.7:
+            files[name] = ("symlink", rng.choice(["/dev/zero", "/etc/passwd", "../x"]))
+            done.append(f"{name} is a link out")
+        elif op < 0.8:
+            files[name] = ("sparse", rng.choice((1 << 20, 200 << 20, 3 << 30)))
+            done.append(f"{name} is sparse")
+        else:
+            files[name] = ("dir",)
+            done.append(f"{name} is a directory")
     if rng.random() < 0.1:
         files["rec/manifest.json"], what = _mutate_bytes(
             rng, files["rec/manifest.json"], [b"NaN", b"Infinity", b"[" * 5000, b"\xff"])
@@ -814,9 +983,9 @@ def fixed_cases() -> list[Case]:
     missions = _missions()
     out: list[Case] = []
 
-    def w(name, text, expect="refused"):
+    def w(name, text, expect="refused", klass=""):
         out.append(Case("world", name, {**WORLD_NEIGHBOURS, "world.xml": text.encode()},
-                        "world.xml", expect))
+                        "world.xml", expect, klass))
 
     def first(pattern, repl, text=world):
         new, n = re.subn(pattern, repl, text, count=1)
@@ -853,9 +1022,9 @@ def fixed_cases() -> list[Case]:
       '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]>\n<apartment id="x" version="1">'
       '<room id="r" name="&b;"/></apartment>\n')
 
-    def m(name, text, expect="refused", extra=None):
+    def m(name, text, expect="refused", extra=None, klass=""):
         files = {**missions, "case.yaml": text.encode(), **(extra or {})}
-        out.append(Case("mission", name, files, "case.yaml", expect))
+        out.append(Case("mission", name, files, "case.yaml", expect, klass))
 
     bomb = ("a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n"
             + "".join(f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n"
@@ -933,6 +1102,99 @@ def fixed_cases() -> list[Case]:
     r("fx_zero", with_(["intrinsics", "fx"], 0))
     r("frame_etc_passwd", with_(["captures", 0, "color"], "/etc/passwd"))
     r("frame_escape", with_(["captures", 0, "depth"], "../../../../etc/passwd"))
+    out.extend(_issue_44_cases(world, first, w, m))
+    return out
+
+
+def _issue_44_cases(world: str, first, w, m) -> list[Case]:
+    """Issue 44's hand-made cases, each tagged with its class (CLASSES)."""
+    import cv2
+    import numpy as np
+    out: list[Case] = []
+
+    def mesh(path):
+        return first(r'(<model>)', rf'\1<mesh file="{path}" color="0.5 0.5 0.5"/>')
+
+    for name in HOSTILE_MESHES:
+        w(f"mesh_{name}", mesh(name), klass="fifo" if "fifo" in name else "mesh-content")
+    w("mesh_obj_with_material_inside", mesh("ok.obj"), "accepted", klass="mesh-content")
+    w("pointcloud_nan", first(r'(<room id="kitchen")', r'\1 pointcloud="nan.ply"'),
+      klass="mesh-content")
+    w("attributes_100000", first(r'(<room id="kitchen")', r'\1 ' + " ".join(
+        f'a{i}="1"' for i in range(100_000))), klass="size")
+    w("duplicate_surface_id", first(r'(<surface id="top")', r'<surface id="top" sizeX="1" '
+                                    r'sizeY="1"><pose z="0.5"/></surface>\1'), klass="structure")
+    stats = lambda *rows: world.replace("</apartment>", "<searchStats>" + "".join(
+        f'<stat object="{o}" place="{p}" searched="{a}" found="{b}"/>' for o, p, a, b in rows)
+        + "</searchStats></apartment>")
+    w("stat_found_above_searched", stats(("red_cup", "kitchen_table", 2, 5)), klass="numbers")
+    w("stat_unknown_place", stats(("red_cup", "nowhere", 2, 1)), klass="structure")
+    w("stat_twice", stats(("red_cup", "kitchen_table", 2, 1), ("red_cup", "kitchen_table", 3, 1)),
+      klass="structure")
+    # (w and m append to fixed_cases' list; recordings and bags to this one)
+
+    m("include_nul", 'name: r\ntree:\n  include: "subtrees/search.yaml\\0#note"\n', klass="nul")
+    m("name_300_characters", f"name: {'n' * 300}\ntree:\n  succeed: ok\n", klass="size")
+    worst = "name: worst\nutterances: ['" + "(x) " * 60 + "go']\ntree:\n  succeed: ok\n"
+    m("template_60_optional_groups", worst, "accepted", klass="template")
+    m("template_150_tokens", worst.replace("(x) " * 60, "(x) " * 150), klass="template")
+    m("template_slots_40_words", "name: t\nparameters:\n  a: {type: string}\n"
+      "  b: {type: string}\nutterances: ['" + "(x|y) " * 20 + "{a} x {b} (x) go']\n"
+      "tree:\n  succeed: ok\n", "accepted", klass="template")
+    m("blackboard_integer_5000_digits", "name: r\nblackboard: {n: " + "9" * 5000 + "}\n"
+      "tree:\n  succeed: ok\n", klass="huge-integer")
+
+    rec = _recording_files(version=2)
+
+    def r2(name, klass, files=None, expect="refused", edit=None):
+        f = {**rec, **(files or {})}
+        if edit is not None:
+            man = json.loads(f["rec/manifest.json"])
+            edit(man)
+            f["rec/manifest.json"] = json.dumps(man).encode()
+        out.append(Case("recording", name, f, "rec", expect, klass))
+
+    caps = rec["rec/captures.jsonl"].decode().splitlines()
+    acts = rec["rec/actions.jsonl"].decode()
+    big = "9" * 5000
+    r2("v2_valid", "", expect="accepted")
+    r2("manifest_integer_5000_digits", "huge-integer", {"rec/manifest.json": rec[
+        "rec/manifest.json"].replace(b'"version": 2', f'"version": {big}'.encode())})
+    r2("captures_integer_5000_digits", "huge-integer", {"rec/captures.jsonl": (
+        caps[0].replace('"index": 0', f'"index": {big}') + "\n" + caps[1] + "\n").encode()})
+    r2("actions_integer_5000_digits", "huge-integer",
+       {"rec/actions.jsonl": f'{{"i": {big}, "action": "say", "args": {{}}}}\n'.encode()})
+    r2("frame_path_nul", "nul", {"rec/captures.jsonl": (
+        caps[0].replace("_color.png", "_color.png\\u0000x") + "\n").encode()})
+    for name in ("captures.jsonl", "actions.jsonl", "manifest.json"):
+        r2(f"{name}_fifo", "fifo", {f"rec/{name}": ("fifo",)})
+        r2(f"{name}_dev_zero", "fifo", {f"rec/{name}": ("symlink", "/dev/zero")})
+        r2(f"{name}_sparse_3GB", "size", {f"rec/{name}": ("sparse", 3 << 30)})
+    r2("captures_link_out", "paths", {"rec/captures.jsonl": ("symlink", "../out.jsonl"),
+                                      "out.jsonl": rec["rec/captures.jsonl"]})
+    r2("depth_scale_1e300", "numbers", edit=lambda d: d.update(depth_scale=1e300))
+    r2("depth_scale_1e-60", "numbers", edit=lambda d: d.update(depth_scale=1e-60))
+    r2("start_pose_1e300", "numbers",
+       edit=lambda d: d.update(start_pose={"x": 1e300, "y": 0.0, "yaw": 0.0}))
+    r2("frames_16384_square", "size", edit=lambda d: d["intrinsics"].update(
+        width=16384, height=16384, cx=8191.5, cy=8191.5))
+    r2("rgba_colour", "structure", {"rec/frames/000001_color.png": cv2.imencode(
+        ".png", np.zeros((24, 32, 4), np.uint8))[1].tobytes()})
+    r2("twenty_thousand_captures_of_one_frame", "size",
+       {"rec/captures.jsonl": ((caps[0] + "\n") * 20_000).encode()}, expect="accepted")
+
+    if _has_ros():
+        def b(name, klass, files, entry="bag.mcap"):
+            out.append(Case("bag", name, files, entry, "refused", klass))
+        b("mcap_fifo", "fifo", {"bag.mcap": ("fifo",)})
+        b("mcap_dev_zero", "fifo", {"bag.mcap": ("symlink", "/dev/zero")})
+        for kind, content in (("fifo", ("fifo",)), ("dev_zero", ("symlink", "/dev/zero")),
+                              ("sparse_3GB", ("sparse", 3 << 30)),
+                              ("nested_30000", ("a: " + "[" * 30_000 + "]" * 30_000).encode())):
+            b(f"topic_map_{kind}", "fifo" if kind in ("fifo", "dev_zero") else "size",
+              {"bag.mcap": b"\x89MCAP0\r\n", "bag.topics.yaml": content})
+        b("rosbag2_metadata_fifo", "fifo", {"bagdir/metadata.yaml": ("fifo",),
+                                            "bagdir/x.mcap": b"\x89MCAP0\r\n"}, "bagdir")
     return out
 
 
@@ -953,10 +1215,10 @@ def generated_cases(loader: str, n: int, seed: int) -> Iterator[Case]:
         for _ in range(n):
             what, files, entry = mutate_mission(rng, base)
             yield Case("mission", what, files, entry)
-    else:
-        base = _recording_files()
-        for _ in range(n):
-            what, files = mutate_recording(rng, base)
+    elif loader == "recording":
+        bases = (_recording_files(), _recording_files(version=2))
+        for i in range(n):
+            what, files = mutate_recording(rng, bases[i % 2])
             yield Case("recording", what, files, "rec")
 
 
@@ -1061,6 +1323,110 @@ def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
 
 
 # ---------------------------------------------------------------------------------------------
+# The HTTP API (issue 44): hostile requests to a real server
+
+_WORST_MISSION = ("hearth: 1\nname: worst\nutterances: ['" + "(x) " * 60 + "go']\n"
+                  "tree:\n  skill: Act\n")
+
+
+def _http_cases(port: int, run_id: str) -> list[tuple[str, str, str, str, dict, bytes, int]]:
+    """(class, name, method, path, headers, body, expected status) of the hand-made requests."""
+    js = {"content-type": "application/json"}
+    out = []
+    for origin in ("http://evil.com", "null", f"http://127.0.0.1:{port + 1}"):
+        for method, path in (("POST", "/api/stop"), ("POST", f"/api/runs/{run_id}/cancel"),
+                             ("POST", "/api/runs"), ("PUT", "/api/autonomy")):
+            body = b'{"mission": "bench_chores"}' if path == "/api/runs" else \
+                b'{"level": 3}' if path == "/api/autonomy" else b""
+            out.append(("cross-site", f"{method} {path} from {origin}", method, path,
+                        {"Origin": origin, **js}, body, 403))
+    out.append(("cross-site", "POST /api/stop with Sec-Fetch-Site: cross-site", "POST",
+                "/api/stop", {"Sec-Fetch-Site": "cross-site"}, b"", 403))
+    for host in ("localhost:80@evil.com", f"localhost:{port}@evil.com", "localhost:99999",
+                 f"127.0.0.1:{port + 1}", "a b", "localhost, evil.com"):
+        out.append(("host", f"Host {host}", "GET", "/api/health", {"Host": host}, b"", 421))
+    for name, value in (("infinity", b"Infinity"), ("nan", b"NaN"), ("1e400", b"1e400"),
+                        ("5000_digits", b"9" * 5000)):
+        out.append(("huge-integer" if "digit" in name else "numbers", f"priority {name}",
+                    "POST", "/api/runs", js, b'{"mission":"bench_chores","priority":' + value
+                    + b"}", 422))
+    out.append(("nul", "parameter value with NUL and a lone surrogate", "PUT",
+                "/api/parameters/presence", js, b'{"value":"\\u0000\\ud800"}', 422))
+    out.append(("structure", "a key twice", "POST", "/api/runs", js,
+                b'{"mission":"bench_chores","mission":"worst"}', 422))
+    out.append(("template", "the worst template's utterance", "POST", "/api/commands", js,
+                ('{"text": "%s"}' % WORST_UTTERANCE).encode(), 200))
+    return out
+
+
+def check_http(n: int, seed: int) -> dict:
+    """The hand-made hostile requests and ``n`` schema-generated ones (with hostile bodies and
+    foreign origins) against a real server over the demo home; health asked while the worst
+    template is matched. Failures: a 5xx, an answer other than the expected one, a foreign
+    page's state change accepted."""
+    import threading
+
+    import httpx
+
+    from executive.command.api import create_app
+    from executive.command.fuzz import run_fuzz
+    from executive.command.server import ServerThread
+    from hearth.benchmarks.api import _service
+    from hearth.robot.clock import SimClock
+
+    report: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "worst.yaml").write_text(_WORST_MISSION)
+        service, _ = _service(tmp, SimClock(), 10.0)
+        try:
+            with ServerThread(create_app(service)) as srv, \
+                    httpx.Client(base_url=srv.url, timeout=60.0) as c:
+                run_id = c.post("/api/runs", json={"mission": "bench_chores"}).json()["run"]["id"]
+                by_class: dict[str, dict[str, int]] = {}
+                failures = []
+                for klass, name, method, path, headers, body, expect in _http_cases(
+                        srv.port, run_id):
+                    r = c.request(method, path, headers=headers, content=body)
+                    row = by_class.setdefault(klass, {"requests": 0, "failures": 0})
+                    row["requests"] += 1
+                    if r.status_code != expect:
+                        row["failures"] += 1
+                        failures.append({"class": klass, "case": name, "status": r.status_code,
+                                         "expected": expect, "answer": r.text[:200]})
+                # health while the worst template is matched (figures, not a gate)
+                t0 = time.perf_counter()
+                done: dict[str, float] = {}
+
+                def worst() -> None:
+                    c.post("/api/commands", json={"text": WORST_UTTERANCE})
+                    done["ms"] = (time.perf_counter() - t0) * 1000
+                th = threading.Thread(target=worst)
+                th.start()
+                health = c.get("/api/health")
+                health_ms = (time.perf_counter() - t0) * 1000
+                th.join(120)
+                schema = c.get("/openapi.json").json()
+                fuzz = run_fuzz(c, schema, ["bench_chores", "worst", "presence", run_id,
+                                            WORST_UTTERANCE, "x x go", ""], n, seed=seed)
+        finally:
+            service.executive.shutdown()
+            service.close()
+    fixed_5xx = sum(f["status"] >= 500 for f in failures)
+    report.update(
+        fixed_requests=sum(r["requests"] for r in by_class.values()), by_class=by_class,
+        fixed_failures=failures[:20], generated_requests=fuzz["requests"],
+        generated_by_status=fuzz["by_class"], generated_failures=fuzz["failures"][:20],
+        cross_site_accepted=fuzz["cross_site_accepted"] + sum(
+            f["status"] < 400 for f in failures if f["class"] == "cross-site"),
+        **{"5xx": fixed_5xx + sum(f["status"] >= 500 for f in fuzz["failures"])},
+        health_ok_during_worst_template=health.status_code == 200,
+        health_ms_during_worst_template=round(health_ms, 1),
+        worst_template_command_ms=round(done.get("ms", float("nan")), 1))
+    report["failures"] = len(failures) + len(fuzz["failures"])
+    return report
+
+
+# ---------------------------------------------------------------------------------------------
 # Report
 
 def summarise(results: list[tuple[Case, Verdict]]) -> dict:
@@ -1087,6 +1453,18 @@ def failures(results: list[tuple[Case, Verdict]], limit: int = 12) -> list[dict]
     return out[:limit]
 
 
+def by_class(results: list[tuple[Case, Verdict]]) -> dict:
+    """The fixed cases by class: cases, and those that did not end as expected."""
+    out: dict[str, dict[str, int]] = {}
+    for c, v in results:
+        if c.expect is None or not c.klass:
+            continue
+        row = out.setdefault(c.klass, {"cases": 0, "failed": 0})
+        row["cases"] += 1
+        row["failed"] += v.outcome != c.expect or bool(v.outside)
+    return out
+
+
 def run(args) -> dict:
     quick = getattr(args, "quick", False)
     n = getattr(args, "cases", None) or (200 if quick else 2000)
@@ -1094,7 +1472,7 @@ def run(args) -> dict:
     jobs = max(1, getattr(args, "jobs", 1) or 1)
     timeout = getattr(args, "timeout", 60.0) or 60.0
     t0 = time.perf_counter()
-    sizes = {"world": n, "mission": n, "recording": max(50, n // 4)}
+    sizes = {"world": n, "mission": n, "recording": max(50, n // 4), "bag": 0}
     fixed = fixed_cases()
     cases = itertools.chain(*(generated_cases(l, sizes[l], seed) for l in LOADERS), fixed)
     results = run_cases(cases, jobs=jobs, timeout=timeout)
@@ -1116,7 +1494,12 @@ def run(args) -> dict:
             fixed_failed.append(f"{c.loader}/{c.name}")
     out["fixed"] = fixed_report
     out["fixed_failed"] = fixed_failed
+    out["fixed_by_class"] = by_class(results)
+    http_n = getattr(args, "http_requests", None) or (100 if quick else 500)
+    out["http"] = check_http(http_n, seed)
+    out["total"]["5xx"] = out["http"]["5xx"]
+    out["total"]["cross_site_accepted"] = out["http"]["cross_site_accepted"]
     out["failures"] = failures(results, limit=40)
-    out["targets"] = {k: 0 for k in FAILURES}
+    out["targets"] = {**{k: 0 for k in FAILURES}, "5xx": 0, "cross_site_accepted": 0}
     out["seconds"] = round(time.perf_counter() - t0, 1)
     return out

@@ -14,7 +14,6 @@ recording's folder (no absolute paths, no ``..`` out of it, no symlink out of it
 from __future__ import annotations
 
 import os
-import stat
 import struct
 import zlib
 from dataclasses import dataclass
@@ -23,8 +22,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hearth.files import file_inside
+
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MAX_FRAME_BYTES = 256 << 20          # one frame file; a 4k 16-bit PNG is ~20 MB
+#: Pixels of one frame, and the longest side: a 4096 x 4096 colour frame inflates to 50 MB
+#: and is checked in about half a second; 16384 x 16384 (the bound before) took minutes to
+#: open a recording of a few frames (issue 44).
+MAX_FRAME_PIXELS = 4096 * 4096
+MAX_IMAGE_SIDE = 8192
 _CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
 _KINDS = {0: "grey", 2: "RGB", 3: "palette", 4: "grey+alpha", 6: "RGBA"}
 # Adam7 passes: (x start, y start, x step, y step)
@@ -48,30 +54,33 @@ class PngInfo:
         return f"{self.bit_depth}-bit {_KINDS.get(self.color_type, '?')}"
 
 
-def inside(directory: Path, relative: str) -> Path:
+def inside(directory: Path, relative: str, limit: int = MAX_FRAME_BYTES,
+           what: str = "frame") -> Path:
     """The file ``relative`` names under ``directory``, which must be a regular file inside
-    it (symlinks resolved); FrameFileError otherwise."""
+    it (symlinks resolved) of at most ``limit`` bytes; FrameFileError otherwise. ``what``
+    names the file in messages (a frame; the recording's ``captures.jsonl``...)."""
     if not isinstance(relative, str) or not relative:
-        raise FrameFileError("frame path must be a non-empty string")
+        raise FrameFileError(f"{what} path must be a non-empty string")
+    if "\x00" in relative:
+        raise FrameFileError(f"{what} path {relative[:80]!r} holds a NUL byte")
     if os.path.isabs(relative):
-        raise FrameFileError(f"frame path {relative!r} is absolute; frame paths are relative "
+        raise FrameFileError(f"{what} path {relative[:80]!r} is absolute; paths are relative "
                              "to the recording's folder")
-    root = directory.resolve()
-    path = (directory / relative).resolve()
-    if path != root and root not in path.parents:
-        raise FrameFileError(f"frame path {relative!r} leaves the recording's folder")
+    full, why = file_inside(directory, relative)
+    if why in ("leaves", "leaves through a link", "not relative"):
+        raise FrameFileError(f"{what} path {relative[:80]!r} leaves the recording's folder")
+    if why == "missing":
+        raise FrameFileError("missing")
+    if why == "not regular":
+        raise FrameFileError(f"{what} path {relative[:80]!r} is not a regular file")
     try:
-        st = path.stat()
-    except FileNotFoundError:
-        raise FrameFileError("missing") from None
+        st = os.stat(full)
     except OSError as err:
         raise FrameFileError(f"unreadable ({err.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise FrameFileError(f"frame path {relative!r} is not a regular file")
-    if st.st_size > MAX_FRAME_BYTES:
-        raise FrameFileError(f"{st.st_size} bytes, more than the {MAX_FRAME_BYTES >> 20} MiB "
-                             "a frame file may have")
-    return path
+    if st.st_size > limit:
+        raise FrameFileError(f"{st.st_size} bytes, more than the {limit >> 20} MiB "
+                             f"a {what} file may have")
+    return Path(full)
 
 
 def check_png(data: bytes) -> PngInfo:
@@ -100,6 +109,9 @@ def check_png(data: bytes) -> PngInfo:
                     or interlace > 1:
                 raise FrameFileError("corrupt PNG (invalid IHDR)")
             info = PngInfo(w, h, depth, ctype)
+            if max(w, h) > MAX_IMAGE_SIDE or w * h > MAX_FRAME_PIXELS:
+                raise FrameFileError(f"{w}x{h} is too large for a frame (at most "
+                                     f"{MAX_FRAME_PIXELS} pixels, sides up to {MAX_IMAGE_SIDE})")
             interlaced = interlace == 1
         elif kind == b"IDAT":
             idat.append(body)
@@ -141,8 +153,11 @@ def check_png(data: bytes) -> PngInfo:
 
 def check_color_png(data: bytes) -> PngInfo:
     info = check_png(data)
-    if info.bit_depth != 8 and not (info.color_type == 3 and info.bit_depth < 8):
-        raise FrameFileError(f"colour must be an 8-bit PNG, this one is {info.kind}")
+    # Three channels (RGB, or a palette of RGB entries): an alpha channel or grey is not
+    # what the format says, and OpenCV would silently drop or invent channels.
+    if info.color_type not in (2, 3) or (info.color_type == 2 and info.bit_depth != 8):
+        raise FrameFileError(f"colour must be an 8-bit 3-channel (RGB) PNG, this one is "
+                             f"{info.kind}")
     return info
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -37,11 +38,14 @@ from perception.camera import Intrinsics
 from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
-from hearth.robot.frames import (FrameFileError, check_color_png, check_depth_png, decode_color,
-                                 decode_depth, inside)
+from hearth.files import BadJSON, load_json, read_limited
+from hearth.robot.frames import (MAX_FRAME_PIXELS, MAX_IMAGE_SIDE, FrameFileError,
+                                 check_color_png, check_depth_png, decode_color, decode_depth,
+                                 inside)
 from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged
 from worldmodel.io import atomic_write
 from worldmodel.pose import Pose, wrap_angle
+from worldmodel.validate import MAX_COORD
 
 FORMAT = "hearth-recording"
 VERSION = 2
@@ -50,7 +54,17 @@ MANIFEST = "manifest.json"
 CAPTURES = "captures.jsonl"
 ACTIONS = "actions.jsonl"
 DEPTH_SCALE = 0.001          # metres per unit of the 16-bit depth PNG
-MAX_IMAGE_SIDE = 16384       # pixels; intrinsics beyond this are refused
+#: depth_scale's bounds, metres per unit: 0.01 mm (a 0.65 m range) to 1 cm (655 m). Beyond
+#: them the depth is no depth: 1e300 overflows float32 to inf, 1e-60 rounds every reading to 0.
+DEPTH_SCALE_RANGE = (1e-5, 1e-2)
+#: A time on the recording's clock, seconds (ROS stamps are ~1.7e9).
+MAX_TIME = 1e11
+#: Limits of the recording's own files (its frames: hearth.robot.frames): the header, and
+#: each JSON-lines file (a capture line is ~700 bytes: 128 MiB holds 180,000 captures).
+MAX_MANIFEST_BYTES = 64 << 20
+MAX_LINES_BYTES = 128 << 20
+#: Captures in one recording (a capture holds a few hundred bytes of poses in memory).
+MAX_CAPTURES = 200_000
 FRAMES_PER_FOLDER = 250      # frames/0000/, frames/0001/, ...
 
 
@@ -193,14 +207,20 @@ class _Bad(ValueError):
     """A field of a recording that is missing or wrong (the message says which)."""
 
 
-def _number(x, what: str, positive: bool = False) -> float:
+def _number(x, what: str, positive: bool = False, bound: float = MAX_COORD) -> float:
+    """``x`` as a finite float of magnitude at most ``bound`` (and > 0 with ``positive``)."""
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise _Bad(f"{what} must be a number")
-    v = float(x)
+    try:
+        v = float(x)
+    except OverflowError:
+        v = math.inf
     if not math.isfinite(v):
-        raise _Bad(f"{what} is not finite ({x!r})")
+        raise _Bad(f"{what} is not finite ({str(x)[:40]})")
     if positive and v <= 0:
         raise _Bad(f"{what} must be positive (is {x!r})")
+    if abs(v) > bound:
+        raise _Bad(f"{what} is beyond +-{bound:g} (is {v:g})")
     return v
 
 
@@ -209,7 +229,12 @@ def _planar(d, what: str) -> Optional[Pose]:
         return None
     if not isinstance(d, dict):
         raise _Bad(f"{what} must be an object with x, y, yaw")
+    # positions in metres within the world format's bounds; yaw in radians, any turn count
+    # a person could mean (a 1e300 yaw loses every digit of its angle)
     return Pose.planar(*(_number(d.get(k), f"{what}.{k}") for k in ("x", "y", "yaw")))
+
+
+_EYE3, _BOTTOM = np.eye(3), np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def _transform(m, what: str) -> np.ndarray:
@@ -221,9 +246,15 @@ def _transform(m, what: str) -> np.ndarray:
         raise _Bad(f"{what} must be a 4x4 matrix")
     if not np.isfinite(T).all():
         raise _Bad(f"{what} has numbers that are not finite")
+    if np.abs(T[:3, 3]).max() > MAX_COORD:
+        raise _Bad(f"{what}: the position is beyond +-{MAX_COORD:g} m")
     R = T[:3, :3]
-    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-4) and np.allclose(T[3], (0, 0, 0, 1))
-            and np.linalg.det(R) > 0):
+    # (np.allclose, twice per capture, was most of the time to open 20,000 captures; a
+    # rotation's entries are within +-1, and checking that first keeps 1e308 entries from
+    # overflowing the product with a RuntimeWarning on stderr)
+    if not (float(np.abs(R).max()) <= 1.0 + 1e-4
+            and float(np.abs(R @ R.T - _EYE3).max()) <= 1e-4
+            and float(np.abs(T[3] - _BOTTOM).max()) <= 1e-4 and np.linalg.det(R) > 0):
         raise _Bad(f"{what} is not a rigid transform")
     return T
 
@@ -233,14 +264,17 @@ def check_intrinsics(d, what: str = "intrinsics") -> Intrinsics:
     image size a positive whole number of pixels (at most MAX_IMAGE_SIDE)."""
     if not isinstance(d, dict):
         raise _Bad(f"{what} must be an object with fx, fy, cx, cy, width, height")
-    fx, fy = (_number(d.get(k), f"{what}.{k}", positive=True) for k in ("fx", "fy"))
-    cx, cy = (_number(d.get(k), f"{what}.{k}") for k in ("cx", "cy"))
+    fx, fy = (_number(d.get(k), f"{what}.{k}", positive=True, bound=1e7) for k in ("fx", "fy"))
+    cx, cy = (_number(d.get(k), f"{what}.{k}", bound=1e7) for k in ("cx", "cy"))
     size = []
     for k in ("width", "height"):
-        v = _number(d.get(k), f"{what}.{k}", positive=True)
+        v = _number(d.get(k), f"{what}.{k}", positive=True, bound=math.inf)
         if v != int(v) or v > MAX_IMAGE_SIDE:
             raise _Bad(f"{what}.{k} must be a whole number of pixels up to {MAX_IMAGE_SIDE}")
         size.append(int(v))
+    if size[0] * size[1] > MAX_FRAME_PIXELS:
+        raise _Bad(f"{what}: {size[0]}x{size[1]} is more than the {MAX_FRAME_PIXELS} pixels "
+                   "a frame may have")
     return Intrinsics(fx, fy, cx, cy, size[0], size[1])
 
 
@@ -257,7 +291,8 @@ def _capture(c, i: int) -> Capture:
     parking = c.get("parking")
     if parking is not None and not isinstance(parking, str):
         raise _Bad("parking must be a string or null")
-    return Capture(index=i, timestamp=_number(c.get("timestamp", 0.0), "timestamp"),
+    return Capture(index=i, timestamp=_number(c.get("timestamp", 0.0), "timestamp",
+                                              bound=MAX_TIME),
                    color=c["color"], depth=c["depth"], base_pose=_planar(c.get("base_pose"), "base_pose"),
                    T_world_camera=_transform(c.get("T_world_camera"), "T_world_camera"),
                    pan=_number(c.get("pan", 0.0), "pan"), tilt=_number(c.get("tilt", 0.0), "tilt"),
@@ -266,30 +301,42 @@ def _capture(c, i: int) -> Capture:
                    T_world_camera_true=None if Tt is None else _transform(Tt, "truth.T_world_camera"))
 
 
+def _own_file(directory: Path, name: str, limit: int) -> bytes:
+    """The bytes of the recording's own file ``name`` (manifest, captures, actions): a
+    regular file inside the folder (a symbolic link may not lead out of it), at most
+    ``limit`` bytes, read without blocking (a FIFO or a link to /dev/zero is refused)."""
+    path = directory / name
+    try:
+        inside(directory, name, limit=limit, what=name)
+    except FrameFileError as err:
+        if str(err) == "missing":
+            raise RobotError("missing (a version 2 recording has it beside manifest.json)",
+                             file=str(path)) from None
+        raise RobotError(str(err), file=str(path)) from None
+    return read_limited(path, limit, RobotError, f"larger than {limit >> 20} MiB")
+
+
 def _json_lines(path: Path) -> list[tuple[int, Any]]:
     """(line number, value) of a JSON-lines file; a torn last line (no newline, not JSON:
     a writer killed mid-line) is left out."""
+    data = _own_file(path.parent, path.name, MAX_LINES_BYTES)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RobotError("missing (a version 2 recording has it beside manifest.json)",
-                         file=str(path)) from None
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise RobotError("not UTF-8 text", file=str(path)) from None
-    except OSError as err:
-        raise RobotError(f"unreadable ({err.strerror})", file=str(path)) from None
     lines = text.split("\n")
     out = []
     for n, line in enumerate(lines, 1):
         if not line.strip():
             continue
+        if len(out) >= MAX_CAPTURES * 2:     # a capture, or an action and its outcome
+            raise RobotError(f"more than {MAX_CAPTURES * 2} lines", file=str(path), line=n)
         try:
-            out.append((n, json.loads(line)))
-        except (json.JSONDecodeError, RecursionError) as err:
-            if n == len(lines):           # the last line, not newline-terminated: torn
-                break
-            msg = err.msg if isinstance(err, json.JSONDecodeError) else "nested too deeply"
-            raise RobotError(f"corrupt line: {msg}", file=str(path), line=n) from None
+            out.append((n, load_json(line)))
+        except BadJSON as err:
+            if n == len(lines) and not err.message.startswith("an integer"):
+                break                     # the last line, not newline-terminated: torn
+            raise RobotError(f"corrupt line: {err.message}", file=str(path), line=n) from None
     return out
 
 
@@ -301,17 +348,14 @@ class Recording:
     def __init__(self, directory, check_frames: bool = True):
         self.dir = Path(directory)
         self.path = self.dir / MANIFEST
-        if not self.path.is_file():
+        if not os.path.lexists(self.path):
             raise RobotError("not a recording: manifest.json is missing", file=str(self.path))
+        raw = _own_file(self.dir, MANIFEST, MAX_MANIFEST_BYTES)
         try:
-            data = json.loads(self.path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise RobotError(f"corrupt manifest: {err.msg} (column {err.colno})",
-                             file=str(self.path), line=err.lineno) from None
-        except UnicodeDecodeError:
-            raise RobotError("corrupt manifest: not UTF-8 text", file=str(self.path)) from None
-        except RecursionError:
-            raise RobotError("corrupt manifest: nested too deeply", file=str(self.path)) from None
+            data = load_json(raw)
+        except BadJSON as err:
+            raise RobotError(f"corrupt manifest: {err.message}", file=str(self.path),
+                             line=err.line or None) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise RobotError(f"corrupt manifest: not a {FORMAT} manifest", file=str(self.path))
         self.version = data.get("version")
@@ -321,7 +365,11 @@ class Recording:
                              file=str(self.path))
         try:
             self.depth_scale = _number(data.get("depth_scale", DEPTH_SCALE), "depth_scale",
-                                       positive=True)
+                                       positive=True, bound=math.inf)
+            lo, hi = DEPTH_SCALE_RANGE
+            if not lo <= self.depth_scale <= hi:
+                raise _Bad(f"depth_scale {self.depth_scale:g} is not between {lo:g} and {hi:g} "
+                           "metres per unit (0.001: millimetres)")
             self.intrinsics = (check_intrinsics(data["intrinsics"])
                                if data.get("intrinsics") is not None else None)
             info = data.get("info") or {}
@@ -336,6 +384,9 @@ class Recording:
         else:
             self.captures = []
             for n, c in _json_lines(self.dir / CAPTURES):
+                if len(self.captures) == MAX_CAPTURES:
+                    raise RobotError(f"more than {MAX_CAPTURES} captures",
+                                     file=str(self.dir / CAPTURES), line=n)
                 try:
                     self.captures.append(_capture(c, len(self.captures)))
                 except _Bad as err:
@@ -352,6 +403,9 @@ class Recording:
         actions = data.get("actions", [])
         if not isinstance(captures, list) or not isinstance(actions, list):
             raise RobotError("corrupt manifest: captures and actions must be lists",
+                             file=str(self.path))
+        if len(captures) > MAX_CAPTURES:
+            raise RobotError(f"corrupt manifest: more than {MAX_CAPTURES} captures",
                              file=str(self.path))
         out = []
         for c in captures:
@@ -385,30 +439,38 @@ class Recording:
 
     def _check_frames(self) -> None:
         """Every frame file present, inside the folder, a complete PNG of the right kind and
-        size (in two threads: zlib releases the GIL)."""
+        size (in two threads: zlib releases the GIL). A file several captures name is checked
+        once, for the first of them (20,000 captures of one frame opened in minutes)."""
         K = self.intrinsics
-
-        def one(c: Capture) -> None:
+        seen: set[tuple[str, str]] = set()
+        todo: list[tuple[Capture, str, Any]] = []
+        for c in self.captures:
             for name, check in ((c.color, check_color_png), (c.depth, check_depth_png)):
-                where = str(self.dir / name)
-                try:
-                    info = check(inside(self.dir, name).read_bytes())
-                except FrameFileError as err:
-                    raise RobotError(f"frame {c.index} is missing" if str(err) == "missing"
-                                     else f"frame {c.index}: {err}", file=where) from None
-                except OSError as err:
-                    raise RobotError(f"frame {c.index}: unreadable ({err.strerror})",
-                                     file=where) from None
-                if (info.width, info.height) != (K.width, K.height):
-                    raise RobotError(f"frame {c.index}: image is {info.width}x{info.height}, the "
-                                     f"intrinsics say {K.width}x{K.height}", file=where)
+                if (name, check.__name__) not in seen:
+                    seen.add((name, check.__name__))
+                    todo.append((c, name, check))
 
-        if len(self.captures) <= 4:
-            for c in self.captures:
-                one(c)
+        def one(item) -> None:
+            c, name, check = item
+            where = str(self.dir / name)
+            try:
+                info = check(inside(self.dir, name).read_bytes())
+            except FrameFileError as err:
+                raise RobotError(f"frame {c.index} is missing" if str(err) == "missing"
+                                 else f"frame {c.index}: {err}", file=where) from None
+            except OSError as err:
+                raise RobotError(f"frame {c.index}: unreadable ({err.strerror})",
+                                 file=where) from None
+            if (info.width, info.height) != (K.width, K.height):
+                raise RobotError(f"frame {c.index}: image is {info.width}x{info.height}, the "
+                                 f"intrinsics say {K.width}x{K.height}", file=where)
+
+        if len(todo) <= 8:
+            for item in todo:
+                one(item)
             return
         with ThreadPoolExecutor(max_workers=2) as pool:
-            list(pool.map(one, self.captures))      # the first problem (in order) is raised
+            list(pool.map(one, todo))      # the first problem (in order) is raised
 
     def __len__(self) -> int:
         return len(self.captures)

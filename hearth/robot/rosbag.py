@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import stat
 import threading
 from bisect import bisect_left
 from dataclasses import dataclass, fields
@@ -35,7 +37,9 @@ import numpy as np
 
 from hearth.robot.adapter import as_base_pose
 from hearth.robot.errors import RobotError
-from hearth.robot.recording import Capture, _Bad, check_intrinsics, depth_to_mm, frame_entry
+from hearth.files import BadJSON, load_json, read_limited
+from hearth.robot.recording import (Capture, _Bad, check_intrinsics, depth_to_mm, frame_entry)
+from worldmodel.validate import MAX_COORD
 from hearth.robot.sim import Frame
 from worldmodel.pose import Pose
 
@@ -64,6 +68,12 @@ CAMERA_FRAME, BASE_FRAME, ODOM_FRAME, MAP_FRAME = ("camera_color_optical_frame",
 EXTRAS = dict(capture="/hearth/capture", truth="/hearth/truth", actions="/hearth/actions",
               events="/hearth/events", info="/hearth/info")
 DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
+#: A 32FC1 depth beyond this many metres is refused (no RGB-D camera sees a kilometre; 3.4e38
+#: is a float's largest, not a distance). NaN and +-inf mean "no reading" (REP 118).
+MAX_DEPTH_M = 1000.0
+#: A topic mapping is a few lines; a bag's metadata.yaml a few kilobytes per topic.
+MAX_TOPIC_MAP_BYTES = 64 << 10
+MAX_METADATA_BYTES = 16 << 20
 COLOR_ENCODINGS = ("rgb8", "bgr8")
 
 #: Hearth's own message definitions (ROS 2 .msg syntax), written into every bag it records.
@@ -192,11 +202,13 @@ def load_topic_map(spec=None, bag=None) -> TopicMap:
     if isinstance(spec, dict):
         return _topic_map(spec, "--topics")
     if spec is None:
-        if bag is None or not side_file(Path(bag)).is_file():
+        if bag is None or not os.path.lexists(side_file(Path(bag))):
             return TopicMap()
         spec = str(side_file(Path(bag)))
     text = str(spec)
-    if "=" in text and not Path(text).is_file():
+    if "\x00" in text:
+        raise RobotError("a topic mapping holds a NUL byte", file="--topics")
+    if "=" in text and not os.path.lexists(text):
         pairs = {}
         for item in text.split(","):
             k, sep, v = item.partition("=")
@@ -205,14 +217,18 @@ def load_topic_map(spec=None, bag=None) -> TopicMap:
             pairs[k.strip()] = v.strip()
         return _topic_map(pairs, "--topics")
     import yaml
+    data = read_limited(text, MAX_TOPIC_MAP_BYTES, RobotError,
+                        f"larger than {MAX_TOPIC_MAP_BYTES >> 10} KiB (a topic mapping is a "
+                        "few lines)")
     try:
-        values = yaml.safe_load(Path(text).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RobotError("no such topic mapping file", file=text) from None
+        values = yaml.safe_load(data.decode("utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as err:
         line = getattr(getattr(err, "problem_mark", None), "line", None)
         raise RobotError(f"not a YAML mapping: {getattr(err, 'problem', err)}", file=text,
                          line=None if line is None else line + 1) from None
+    except RecursionError:
+        raise RobotError("not a YAML mapping: nested too deeply (a topic mapping is flat)",
+                         file=text) from None
     return _topic_map(values or {}, text)
 
 
@@ -310,6 +326,29 @@ class TfBuffer:
 
 # -- reading -----------------------------------------------------------------------------------
 
+def _check_bag_files(source: Path) -> None:
+    """Refuse a bag whose files are not regular files (a FIFO would block the reader, a link
+    to /dev/zero never end) or whose metadata.yaml is absurdly large, before rosbags opens
+    anything."""
+    paths = [source]
+    if source.is_dir():
+        meta = source / "metadata.yaml"
+        read_limited(meta, MAX_METADATA_BYTES, RobotError,
+                     f"larger than {MAX_METADATA_BYTES >> 20} MiB")
+        paths = sorted(p for p in source.iterdir() if p.suffix in (".mcap", ".db3"))
+    for p in paths:
+        try:
+            st = os.stat(p)
+        except FileNotFoundError:
+            raise RobotError("no such bag file", file=str(p)) from None
+        except (OSError, ValueError) as err:
+            raise RobotError(f"cannot read the bag ({getattr(err, 'strerror', None) or err})",
+                             file=str(p)) from None
+        if not stat.S_ISREG(st.st_mode):
+            raise RobotError("not a regular file (a bag is an .mcap file or a rosbag2 "
+                             "directory)", file=str(p))
+
+
 def _stamp(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
@@ -379,12 +418,13 @@ class BagRecording:
             raise RobotError("no such bag (an .mcap file or a rosbag2 directory)", file=where)
         self.topics = load_topic_map(topics, self.path)
         source = self.path
-        if self.path.is_dir() and not (self.path / "metadata.yaml").is_file():
+        if self.path.is_dir() and not os.path.lexists(self.path / "metadata.yaml"):
             files = sorted(self.path.glob("*.mcap"))
             if len(files) != 1:
                 raise RobotError("a bag directory needs its metadata.yaml (or one .mcap file)",
                                  file=where)
             source = files[0]         # a bag whose recorder was killed before metadata.yaml
+        _check_bag_files(source)
         self._lock = threading.Lock()
         try:
             self._reader = AnyReader([source], default_typestore=typestore())
@@ -611,6 +651,11 @@ class BagRecording:
                 untimed += 1
                 missing_edge = str(err)
                 continue
+            if not (np.isfinite(T_map_camera).all() and np.isfinite(T_map_base).all()
+                    and np.abs(T_map_camera[:3, 3]).max() <= MAX_COORD
+                    and np.abs(T_map_base[:3, 3]).max() <= MAX_COORD):
+                raise _Bad(f"tf: the pose of {camera} or {m.base_frame} at "
+                           f"{d.stamp_ns * 1e-9:.3f} s is not finite or beyond +-{MAX_COORD:g} m")
             base = as_base_pose(T_map_base)
             T_base_camera = np.linalg.inv(T_map_base) @ T_map_camera
             z = T_base_camera[:3, 2]                       # optical axis in the base frame
@@ -646,8 +691,8 @@ class BagRecording:
         if extras["info"]:
             last = extras["info"][-1]
             try:
-                info = json.loads(str(last.info_json) or "{}")
-            except json.JSONDecodeError:
+                info = load_json(str(last.info_json) or "{}")
+            except BadJSON:
                 info = {}
             self.info = info if isinstance(info, dict) else {}
             if last.has_start_pose:
@@ -692,6 +737,11 @@ class BagRecording:
         if enc == "32FC1":
             z = rows[:, :w * 4].copy().view(">f4" if big else "<f4").reshape(h, w).astype(np.float32)
             z[~np.isfinite(z) | (z < 0)] = 0            # REP 118: NaN / inf mean no reading
+            if z.size and float(z.max()) > MAX_DEPTH_M:
+                raise RobotError(f"topic {topic}: the depth image at {img.log_ns * 1e-9:.3f} s "
+                                 f"has a depth of {float(z.max()):.3g} m (at most "
+                                 f"{MAX_DEPTH_M:g} m; NaN or inf for no reading)",
+                                 file=str(self.path))
             return z
         mm = rows[:, :w * 2].copy().view(">u2" if big else "<u2").reshape(h, w)
         return mm.astype(np.float32) * np.float32(0.001)
@@ -752,8 +802,8 @@ def _actions(msgs) -> list[dict]:
         k = int(a.number)
         if a.status == "requested" or k not in out:
             try:
-                args = json.loads(str(a.args_json) or "{}")
-            except json.JSONDecodeError:
+                args = load_json(str(a.args_json) or "{}")
+            except BadJSON:
                 args = {}
             out.setdefault(k, dict(time=_stamp(a.header) * 1e-9, action=str(a.action), args=args))
         if a.status != "requested":

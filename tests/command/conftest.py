@@ -35,12 +35,13 @@ class Server:
     """A running API: ``url``, ``client`` (httpx), ``service``, ``world``."""
 
     def __init__(self, world, granted=3, token=None, approval_timeout=120.0, tls_cert=None,
-                 tls_key=None, **app_options):
+                 tls_key=None, missions=None, **app_options):
         self.world = world
         # wait_test's first step runs for an hour (it is cancelled); the rest succeed at once.
         self.substitution = Substitution([Script(match="/wait_test/hold", duration=3600.0)], None)
         # A wall clock at 50 Hz: a running mission waits between ticks instead of spinning.
-        self.service = make_service(world, None, [str(MISSIONS)], skills=registry(),
+        self.service = make_service(world, None, [str(m) for m in missions or [MISSIONS]],
+                                    skills=registry(),
                                     make_skill=self.substitution, clock=WallClock(),
                                     tick_hz=50, runs_dir=None, granted=granted,
                                     approval_timeout=approval_timeout)

@@ -445,3 +445,43 @@ def test_a_huge_wrong_value_is_reported_in_a_short_line(mission_file):
     (err,) = errors(path)
     assert err.startswith(f"{path}:4: input target of Navigate: expected node_id|pose, got [1, ")
     assert len(err) < 300 + len(path)
+
+
+# -- issue 44 ----------------------------------------------------------------------------------
+
+def test_an_include_path_with_a_nul_byte_is_one_line(mission_file, capsys):
+    path = mission_file('name: x\ntree:\n  include: "sub\\0.yaml#x"\n')
+    (err,) = errors(path)
+    assert err.startswith(f"{path}:3: include ") and "holds a NUL byte" in err
+    assert main(["validate", path]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_mission_name_too_long_for_a_file_name_is_refused_at_validate(mission_file, capsys):
+    path = mission_file(f"name: {'m' * 300}\ntree: {{succeed: ok}}\n")
+    assert main(["validate", path]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"{path}:1: ") and "is too long" in line
+
+
+@pytest.mark.parametrize("text", ["0x10", "010", "1_000", "1:30", "0b11", "16\x01"])
+def test_an_integer_parameter_is_written_in_decimal(text):
+    with pytest.raises(MissionError, match="parameter max_places: "):
+        parse_param_text("max_places", "integer", text)
+    assert parse_param_text("max_places", "integer", "16") == 16
+    assert parse_param_text("r", "number", "1e3") == 1000.0
+
+
+def test_a_parameter_with_a_control_character_is_refused_not_resolved(capsys):
+    assert main(["run", "missions/go_to_rest.yaml", "--param", "presence=home\x01"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "parameter presence: 'home\\x01' holds the control character U+0001"
+    with pytest.raises(MissionError, match="control character U[+]0001"):
+        parse_param_text("user_room", "node_id", "kitchen\x01")
+
+
+def test_a_parameter_given_twice_is_refused_not_the_last_taken(capsys):
+    assert main(["run", "missions/go_to_rest.yaml", "--param", "presence=home",
+                 "--param", "presence=away"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "parameter presence: given twice (--param presence=...); give it once"

@@ -51,6 +51,29 @@ def test_issue_19s_hand_made_files(case):
     assert (verdict.outcome, verdict.outside) == (case.expect, 0), verdict.detail
 
 
+ISSUE_44 = [c for c in fuzz.fixed_cases() if c.loader in ("recording", "bag") and c.klass
+            and c.name != "twenty_thousand_captures_of_one_frame"]   # (tests/robot has it)
+
+
+@pytest.mark.parametrize("case", ISSUE_44, ids=[f"{c.loader}-{c.name}" for c in ISSUE_44])
+def test_issue_44s_hand_made_recordings_and_bags(case):
+    verdict = fuzz.run_case(case, timeout=60)
+    assert (verdict.outcome, verdict.outside) == (case.expect, 0), verdict.detail
+
+
+def test_issue_44s_classes_are_all_present():
+    classes = {c.klass for c in fuzz.fixed_cases() if c.klass}
+    assert {"mesh-content", "fifo", "nul", "huge-integer", "template"} <= classes
+
+
+def test_hostile_http_requests_get_their_4xx_and_never_a_5xx():
+    report = fuzz.check_http(40, seed=3)
+    assert report["5xx"] == 0 and report["cross_site_accepted"] == 0
+    assert report["fixed_failures"] == [] and report["generated_failures"] == []
+    assert report["by_class"]["cross-site"]["requests"] >= 10
+    assert report["health_ok_during_worst_template"]
+
+
 def test_the_fast_node_check_agrees_with_jsonschema():
     """fastjsonschema only lets valid nodes through; jsonschema must agree on each."""
     import random

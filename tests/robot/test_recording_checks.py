@@ -211,3 +211,114 @@ def test_a_recording_killed_mid_write_stays_readable_and_leaves_no_temporary_fil
         assert not list(d.glob("*.tmp"))
     else:
         assert not list(d.glob("*.tmp"))
+
+
+# -- issue 44: files of a recording a hostile tool could write ------------------------------
+
+def _manifest(d: Path, **fields) -> Path:
+    m = json.loads((d / "manifest.json").read_text())
+    m.update(fields)
+    (d / "manifest.json").write_text(json.dumps(m))
+    return d / "manifest.json"
+
+
+def _refused(d: Path) -> str:
+    with pytest.raises(RobotError) as err:
+        Recording(d)
+    message = str(err.value)
+    assert "\n" not in message and len(message) < 500
+    return message
+
+
+@pytest.mark.parametrize("where", ["manifest", "captures", "actions"])
+def test_an_integer_of_5000_digits_is_one_line_naming_the_file(rec, where):
+    big = "9" * 5000
+    if where == "manifest":
+        text = (rec / "manifest.json").read_text().replace('"version": 2', f'"version": {big}')
+        (rec / "manifest.json").write_text(text)
+        expected = f"{rec / 'manifest.json'}:3: corrupt manifest: an integer of 5000 digits"
+    else:
+        path = rec / f"{where}.jsonl"
+        lines = path.read_text().splitlines()
+        lines[0] = lines[0].replace('"timestamp": 0.0', f'"timestamp": {big}') \
+            .replace('"i": 0', f'"i": {big}')
+        path.write_text("\n".join(lines) + "\n")
+        expected = f"{path}:1: corrupt line: an integer of 5000 digits"
+    assert _refused(rec).startswith(expected)
+
+
+def test_a_frame_path_with_a_nul_byte_is_refused(rec):
+    _rewrite(rec, 1, color="frames/0000/000001_color.png\x00.txt")
+    assert "frame 1: frame path 'frames/0000/000001_color.png\\x00.txt' holds a NUL byte" \
+        in _refused(rec)
+
+
+@pytest.mark.parametrize("name", ["captures.jsonl", "actions.jsonl", "manifest.json"])
+@pytest.mark.parametrize("kind", ["fifo", "dev_zero", "sparse_3GB", "link_out"])
+def test_the_recordings_own_files_are_bounded_regular_files_inside_its_folder(rec, tmp_path,
+                                                                               name, kind):
+    path = rec / name
+    path.unlink()
+    if kind == "fifo":
+        os.mkfifo(path)
+        words = "is not a regular file"
+    elif kind == "dev_zero":
+        path.symlink_to("/dev/zero")
+        words = "leaves the recording's folder"
+    elif kind == "link_out":
+        (tmp_path / "elsewhere.json").write_text("{}\n")
+        path.symlink_to(tmp_path / "elsewhere.json")
+        words = "leaves the recording's folder"
+    else:
+        with open(path, "wb") as f:         # sparse: no disk used
+            f.truncate(3 << 30)
+        words = "more than the"
+    message = _refused(rec)
+    assert message.startswith(f"{path}: ") and words in message
+
+
+@pytest.mark.parametrize("fields, words", [
+    (dict(depth_scale=1e300), "depth_scale 1e+300 is not between 1e-05 and 0.01"),
+    (dict(depth_scale=1e-60), "depth_scale 1e-60 is not between 1e-05 and 0.01"),
+    (dict(start_pose=dict(x=1e300, y=0.0, yaw=0.0)), "start_pose.x is beyond +-10000"),
+    (dict(start_pose=dict(x=0.0, y=0.0, yaw=-1e300)), "start_pose.yaw is beyond +-10000"),
+    (dict(intrinsics=dict(fx=500.0, fy=500.0, cx=8000.0, cy=8000.0, width=16384,
+                          height=16384)), "intrinsics.width must be a whole number of pixels up "
+                                          "to 8192"),
+    (dict(intrinsics=dict(fx=500.0, fy=500.0, cx=4000.0, cy=4000.0, width=8000,
+                          height=8000)), "8000x8000 is more than the 16777216 pixels"),
+])
+def test_absurd_header_numbers_are_refused(rec, fields, words):
+    path = _manifest(rec, **fields)
+    message = _refused(rec)
+    assert message.startswith(f"{path}: corrupt manifest: ") and words in message
+
+
+def test_an_rgba_colour_frame_is_refused(rec):
+    import cv2
+    color = rec / "frames" / "0000" / "000002_color.png"
+    cv2.imwrite(str(color), np.zeros((48, 64, 4), np.uint8))
+    assert _refused(rec) == (f"{color}: frame 2: colour must be an 8-bit 3-channel (RGB) PNG, "
+                             "this one is 8-bit RGBA")
+
+
+def test_a_frame_named_by_twenty_thousand_captures_is_checked_once(rec, monkeypatch):
+    import hearth.robot.recording as recording
+    line = (rec / "captures.jsonl").read_text().splitlines()[0]
+    (rec / "captures.jsonl").write_text((line + "\n") * 20_000)
+    calls = []
+    real = recording.check_depth_png
+    monkeypatch.setattr(recording, "check_depth_png", lambda data: calls.append(1) or real(data))
+    r = Recording(rec)
+    assert len(r) == 20_000 and len(calls) == 1
+
+
+def test_a_rotation_of_huge_numbers_is_not_rigid_and_prints_no_warning(rec):
+    import warnings
+    T = np.eye(4)
+    T[0, 0] = T[1, 1] = 1e308
+    _rewrite(rec, 1, T_world_camera=T.tolist())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        message = _refused(rec)
+    assert message.endswith("capture 1: T_world_camera is not a rigid transform")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -119,7 +120,8 @@ def test_tf_is_interpolated_and_never_extrapolated():
 
 
 def _small_bag(path: Path, *, depth_encoding="16UC1", color_topic="/camera/color/image_raw",
-               base_parent="odom", depth_frame="cam", d=(0.0,) * 5, tf_nan=False):
+               base_parent="odom", depth_frame="cam", d=(0.0,) * 5, tf_nan=False,
+               depth_m=1.5, base_x=None):
     """A tiny two-frame bag, with one thing wrong as asked."""
     K = Intrinsics.kinect(8, 6)
     bag = BagFile(path)
@@ -128,10 +130,12 @@ def _small_bag(path: Path, *, depth_encoding="16UC1", color_topic="/camera/color
         T = planar(1.0 + k, 2.0, 0.0)
         if tf_nan:
             T[0, 3] = math.nan
+        if base_x is not None:
+            T[0, 3] = base_x
         bag.tf(ns, [transform(ns, base_parent, "base_link", T),
                     transform(ns, "base_link", "cam", np.eye(4))])
         depth = (np.full((6, 8), 1500, np.uint16) if depth_encoding != "32FC1"
-                 else np.full((6, 8), 1.5, np.float32))
+                 else np.full((6, 8), depth_m, np.float32))
         if depth_encoding == "8UC1":
             depth = np.full((6, 8), 15, np.uint8)
         bag.image("/camera/depth/image_raw", ns, depth_frame, depth, depth_encoding)
@@ -345,3 +349,54 @@ def test_a_realsense_layout_bag_replays_turn_off_oven_as_hearths_own_bag(simulat
     assert own_end["outcome"] == "succeeded", own_end["reason"]
     assert (end["outcome"], end["reason"]) == (own_end["outcome"], own_end["reason"])
     assert status == 0
+
+
+# -- issue 44 ----------------------------------------------------------------------------------
+
+def test_a_bag_that_is_a_fifo_is_refused_without_blocking(tmp_path, capsys):
+    bag = tmp_path / "pipe.mcap"
+    os.mkfifo(bag)
+    status = main(["run", MISSION, "--recording", str(bag), "--runs-dir", str(tmp_path / "runs")])
+    err = capsys.readouterr().err
+    assert status == 2 and err == f"{bag}: not a regular file (a bag is an .mcap file or a " \
+                                  "rosbag2 directory)\n"
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("fifo", "not a regular file"), ("dev_zero", "not a regular file"),
+    ("sparse_3GB", "larger than 64 KiB"), ("nested", "nested too deeply"),
+])
+def test_a_hostile_topic_mapping_side_file_is_one_line(kind, words, tmp_path):
+    bag = tmp_path / "ok.mcap"
+    _small_bag(bag)
+    side = tmp_path / "ok.topics.yaml"
+    if kind == "fifo":
+        os.mkfifo(side)
+    elif kind == "dev_zero":
+        side.symlink_to("/dev/zero")
+    elif kind == "sparse_3GB":
+        with open(side, "wb") as f:
+            f.truncate(3 << 30)
+    else:
+        side.write_text("a: " + "[" * 30_000 + "]" * 30_000 + "\n")
+    with pytest.raises(RobotError) as err:
+        BagRecording(bag)
+    assert str(err.value).startswith(f"{side}: ") and words in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_32fc1_depth_of_3_4e38_metres_is_refused_when_served(tmp_path):
+    bag = tmp_path / "far.mcap"
+    _small_bag(bag, depth_encoding="32FC1", depth_m=3.4e38)
+    br = BagRecording(bag)
+    with pytest.raises(RobotError, match=r"the depth image at 1.000 s has a depth of 3.4e\+38 m "
+                                         r"\(at most 1000 m; NaN or inf for no reading\)"):
+        br.frame(0)
+
+
+def test_a_base_pose_of_1e300_in_tf_is_refused(tmp_path):
+    bag = tmp_path / "far.mcap"
+    _small_bag(bag, base_x=1e300)
+    with pytest.raises(RobotError, match=r"tf: the pose of cam or base_link at 1.000 s is not "
+                                         r"finite or beyond \+-10000 m"):
+        BagRecording(bag)

@@ -49,6 +49,11 @@ def with_mesh(path):
     return first(r"(<model>)", rf'\1<mesh file="{path}" color="0.5 0.5 0.5"/>')
 
 
+#: A small valid mesh (one triangle).
+PLY = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+       b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+       b"0 0 0\n0.1 0 0\n0 0.1 0\n3 0 1 2\n")
+
 HOSTILE = {
     "nan_pose": (first(r'<pose x="3" y="2.2"/>', '<pose x="NaN" y="2.2"/>'),
                  "'NaN' is not a finite number"),
@@ -87,13 +92,73 @@ HOSTILE = {
 }
 
 
+def _stats(*stats):
+    return DEMO.replace("</apartment>", "<searchStats>" + "".join(
+        f'<stat object="{o}" place="{p}" searched="{n}" found="{k}"/>' for o, p, n, k in stats)
+        + "</searchStats></apartment>")
+
+
+OBJ = b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"
+
+#: Issue 44: files inside the world's folder that escaped it or hung drawing, headers that
+#: allocated gigabytes, and what the schema cannot say. (name -> world text, message; the
+#: meshes are planted by ``world_dir``.)
+HOSTILE_44 = {
+    "obj_mtllib_etc_passwd": (with_mesh("passwd.obj"), "mesh file 'passwd.obj' names the "
+                              "material library '../../../../../../etc/passwd', which leaves"),
+    "obj_mtllib_fifo": (with_mesh("fifo_mtl.obj"), "names the material library 'pipe.mtl', "
+                        "which is not a regular file"),
+    "obj_texture_escape": (with_mesh("texture.obj"), "the texture '/etc/shadow', which is not a "
+                           "path relative"),
+    "obj_nan_vertex": (with_mesh("nan.obj"), "has 1 vertices that are not finite"),
+    "ply_2e9_vertices": (with_mesh("huge.ply"), "declares 2000000000 vertex elements"),
+    "ply_nan_vertex": (with_mesh("nan.ply"), "has 2 vertices that are not finite"),
+    "gltf_mesh": (with_mesh("m.gltf"), "is not a mesh format Hearth reads"),
+    "pointcloud_inf": (first(r'(<room id="kitchen")', r'\1 pointcloud="inf.ply"'),
+                       "point cloud 'inf.ply' has 1 vertices that are not finite"),
+    "attributes_100000": (first(r'(<room id="kitchen")', r'\1 ' + " ".join(
+        f'a{i}="1"' for i in range(100_000))), "an element with more than 256 attributes"),
+    "duplicate_surface_id": (first(r'(<surface id="top" sizeX="1.2")', r'<surface id="top" '
+                                   r'sizeX="1" sizeY="1"><pose z="0.5"/></surface>\1'),
+                             "kitchen_table: duplicate surface id 'top'"),
+    "stat_found_above_searched": (_stats(("red_cup", "kitchen_table", 2, 5)),
+                                  "found 5 times in 2 searches"),
+    "stat_unknown_place": (_stats(("red_cup", "no_such_table", 2, 1)),
+                           "no node 'no_such_table' in the map"),
+    "stat_twice": (_stats(("red_cup", "kitchen_table", 2, 1), ("red_cup", "kitchen_table", 3, 1)),
+                   "given twice"),
+}
+HOSTILE.update(HOSTILE_44)
+
+
 @pytest.fixture
 def world_dir(tmp_path):
-    """A folder with what hostile paths point at: a directory, a FIFO, a link out, a mesh."""
+    """A folder with what hostile paths point at: a directory, a FIFO, a link out, a mesh,
+    and meshes whose contents are hostile."""
     (tmp_path / "sub").mkdir()
     os.mkfifo(tmp_path / "fifo.ply")
     (tmp_path / "escape.ply").symlink_to("/etc/passwd")
+    (tmp_path / "passwd.obj").write_bytes(b"mtllib ../../../../../../etc/passwd\n" + OBJ)
+    os.mkfifo(tmp_path / "pipe.mtl")
+    (tmp_path / "fifo_mtl.obj").write_bytes(b"mtllib pipe.mtl\n" + OBJ)
+    (tmp_path / "tex.mtl").write_bytes(b"newmtl a\nmap_Kd -s 1 1 1 /etc/shadow\n")
+    (tmp_path / "texture.obj").write_bytes(b"mtllib tex.mtl\n" + OBJ)
+    (tmp_path / "nan.obj").write_bytes(b"v nan 0 0\n" + OBJ)
+    (tmp_path / "huge.ply").write_bytes(PLY.replace(b"element vertex 3",
+                                                    b"element vertex 2000000000"))
+    (tmp_path / "nan.ply").write_bytes(PLY.replace(b"0 0 0\n0.1 0 0", b"nan 0 0\ninf 0 0"))
+    (tmp_path / "inf.ply").write_bytes(PLY.replace(b"0 0 0\n", b"0 -inf 0\n"))
+    (tmp_path / "m.gltf").write_bytes(b'{"buffers": [{"uri": "/etc/passwd"}]}')
     return tmp_path
+
+
+def test_meshes_with_materials_and_textures_inside_the_folder_are_accepted(world_dir):
+    (world_dir / "ok.mtl").write_bytes(b"newmtl a\nKd 1 0 0\nmap_Kd sub/../tex.png\n")
+    (world_dir / "tex.png").write_bytes(b"\x89PNG\r\n\x1a\n")
+    (world_dir / "ok.obj").write_bytes(b"mtllib ok.mtl\n" + OBJ)
+    path = world_dir / "world.xml"
+    path.write_text(with_mesh("ok.obj"))
+    assert load_world(path).get("kitchen_table").model.visuals[0].file == "ok.obj"
 
 
 @pytest.mark.parametrize("case", sorted(HOSTILE))
@@ -118,7 +183,7 @@ def test_the_cli_refuses_a_nan_pose_in_one_line(world_dir):
 
 def test_mesh_inside_the_world_folder_is_accepted(tmp_path):
     (tmp_path / "meshes").mkdir()
-    (tmp_path / "meshes" / "leg.ply").write_bytes(b"ply\n")
+    (tmp_path / "meshes" / "leg.ply").write_bytes(PLY)
     path = tmp_path / "world.xml"
     path.write_text(with_mesh("meshes/leg.ply"))
     assert load_world(path).get("kitchen_table").model.visuals[0].file == "meshes/leg.ply"
@@ -325,7 +390,8 @@ def apartments(draw):
         rooms.append(Room(next(ids), draw(word), pose=draw(poses), bounds=bounds,
                           switches=switches, objects=objects))
     history = [HistoryEntry(draw(st.floats(0, 2e9)), "x", "pose", draw(word), draw(word), "t")]
-    stats = [SearchStat("cup", "table", draw(st.integers(0, 10**9)), draw(st.integers(0, 10**9)))]
+    searched = draw(st.integers(0, 10**9))     # found <= searched, at a node of the map
+    stats = [SearchStat("cup", rooms[0].id, searched, draw(st.integers(0, searched)))]
     lib = {"mug": Model(draw(st.lists(visuals, min_size=1, max_size=2)))}
     return Apartment("home", draw(word), rooms=rooms, library=lib, history=history,
                      search_stats=stats)
