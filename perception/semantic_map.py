@@ -59,6 +59,10 @@ class DraftConfig:
     handle_max_width: float = 0.065
     handle_min_elongation: float = 1.8
     knob_max_size: float = 0.10
+    #: a bar handle's radius: 1 cm voxels cannot measure it; the front of the bar is seen and
+    #: its axis put this far behind (the middle of the 5-15 mm of household bar handles)
+    handle_radius: float = 0.009
+    ridge_band: float = 0.006          #: a handle's ridge: cells this near its front-most
 
 
 # -- results ------------------------------------------------------------------------------------
@@ -394,7 +398,7 @@ def find_fixtures(points_map: np.ndarray, obj: ObjectDraft, cfg: DraftConfig = D
                & (P[:, 2] > obj.z0 + 0.015) & (P[:, 2] < obj.z1 - 0.015))
         if sel.sum() < 50:
             continue
-        for f in _proud(u[sel], P[sel, 2], d[sel], cfg):
+        for f in _merge_bars(_proud(u[sel], P[sel, 2], d[sel], cfg)):
             kind, fu, fv, length, width, depth, vertical = f
             nrm = np.array([dx, dy])
             along = np.array([-dy, dx])
@@ -454,13 +458,54 @@ def _proud(u: np.ndarray, v: np.ndarray, d: np.ndarray, cfg: DraftConfig, top_fa
         top = float(np.percentile(filled[cells[:, 0], cells[:, 1]], 90))
         if (length >= cfg.handle_min_length and width <= cfg.handle_max_width and length < 1.0
                 and length / width >= cfg.handle_min_elongation):
-            r = width / 2
-            out.append(("handle", float(np.mean(cu)), float(np.mean(cv)), float(length),
-                        float(width), top - r, ext_v > ext_u))
+            # the bar is the front-most ridge of its blob: the fusion smears a thin bar along
+            # the rays that passed it (downwards, seen from a head above it), so the centre is
+            # taken over the cells near the ridge's height only
+            ridge = filled[cells[:, 0], cells[:, 1]] >= top - cfg.ridge_band
+            ridge = ridge if ridge.sum() >= 3 else np.ones(len(cells), bool)
+            vertical = ext_v > ext_u
+            # along the bar: the middle of its extent; across: the ridge's mean
+            mu = (cu.min() + cu.max()) / 2 if not vertical else float(np.mean(cu[ridge]))
+            mv = (cv.min() + cv.max()) / 2 if vertical else float(np.mean(cv[ridge]))
+            out.append(("handle", float(mu), float(mv), float(length), float(width),
+                        top - cfg.handle_radius, vertical))
         elif length <= cfg.knob_max_size and width >= 0.02 and length / width < cfg.handle_min_elongation:
             out.append(("knob", float(np.mean(cu)), float(np.mean(cv)), float(length),
                         float(width), base, False))
     return out
+
+
+def _merge_bars(found: list) -> list:
+    """Pieces of one bar handle (a long bar is sometimes fused in pieces) joined: handles in
+    line (within 2.5 cm across, the same way) with a gap under 12 cm between them."""
+    bars = [f for f in found if f[0] == "handle"]
+    rest = [f for f in found if f[0] != "handle"]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(bars)):
+            for j in range(i + 1, len(bars)):
+                a, b = bars[i], bars[j]
+                if a[6] != b[6]:
+                    continue
+                across = abs(a[1] - b[1]) if a[6] else abs(a[2] - b[2])
+                pa, pb = (a[2], b[2]) if a[6] else (a[1], b[1])
+                gap = abs(pa - pb) - (a[3] + b[3]) / 2
+                if across > 0.025 or gap > 0.12:
+                    continue
+                lo = min(pa - a[3] / 2, pb - b[3] / 2)
+                hi = max(pa + a[3] / 2, pb + b[3] / 2)
+                mid = (lo + hi) / 2
+                other = (a[1] * a[3] + b[1] * b[3]) / (a[3] + b[3]) if a[6] else \
+                    (a[2] * a[3] + b[2] * b[3]) / (a[3] + b[3])
+                fu, fv = (other, mid) if a[6] else (mid, other)
+                bars[i] = ("handle", fu, fv, hi - lo, max(a[4], b[4]), max(a[5], b[5]), a[6])
+                bars.pop(j)
+                merged = True
+                break
+            if merged:
+                break
+    return bars + rest
 
 
 def choose_front(obj: ObjectDraft, room: RoomDraft) -> None:

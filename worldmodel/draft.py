@@ -90,8 +90,14 @@ def draft_world(draft, home_id: str = "draft_home", parking: bool = True) -> Dra
         for room in rooms:
             for obj in room.objects:
                 propose_parking(room, obj)
-                if not obj.parking:
-                    unlabelled.append(f"{obj.id}: no parking position found in front of it")
+            # the format wants a parking position for every large object: one with none is
+            # left out of the file and listed (its box, so a person can add it)
+            for obj in [o for o in room.objects if not o.parking]:
+                room.objects.remove(obj)
+                sx, sy, sz = obj.model.visuals[0].size
+                unlabelled.append(f"{obj.id} ({obj.type}, {sx:.2f} x {sy:.2f} x {sz:.2f} m at "
+                                  f"x={obj.pose.x:.2f} y={obj.pose.y:.2f} in {room.id}): no "
+                                  "parking position passes the checks; left out")
     return DraftResult(apartment, unlabelled)
 
 
@@ -315,3 +321,63 @@ def rename(data: bytes, old: str, new: str, name: str = "<world>") -> tuple[byte
                 el.set(attr, nv)
                 changed += 1
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8"), changed
+
+
+# -- the picture --------------------------------------------------------------------------------
+
+def draw_draft(world, points_map: np.ndarray, colors: np.ndarray, px_per_m: int = 80,
+               margin_m: float = 0.4) -> np.ndarray:
+    """An RGB picture of the draft over the fused map from above (world x right, y up): the
+    map's points under the ceiling in their colours, each room's rectangle, each object's box
+    with its id and an arrow to its front, handles (blue) and knobs (red)."""
+    import cv2
+    from worldmodel.frames import room_corners
+    from worldmodel.geometry import part_T
+    P = np.asarray(points_map, float)
+    C = np.asarray(colors, float)
+    keep = P[:, 2] < 2.2
+    P, C = P[keep], C[keep]
+    corners = [room_corners(r) for r in world.rooms if r.bounds is not None]
+    pts = np.vstack(corners + [P[:, :2]]) if len(P) else np.vstack(corners)
+    x0, y0 = pts.min(0) - margin_m
+    x1, y1 = pts.max(0) + margin_m
+    W, H = int((x1 - x0) * px_per_m) + 1, int((y1 - y0) * px_per_m) + 1
+    img = np.full((H, W, 3), 255, np.uint8)
+    if len(P):
+        order = np.argsort(P[:, 2])                  # the highest point of a pixel on top
+        u = ((P[order, 0] - x0) * px_per_m).astype(int)
+        v = ((y1 - P[order, 1]) * px_per_m).astype(int)
+        img[v.clip(0, H - 1), u.clip(0, W - 1)] = (C[order] * 255).clip(0, 255).astype(np.uint8)
+
+    def px(x, y):
+        return int(round((x - x0) * px_per_m)), int(round((y1 - y) * px_per_m))
+
+    for room, cs in zip(world.rooms, corners):
+        cv2.polylines(img, [np.array([px(*c) for c in cs], np.int32)], True, (20, 20, 200), 2,
+                      cv2.LINE_AA)
+        c = cs.mean(0)
+        cv2.putText(img, room.id, px(c[0], c[1]), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (20, 20, 200), 1,
+                    cv2.LINE_AA)
+    for room in world.rooms:
+        T_wr = room.pose.matrix()
+        for o in room.objects:
+            T_wo = T_wr @ o.pose.matrix()
+            fp = _footprint(o)
+            fp_w = (T_wr[:2, :2] @ fp.T).T + T_wr[:2, 3]
+            cv2.polylines(img, [np.array([px(*p) for p in fp_w], np.int32)], True, (0, 140, 0), 2,
+                          cv2.LINE_AA)
+            c = T_wo[:2, 3]
+            sx = o.model.visuals[0].size[0]
+            tip = T_wo[:2, 3] + T_wo[:2, 0] * (sx / 2 + 0.25)
+            cv2.arrowedLine(img, px(*c), px(*tip), (0, 140, 0), 1, cv2.LINE_AA, tipLength=0.2)
+            cv2.putText(img, o.id, px(c[0] - 0.3, c[1]), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                        (0, 90, 0), 1, cv2.LINE_AA)
+            if isinstance(o, LargeArticulatedObject):
+                for p in o.parts:
+                    for h in p.handles:
+                        q = T_wo @ part_T(p, 0.0) @ np.append(h.pose.position, 1.0)
+                        cv2.circle(img, px(q[0], q[1]), 3, (30, 60, 230), -1)
+                for k in o.knobs:
+                    q = T_wo @ np.append(k.pose.position, 1.0)
+                    cv2.circle(img, px(q[0], q[1]), 3, (220, 30, 30), -1)
+    return img

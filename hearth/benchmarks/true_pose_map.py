@@ -94,6 +94,9 @@ def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), p
     for i, T in enumerate(poses):
         f = render_view(world, K, T, rng=rng, noise=KinectNoise() if cfg.noise else None,
                         scene=scene)
+        valid = (f.depth > 0) & (f.depth < cfg.depth_trunc)
+        if valid.sum() < 100:           # a view of nothing in range (a dark frame): skipped
+            continue
         depth = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(f.depth, dtype=np.float32)))
         color = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(f.color, dtype=np.float32) / 255.0))
         ext = o3c.Tensor(np.linalg.inv(T))
