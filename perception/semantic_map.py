@@ -48,6 +48,9 @@ class DraftConfig:
     min_room_area: float = 1.5         #: m^2 of seen floor
     wall_band: tuple = (2.15, 2.42)    #: heights where only walls stand (walls 2.5 high)
     wall_margin: float = 0.015         #: points this near a room side are wall
+    #: points this near a room side are wall whatever their normal (the outline is good to a
+    #: centimetre or two; furniture stands at least a centimetre off the wall)
+    wall_strip: float = 0.025
     object_grid: float = 0.01          #: top-down grid of the objects
     object_min_area: float = 0.03      #: m^2 of footprint
     object_min_height: float = 0.25
@@ -278,8 +281,9 @@ def find_objects(points_map: np.ndarray, normals_map: np.ndarray, rooms: list[Ro
         # against a wall shows it its sides and top, never a face parallel to it)
         c, s_ = math.cos(room.yaw), math.sin(room.yaw)
         nq = N[:, :2] @ np.array([[c, -s_], [s_, c]])
-        wall = (((room.size_x / 2 - np.abs(q[:, 0]) < 0.05) & (np.abs(nq[:, 0]) > 0.8))
-                | ((room.size_y / 2 - np.abs(q[:, 1]) < 0.05) & (np.abs(nq[:, 1]) > 0.8)))
+        gx, gy = room.size_x / 2 - np.abs(q[:, 0]), room.size_y / 2 - np.abs(q[:, 1])
+        wall = (((gx < 0.08) & (np.abs(nq[:, 0]) > 0.7)) | ((gy < 0.08) & (np.abs(nq[:, 1]) > 0.7))
+                | (np.minimum(gx, gy) < cfg.wall_strip))
         inner &= ~wall
         sel = np.flatnonzero((room_of == r) & inner & (P[:, 2] > cfg.floor_band)
                              & (P[:, 2] < cfg.max_object_height))
@@ -291,10 +295,12 @@ def find_objects(points_map: np.ndarray, normals_map: np.ndarray, rooms: list[Ro
         ij = np.clip(ij, 0, np.array(shape) - 1)
         occ = np.zeros(shape, bool)
         occ[ij[:, 0], ij[:, 1]] = True
-        occ = ndimage.binary_closing(occ, np.ones((3, 3)))
+        # a closing of one cell joins the sparse sides of a tall object seen from below its
+        # top, and leaves a gap of two cells (furniture stands 3 cm apart or more) open
+        occ = ndimage.binary_closing(occ, np.ones((2, 2)))
         labels, n = ndimage.label(occ, np.ones((3, 3)))
-        lab = labels[ij[:, 0], ij[:, 1]]
         areas = ndimage.sum(occ, labels, np.arange(1, n + 1)) * cfg.object_grid ** 2
+        lab = labels[ij[:, 0], ij[:, 1]]
         for k in range(1, n + 1):
             idx = sel[lab == k]
             if len(idx) < 200 or areas[k - 1] < cfg.object_min_area:

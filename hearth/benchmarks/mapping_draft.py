@@ -37,7 +37,7 @@ import numpy as np
 
 APPLIANCE_TYPES = ("oven", "cooker", "hob", "fridge")
 #: Training homes of the classifier: never the benchmark's seeds (100.. report, 1..99 tune).
-TRAIN_SEEDS = tuple(range(1000, 1016))
+TRAIN_SEEDS = tuple(range(1000, 1014))
 CLASSIFIER_VERSION = 1
 
 

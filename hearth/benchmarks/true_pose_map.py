@@ -31,7 +31,7 @@ class TruePoseMapConfig:
     seed: int = 0
 
 
-def _view_poses(world, cfg: TruePoseMapConfig) -> list[np.ndarray]:
+def _view_poses(world, cfg: TruePoseMapConfig, few: bool = False) -> list[np.ndarray]:
     """True ``T_world_camera`` of every view (see the module docstring)."""
     from hearth.robot.sim import camera_pose, pan_tilt_to
     from worldmodel.frames import T_world_room
@@ -51,13 +51,13 @@ def _view_poses(world, cfg: TruePoseMapConfig) -> list[np.ndarray]:
             lo, hi = pts.min(0), pts.max(0)
             free.append((lo, hi))
             centre = (lo + hi) / 2
-            for pk in o.parking:
+            for pk in (o.parking[:1] if few else o.parking):
                 T_wb = T_wo @ pk.pose.matrix()
                 for z in sorted({min(hi[2], 1.0) * 0.5, hi[2] - 0.05, 0.15}):
                     target = np.array([centre[0], centre[1], z])
                     pan, tilt = pan_tilt_to(T_wb, target)
                     out.append(camera_pose(T_wb, pan, tilt))
-        for sx, sy in spots:
+        for sx, sy in (spots[:1] if few else spots):
             p = T_wr @ np.array([sx, sy, 0.0, 1.0])
             if any(np.all(p[:2] > lo[:2] - 0.35) and np.all(p[:2] < hi[:2] + 0.35)
                    for lo, hi in free):
@@ -71,9 +71,11 @@ def _view_poses(world, cfg: TruePoseMapConfig) -> list[np.ndarray]:
     return out
 
 
-def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), progress=None):
+def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), progress=None,
+                          few: bool = False):
     """(open3d PointCloud with colours and normals, number of views) of ``world`` rendered at
-    true poses and fused (see the module docstring)."""
+    true poses and fused (see the module docstring); ``few``: from each object's first
+    parking position only and one place per room (a quick map for tests)."""
     import open3d as o3d
     import open3d.core as o3c
     from hearth.robot.noise import KinectNoise
@@ -89,7 +91,7 @@ def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), p
         attr_dtypes=(o3c.float32, o3c.float32, o3c.float32), attr_channels=((1), (1), (3)),
         voxel_size=cfg.voxel, block_resolution=16, block_count=60000)
     K_t = o3c.Tensor(K.matrix())
-    poses = _view_poses(world, cfg)
+    poses = _view_poses(world, cfg, few)
     trunc_voxels = cfg.sdf_trunc / cfg.voxel
     for i, T in enumerate(poses):
         f = render_view(world, K, T, rng=rng, noise=KinectNoise() if cfg.noise else None,
