@@ -7,7 +7,8 @@ import sys
 
 def register(sub) -> None:
     p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words",
-                       description="Inspect the hierarchical semantic map of a world file.")
+                       description="Inspect the hierarchical semantic map of a world file, or draft "
+                                   "one from a fused map (docs/mapping.md).")
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", required=True)
     show = msub.add_parser("show", help="print the hierarchy with states")
     show.add_argument("world", metavar="WORLD")

@@ -2,7 +2,7 @@
 
 ``fused_from_true_poses(world)`` renders RGB-D views of the truth with the simulated camera
 (hearth/robot/sim.py, Kinect-class noise) at *true* camera poses and fuses them with open3d's
-ScalableTSDFVolume into a coloured point cloud with normals in the map frame (z up, floor at
+TSDF (the tensor VoxelBlockGrid) into a coloured point cloud with normals in the map frame (z up, floor at
 z = 0, metres): the same thing ``hearth map build`` writes as DIR/fused/map.ply from a tour.
 No odometry, no pose graph: figures drafted from it say ``"poses": "true"``; swap in the
 tour's map to measure the whole chain.
