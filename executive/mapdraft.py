@@ -90,3 +90,36 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
     return dict(world=str(world_path), picture=str(png), unlabelled=unlabelled,
                 rooms=len(result.apartment.rooms),
                 objects=sum(len(r.objects) for r in result.apartment.rooms), seconds=seconds)
+
+
+# -- the hook of `hearth map build` (hearth/mapping/build.py, the metric-map stages) -------------
+
+def _stage_run(ctx) -> dict:
+    """The ``draft`` stage: ``ctx.out/fused/map.ply`` -> ``ctx.out/draft/``."""
+    from perception.errors import PerceptionError
+    try:
+        done = draft_from_fused(ctx.out, ctx.out / "draft", progress=ctx.progress)
+    except DraftError as err:
+        raise PerceptionError(str(err)) from None
+    for line in done["unlabelled"]:
+        ctx.warnings.append(f"draft: {line}")
+    return {k: done[k] for k in ("world", "picture", "rooms", "objects", "seconds")} | \
+        {"unlabelled": len(done["unlabelled"])}
+
+
+def register_build_stage() -> bool:
+    """Register the ``draft`` stage after the metric map's last stage (``picture``) in
+    ``hearth map build``; False where that command is not there. Adding this module to
+    ``hearth.mapping.build.STAGE_MODULES`` joins the two."""
+    try:
+        from hearth.mapping.build import STAGES, Stage, register_stage
+    except ImportError:
+        return False
+    after = "picture" if any(s.name == "picture" for s in STAGES) else None
+    register_stage(Stage("draft", _stage_run, "the semantic draft: rooms, large objects, parts, "
+                                              "parking -> draft/world.xml, draft/draft.png",
+                         needs=("fuse",)), after=after)
+    return True
+
+
+register_build_stage()
