@@ -554,12 +554,25 @@ def _turn(obj: ObjectDraft, side: int) -> None:
 FEATURES = ("height", "z0", "long", "short", "front", "side", "area", "fill", "n_levels",
             "top_level_frac", "n_handles", "n_vertical", "n_horizontal", "n_knobs_front",
             "n_knobs_top", "handle_z_max", "handle_len_max", "wall_distance", "r", "g", "b",
-            "top_dark", "colour_std", "front_flat", "hv_ratio")
+            "top_dark", "colour_std", "front_flat", "hv_ratio",
+            # the room around it (Rusu's CRF looks at neighbours; this is the cheap part)
+            "room_area", "room_objects", "room_knobbed", "room_tall")
+
+
+def room_context(draft_objects: list, obj: "ObjectDraft", rooms: list) -> list[float]:
+    """The room features of ``obj``: its room's area, how many other objects stand in it,
+    how many of those carry two knobs or more, how many are over 1.5 m tall."""
+    others = [o for o in draft_objects if o.room == obj.room and o is not obj]
+    room = rooms[obj.room]
+    return [room.size_x * room.size_y, len(others),
+            sum(1 for o in others if sum(f.kind == "knob" for f in o.fixtures) >= 2),
+            sum(1 for o in others if o.z1 > 1.5)]
 
 
 def object_features(points_map: np.ndarray, normals_map: np.ndarray, colors: np.ndarray,
-                    obj: ObjectDraft) -> np.ndarray:
-    """The feature vector (``FEATURES``) of an object draft with its front chosen."""
+                    obj: ObjectDraft, context: list[float]) -> np.ndarray:
+    """The feature vector (``FEATURES``) of an object draft with its front chosen;
+    ``context``: its ``room_context``."""
     P, N, C = (np.asarray(a, float)[obj.index] for a in (points_map, normals_map, colors))
     handles = [f for f in obj.fixtures if f.kind == "handle" and f.side == 0]
     knobs_f = [f for f in obj.fixtures if f.kind == "knob" and f.side == 0]
@@ -578,7 +591,7 @@ def object_features(points_map: np.ndarray, normals_map: np.ndarray, colors: np.
         len(knobs_f), len(knobs_t),
         max((f.v for f in handles), default=0.0), max((f.length for f in handles), default=0.0),
         min(obj.wall_distance, 2.0), *C.mean(0), float(top_c.mean()), float(C.std(0).mean()),
-        front_flat, float(horiz.mean())])
+        front_flat, float(horiz.mean()), *context])
 
 
 class LargeObjectClassifier(ClassifierMixin, BaseEstimator):
@@ -683,7 +696,9 @@ def label(draft: Draft, points_map, normals_map, colors, classifier: LargeObject
     ``unlabelled``."""
     if not draft.objects:
         return draft
-    X = np.array([object_features(points_map, normals_map, colors, o) for o in draft.objects])
+    X = np.array([object_features(points_map, normals_map, colors, o,
+                                  room_context(draft.objects, o, draft.rooms))
+                  for o in draft.objects])
     proba = classifier.predict_proba(X)
     for o, p in zip(draft.objects, proba):
         k = int(np.argmax(p))

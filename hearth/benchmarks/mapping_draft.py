@@ -37,8 +37,8 @@ import numpy as np
 
 APPLIANCE_TYPES = ("oven", "cooker", "hob", "fridge")
 #: Training homes of the classifier: never the benchmark's seeds (100.. report, 1..99 tune).
-TRAIN_SEEDS = tuple(range(1000, 1014))
-CLASSIFIER_VERSION = 1
+TRAIN_SEEDS = tuple(range(1000, 1019))
+CLASSIFIER_VERSION = 2
 
 
 def add_arguments(parser) -> None:
@@ -289,7 +289,7 @@ def _label_of(obj, truth: list[_Obj]) -> str:
 
 def training_samples(seeds=TRAIN_SEEDS, progress=None):
     """(X, y) of the drafted objects of generated homes ``seeds`` (their true-pose maps)."""
-    from perception.semantic_map import draft_geometry, object_features
+    from perception.semantic_map import draft_geometry, object_features, room_context
     from worldmodel.homegen import HomeConfig
     from hearth.benchmarks.true_pose_map import cached_fused
     X, y = [], []
@@ -299,7 +299,7 @@ def training_samples(seeds=TRAIN_SEEDS, progress=None):
         d = draft_geometry(P, N)
         truth = truth_objects(world)
         for o in d.objects:
-            X.append(object_features(P, N, C, o))
+            X.append(object_features(P, N, C, o, room_context(d.objects, o, d.rooms)))
             y.append(_label_of(o, truth))
         if progress:
             progress(f"training home {seed}: {len(d.objects)} objects ({i + 1}/{len(seeds)})")

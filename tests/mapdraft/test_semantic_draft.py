@@ -14,7 +14,7 @@ import pytest
 from hearth.benchmarks import mapping_draft as md
 from perception.semantic_map import (
     Fixture, LargeObjectClassifier, ObjectDraft, articulate, draft_geometry, label,
-    object_features,
+    object_features, room_context,
 )
 from worldmodel.draft import draft_world, rename
 from worldmodel.errors import WorldError
@@ -79,7 +79,7 @@ def test_the_draft_world_validates_with_types_parts_and_parking(home):
     object with none is listed, with its type, as left out)."""
     world, _, P, N, C, d = home
     truth = md.truth_objects(world)
-    X = [object_features(P, N, C, o) for o in d.objects]
+    X = [object_features(P, N, C, o, room_context(d.objects, o, d.rooms)) for o in d.objects]
     y = [md._label_of(o, truth) for o in d.objects]
     label(d, P, N, C, LargeObjectClassifier(n_estimators=50).fit(X, y))
     result = draft_world(d)
