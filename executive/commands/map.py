@@ -1,4 +1,5 @@
-"""`hearth map show|find|draw`: look at a world file; `hearth map build`: a map from a tour."""
+"""`hearth map show|find|draw|draft|rename`: look at a world file; `hearth map build`: a map
+from a tour; draft a world from a fused map."""
 from __future__ import annotations
 
 import json
@@ -7,9 +8,10 @@ import sys
 
 def register(sub) -> None:
     p = sub.add_parser("map", help="show a world file's hierarchy or find nodes by words; "
-                                   "build a map from a tour",
-                       description="Inspect the hierarchical semantic map of a world file, or "
-                                   "build a map from a tour recording (docs/mapping.md).")
+                                   "build a map from a tour and draft a world from it",
+                       description="Inspect the hierarchical semantic map of a world file, "
+                                   "build a map from a tour recording, or draft a world from a "
+                                   "fused map (docs/mapping.md).")
     msub = p.add_subparsers(dest="map_command", metavar="ACTION", required=True)
     show = msub.add_parser("show", help="print the hierarchy with states")
     show.add_argument("world", metavar="WORLD")
@@ -45,6 +47,26 @@ def register(sub) -> None:
                        help="a bag's topic and frame mapping (docs/ros2-foxglove.md)")
     build.add_argument("--quiet", action="store_true", help="print only the outcome")
     build.set_defaults(func=_build)
+    dr = msub.add_parser(
+        "draft", help="draft a world from a fused map (DIR/fused/map.ply)",
+        description="The semantic-draft stages of `hearth map build` (docs/mapping.md, "
+                    "'Semantic draft'): rooms, large objects by type, doors, drawers, handles, "
+                    "knobs and parking positions from DIR/fused/map.ply; writes OUT/world.xml "
+                    "(validated), OUT/draft.png (the draft over the map) and OUT/unlabelled.txt "
+                    "(what it could not label). Ids are drafts: rename them with `hearth map "
+                    "rename`.")
+    dr.add_argument("map_dir", metavar="DIR", help="a map directory (DIR/fused/map.ply) or a .ply")
+    dr.add_argument("--out", required=True, metavar="OUT", help="directory to write")
+    dr.set_defaults(func=_draft)
+    rn = msub.add_parser("rename", help="rename a node and every reference to it",
+                         description="Rename node OLD to NEW in WORLD (in place, atomically, "
+                                     "checked before it is written): its id, every reference to "
+                                     "it, and the ids that start with OLD_ (a draft's parts, "
+                                     "handles, knobs, parking positions).")
+    rn.add_argument("world", metavar="WORLD")
+    rn.add_argument("old", metavar="OLD")
+    rn.add_argument("new", metavar="NEW")
+    rn.set_defaults(func=_rename)
 
 
 def _show(args) -> int:
@@ -114,3 +136,24 @@ def _build(args) -> int:
     print(f"{args.out}: {state} in {result.seconds:.1f} s; {len(result.warnings)} warning"
           f"{'' if len(result.warnings) == 1 else 's'}; see {args.out}/build.json")
     return 1 if result.failed else 0
+def _draft(args) -> int:
+    from hearth.mapping.draft import draft_from_fused
+    draft_from_fused(args.map_dir, args.out, progress=lambda m: print(m, flush=True))
+    return 0
+
+
+def _rename(args) -> int:
+    from pathlib import Path
+    from worldmodel.draft import rename
+    from worldmodel.io import atomic_write, parse_world
+    from hearth.files import read_limited
+    from worldmodel.io import _TOO_LARGE, MAX_FILE_BYTES
+    from worldmodel.errors import WorldError
+    path = Path(args.world)
+    data = read_limited(path, MAX_FILE_BYTES, WorldError, _TOO_LARGE)
+    parse_world(data, str(path), base_dir=path.parent.resolve())     # a bad file: one line
+    new, changed = rename(data, args.old, args.new, str(path))
+    parse_world(new, str(path), base_dir=path.parent.resolve())
+    atomic_write(path, new)
+    print(f"{path}: {args.old} -> {args.new} ({changed} ids and references)")
+    return 0

@@ -28,7 +28,7 @@ from typing import Any, Callable, Optional
 from hearth.mapping import MappingError
 
 #: Modules whose import registers stages (in order), after the metric map's.
-STAGE_MODULES: list[str] = ["hearth.mapping.metric"]
+STAGE_MODULES: list[str] = ["hearth.mapping.metric", "hearth.mapping.draft"]
 
 
 class StageFailed(Exception):
