@@ -414,8 +414,11 @@ def build_model(views: Sequence[ObjectView], config: LearnConfig = LearnConfig()
     Po = P @ Ti[:3, :3].T + Ti[:3, 3]
     No = np.asarray(cloud.normals) @ Ti[:3, :3].T
     Co = np.asarray(cloud.colors)
-    ext = Po.max(axis=0) - Po.min(axis=0)
-    size = (float(ext[0]), float(ext[1]), float(Po[:, 2].max()))
+    # Extents from the 0.5th to the 99.5th percentile: a few mixed pixels at a depth edge
+    # (the sensor's flying points, fused where two views disagree) stand centimetres off.
+    lo, hi = np.percentile(Po, 0.5, axis=0), np.percentile(Po, 99.5, axis=0)
+    ext = hi - lo
+    size = (float(max(ext[0], ext[1])), float(min(ext[0], ext[1])), float(hi[2]))
     if max(size[0], size[1]) < config.min_object_size or size[2] < config.min_object_size / 2:
         raise PerceptionError(f"the object is too small to model ({100 * max(size[:2]):.1f} cm "
                               f"across, {100 * size[2]:.1f} cm high)")

@@ -19,8 +19,9 @@ registered to each other. The learned model is compared with the true one:
   error, not where it was put; ``placement_mm``: the alignment's translation);
 - ``completeness``: share of the true surface within 5 mm of the learned one (an object's
   back against a wall is never seen);
-- ``size_err_mm``: the largest error of the footprint box's long and short side and the
-  height, the truth measured the same way from its own surface;
+- ``size_err_mm``: the largest error of the learned size (the footprint box's long and
+  short side and the height, as the model reports them) against the truth's, measured from
+  its surface;
 - ``colour_right``: the learned dominant colour names the object's colour (the nearest of
   the generator's colour words, judged on hue and, for greys, brightness);
 - ``learn_s``: wall time of segmentation, registration, fusion and meshing (rendering not
@@ -129,7 +130,7 @@ def score(truth, oid, model) -> dict:
     d1, _ = cKDTree(true_pts).query(La)
     d2, _ = cKDTree(La).query(true_pts)
     support = float(truth.T_world(oid)[2, 3])
-    size_err = np.abs(_dims(Lw, support) - _dims(true_pts, support)).max()
+    size_err = np.abs(np.asarray(model.size) - _dims(true_pts, support)).max()
     obj = truth.get(oid)
     colour = (obj.color or "").split()[0] if obj.color else None
     got = colour_name(model.colours[0][0]) if model.colours else None
