@@ -51,6 +51,7 @@ import itertools
 import json
 import math
 import multiprocessing
+import re
 import os
 import random
 import signal
@@ -1124,13 +1125,15 @@ def _issue_44_cases(world: str, first, w, m) -> list[Case]:
         f'a{i}="1"' for i in range(100_000))), klass="size")
     w("duplicate_surface_id", first(r'(<surface id="top")', r'<surface id="top" sizeX="1" '
                                     r'sizeY="1"><pose z="0.5"/></surface>\1'), klass="structure")
+    # an object and a place of the base world, whatever it is
+    obj = re.search(r'<SmallObject id="([^"]+)"', world).group(1)
+    place = re.search(r'<Large(?:Articulated)?Object id="([^"]+)"', world).group(1)
     stats = lambda *rows: world.replace("</apartment>", "<searchStats>" + "".join(
         f'<stat object="{o}" place="{p}" searched="{a}" found="{b}"/>' for o, p, a, b in rows)
         + "</searchStats></apartment>")
-    w("stat_found_above_searched", stats(("red_cup", "kitchen_table", 2, 5)), klass="numbers")
-    w("stat_unknown_place", stats(("red_cup", "nowhere", 2, 1)), klass="structure")
-    w("stat_twice", stats(("red_cup", "kitchen_table", 2, 1), ("red_cup", "kitchen_table", 3, 1)),
-      klass="structure")
+    w("stat_found_above_searched", stats((obj, place, 2, 5)), klass="numbers")
+    w("stat_unknown_place", stats((obj, "nowhere", 2, 1)), klass="structure")
+    w("stat_twice", stats((obj, place, 2, 1), (obj, place, 3, 1)), klass="structure")
     # (w and m append to fixed_cases' list; recordings and bags to this one)
 
     m("include_nul", 'name: r\ntree:\n  include: "subtrees/search.yaml\\0#note"\n', klass="nul")
