@@ -29,7 +29,9 @@ class LearnObject(Skill):
     NAME = "LearnObject"
     AUTONOMY = 1
     DESCRIPTION = "learn a new object from views around it and add it to the map"
-    INPUTS = (Port("name", "string", description="what the person calls it (\"pill organiser\")"),
+    # (not "name": BehaviorTree.CPP's own attribute of every node)
+    INPUTS = (Port("object_name", "string",
+                   description="what the person calls it (\"pill organiser\")"),
               Port("words", "string", required=False, default="",
                    description="more words for it: colour, kind (\"white plastic\")"),
               Port("kind", "string", required=False, default="",
@@ -58,7 +60,7 @@ class LearnObject(Skill):
 
     def _start(self) -> None:
         from worldmodel.learned import check_name
-        check_name(self.world, str(self.input("name")))
+        check_name(self.world, str(self.input("object_name")))
         n = int(self.input("views") or 6)
         if not 2 <= n <= 12:
             raise ValueError(f"views must be 2-12, not {n}")
@@ -154,7 +156,7 @@ class LearnObject(Skill):
         from worldmodel.errors import WorldError
         from worldmodel.homegen import COLOURS
         from worldmodel.learned import add_learned_object
-        name = str(self.input("name"))
+        name = str(self.input("object_name"))
         try:
             from worldmodel.learned import support_colour
             model = build_model(self.views, given=len(self.views),

@@ -485,10 +485,13 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                     bad(f"{node.id}: default position names unknown parent {d.parent!r}", d)
         elif kind == "Charger" and parent.bounds is not None:
             # The robot must be able to stand at the dock: inside the charger's room.
-            d = node.pose.matrix() @ node.dock.matrix()
+            # (planar: Pose.matrix would bring in scipy, which validating never needs)
+            c, s_ = math.cos(node.pose.yaw), math.sin(node.pose.yaw)
+            dx = node.pose.x + c * node.dock.x - s_ * node.dock.y
+            dy = node.pose.y + s_ * node.dock.x + c * node.dock.y
             x0, y0, x1, y1 = parent.bounds
-            if not (x0 <= d[0, 3] <= x1 and y0 <= d[1, 3] <= y1):
-                bad(f"charger {node.id!r}: its dock pose ({d[0, 3]:.2f}, {d[1, 3]:.2f}) is "
+            if not (x0 <= dx <= x1 and y0 <= dy <= y1):
+                bad(f"charger {node.id!r}: its dock pose ({dx:.2f}, {dy:.2f}) is "
                     f"outside room {parent.id!r}", node)
         elif kind == "Room":
             if node.bounds is not None:

@@ -115,7 +115,7 @@ def run(args) -> dict:
 def incomplete(result: dict) -> str | None:
     """Why the figures leave cases out: cases an engine could not deliver
     (``engine_errors``: a world that arrived incomplete on a worker)."""
-    bad = {k: v["errors_by_kind"].get("engine", 0)
+    bad = {k: (v.get("errors_by_kind") or {}).get("engine", 0)
            for k, v in result.get("engines", {"": result}).items()}
     if any(bad.values()):
         return ("the engine could not deliver " + ", ".join(

@@ -15,7 +15,8 @@ MISSIONS = sorted(str(p) for p in Path(missions_dir()).glob("*.yaml")) + \
 
 PARAMS = {"fetch_object": {"object": "blue cup"}, "search_object": {"object": "blue cup"},
           "refine_localisation": {"at": "kitchen_table"},
-          "deliver_reminder": {"text": "time for your pills"}}
+          "deliver_reminder": {"text": "time for your pills"},
+          "learn_object": {"name": "pill organiser"}}
 
 
 def branching_case(mission: str) -> Case:
