@@ -859,6 +859,9 @@ def _knob_states(ctx: _Ctx, symmetry: int = 1) -> tuple[list[KnobState], str, bo
 #: pointer-shaped grip given as a mesh, a line marker on it), "skirt" (a wide skirt with a
 #: cap and a coloured dot).
 KNOB_FAMILIES = ("plain", "bar", "tip", "pointer", "skirt")
+#: The grip types of the knob design space; a generated grip's first visual is named by its
+#: type (the knob bench's design families for its held-out protocol, ``family_of``).
+GRIP_TYPES = ("cylinder", "bar", "fin", "d-shape", "knurled", "tapered")
 _KNOB_COLOURS = [(0.9, 0.9, 0.88), (0.08, 0.08, 0.09), (0.74, 0.75, 0.77), (0.93, 0.88, 0.75),
                  (0.15, 0.15, 0.16), (0.55, 0.56, 0.6)]
 _MARKER_COLOURS = [(0.85, 0.1, 0.1), (0.95, 0.55, 0.05), (0.1, 0.35, 0.85), (0.05, 0.05, 0.05),
