@@ -158,8 +158,9 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 #: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
 #: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on;
 #: 4 = a skirt knob's dot stands 1 mm proud of its cap as built (not level with it on some homes).
-#: 5 = knobs drawn from a design space (base, grip, marker, materials, stand-off), off anywhere in the travel.
-GENERATOR_VERSION = 5
+#: 5 = knobs drawn from a design space (base, grip, marker, materials, stand-off), off anywhere in the travel;
+#: 6 = a low-contrast or dark-on-dark line or dot stands 1.5-3 mm proud (a printed pointer stands out in colour).
+GENERATOR_VERSION = 6
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -962,8 +963,10 @@ def _knob_design(ctx: _Ctx, r: float, depth: float) -> dict:
     if marker_kind == "dial":
         base_kind = "bezel"                              # the printed ring stays on the panel
     style = pick(MATERIAL_STYLES)
-    if marker_kind == "tip" and style in ("low-contrast", "dark-on-dark"):
-        style = "contrast"   # a tip is the bar's own end: only its colour tells it (no relief)
+    if marker_kind in ("tip", "printed") and style in ("low-contrast", "dark-on-dark"):
+        # a tip is the bar's own end and a printed pointer has no relief: only their colour
+        # tells them
+        style = "contrast"
     body, grip_c, mark, material = _colours(drng, style)
     standoff = 0.0 if drng.random() < 0.5 else _mm(u(0.0005, 0.003))   # flush .. 3 mm off
     # the base: how thick it is (a flat disc down to 1 mm) and how wide the grip on it is
@@ -1017,17 +1020,21 @@ def _knob_design(ctx: _Ctx, r: float, depth: float) -> dict:
                       material=material, name=grip_kind)
         top_r = rg * (0.6 if grip_kind == "tapered" else 0.95)
     marker = None
-    zt = z1 + 0.00025
+    # a marker of little contrast stands proud of the grip (a raised ridge or bump: what
+    # makes a dark-on-dark knob readable to a person, by its shading and its relief); one
+    # that stands out in colour is printed or inlaid, half a millimetre proud
+    proud = _mm(u(0.0015, 0.003)) if style in ("low-contrast", "dark-on-dark") else 0.0005
+    zt = z1 + proud / 2
     if marker_kind == "line":
         if grip_kind in ("bar", "fin"):
             lw = min(w * 0.5, r * 0.12)
-            marker = box(lw, rg * 0.7, 0.0005, y=rg * 0.5, z=zt, color=mark, name="line")
+            marker = box(lw, rg * 0.7, proud, y=rg * 0.5, z=zt, color=mark, name="line")
         else:
-            marker = box(max(0.0015, top_r * 0.14), top_r * 0.6, 0.0005, y=top_r * 0.5, z=zt,
+            marker = box(max(0.0015, top_r * 0.14), top_r * 0.6, proud, y=top_r * 0.5, z=zt,
                          color=mark, name="line")
     elif marker_kind == "dot":
-        rd = max(0.0015, top_r * u(0.15, 0.25))
-        marker = cyl(rd, 0.0005, y=top_r - 1.4 * rd, z=zt, color=mark, name="dot")
+        rd = max(0.002, top_r * u(0.15, 0.25))
+        marker = cyl(rd, proud, y=top_r - 1.4 * rd, z=zt, color=mark, name="dot")
     elif marker_kind == "tip":
         marker = box(w, tl, hg, y=rg - tl / 2, z=zc, color=mark, material=material, name="tip")
     elif marker_kind == "printed":
