@@ -517,6 +517,9 @@ class KnobPrior:
     symmetry: int = 1
     travel: Optional[tuple[float, float]] = None
     off_state: str = ""
+    #: what of the knob stands at every angle (``standing_profile``): ((radius, top height)
+    #: m, ...) per visual but the markers; () unknown (a cylinder of the outline assumed)
+    profile: tuple = ()
 
     def T_world_face(self) -> np.ndarray:
         """The knob's front face (z = depth) at angle 0."""
@@ -570,8 +573,35 @@ def knob_priors(world, object_id: Optional[str] = None,
         s = _shape_of(k, lib, world.base_dir)
         out.append(KnobPrior(k.id, T_wp @ k.pose.matrix(), s.radius, s.face,
                              tuple(x.name for x in k.states), tuple(float(x.angle) for x in k.states),
-                             s.key, s.symmetry, knob_travel(k), k.off))
+                             s.key, s.symmetry, knob_travel(k), k.off, standing_profile(s)))
     return out
+
+
+def standing_profile(shape: KnobShape) -> tuple:
+    """What of a knob stands out of its panel whatever its angle: for each visual but the
+    markers, the radius of the largest disc about the axis inside its outline on the face
+    plane (a round cap's rim, a bar's half width, 0 where the visual does not cover the axis)
+    and its top's height (m). A bar grip 8 mm wide on a 2 mm bezel stands 4 mm about the axis
+    at its full height and over the whole bezel 2 mm: the knob panel's match looks for that,
+    not for a cylinder of the outline (knob_panel)."""
+    from scipy.spatial import ConvexHull, QhullError
+    out = []
+    for v, role in zip(shape.vertices, shape.roles):
+        if role == "marker" or len(v) < 3:
+            continue
+        xy = np.asarray(v[:, :2], dtype=float)
+        try:
+            P = xy[ConvexHull(xy).vertices]
+        except (QhullError, ValueError):
+            continue
+        E = np.roll(P, -1, axis=0) - P
+        cross = E[:, 0] * (-P[:, 1]) - E[:, 1] * (-P[:, 0])      # origin left of every edge: inside
+        L = np.hypot(E[:, 0], E[:, 1])
+        ok = L > 1e-9
+        inside = bool(np.all(cross[ok] >= -1e-9))
+        r_in = float(np.min(np.abs(cross[ok]) / L[ok])) if inside and ok.any() else 0.0
+        out.append((round(r_in, 5), round(float(v[:, 2].max()), 5)))
+    return tuple(out)
 
 
 _SHAPES: dict = {}

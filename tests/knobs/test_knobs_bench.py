@@ -83,3 +83,21 @@ def test_a_knob_read_from_more_views_keeps_the_first_state_a_view_gives():
     # three views: only a, right from every start
     assert out["3"] == dict(sequences=3, state_accuracy=1.0, state_wrong_rate=0.0,
                             on_read_as_off=0)
+
+
+def test_gates_chosen_again_on_a_readers_own_readings_are_its_gates(reader):
+    """The held-out protocol chooses gates on other families' readings with the function
+    training used (``gates_from``): on the reader's own validation readings it gives the
+    reader's gates to the digit, and on readings with every wrong one left out, state gates
+    no higher."""
+    from perception.knob_training import TrainingConfig, gates_from
+    val = reader.validation_
+    assert {"depth", "colour"} <= set(val) and all("knob" in r for r in val["depth"])
+    again = gates_from(reader, val, TrainingConfig().tiny())
+    assert again.detect_gate.threshold_ == reader.detect_gate.threshold_
+    assert [again.margin_threshold_for(lv) for lv in range(3)] == \
+           [reader.margin_threshold_for(lv) for lv in range(3)]
+    assert again.half_turn_gates == reader.half_turn_gates
+    right = {k: [r for r in rs if r["right"] or not r["present"]] for k, rs in val.items()}
+    easier = gates_from(reader, right, TrainingConfig().tiny())
+    assert all(easier.margin_threshold_for(lv) <= reader.margin_threshold_for(lv) for lv in range(3))
