@@ -159,8 +159,9 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 #: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on;
 #: 4 = a skirt knob's dot stands 1 mm proud of its cap as built (not level with it on some homes).
 #: 5 = knobs drawn from a design space (base, grip, marker, materials, stand-off), off anywhere in the travel;
-#: 6 = a low-contrast or dark-on-dark line or dot stands 1.5-3 mm proud (a printed pointer stands out in colour).
-GENERATOR_VERSION = 6
+#: 6 = a low-contrast or dark-on-dark line or dot stands 1.5-3 mm proud (a printed pointer stands out in colour);
+#: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it.
+GENERATOR_VERSION = 7
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -1019,6 +1020,13 @@ def _knob_design(ctx: _Ctx, r: float, depth: float) -> dict:
         grip = Visual("mesh", file=_grip_mesh(ctx, grip_kind, rg, z_grip0, z1, drng), color=grip_c,
                       material=material, name=grip_kind)
         top_r = rg * (0.6 if grip_kind == "tapered" else 0.95)
+    # the grip's top as built (a primitive's centre and size are rounded to the millimetre:
+    # a marker put on the unrounded top was buried half a millimetre inside the grip on
+    # some knobs, generator versions 5 and 6)
+    if grip.shape == "cylinder":
+        z1 = grip.pose.z + grip.length / 2
+    elif grip.shape == "box":
+        z1 = grip.pose.z + grip.size[2] / 2
     marker = None
     # a marker of little contrast stands proud of the grip (a raised ridge or bump: what
     # makes a dark-on-dark knob readable to a person, by its shading and its relief); one
@@ -1035,6 +1043,8 @@ def _knob_design(ctx: _Ctx, r: float, depth: float) -> dict:
     elif marker_kind == "dot":
         rd = max(0.002, top_r * u(0.15, 0.25))
         marker = cyl(rd, proud, y=top_r - 1.4 * rd, z=zt, color=mark, name="dot")
+    if marker_kind in ("line", "dot"):
+        marker = replace(marker, pose=replace(marker.pose, z=round(zt, 5)))
     elif marker_kind == "tip":
         marker = box(w, tl, hg, y=rg - tl / 2, z=zc, color=mark, material=material, name="tip")
     elif marker_kind == "printed":
