@@ -149,3 +149,31 @@ def test_a_knob_that_is_on_is_never_read_off(kitchen, knob, state, distance, off
         return
     r = _read(kitchen, knob, s.angle + math.radians(jitter), distance, off_axis, up, noise_seed=seed)
     assert r.state != k.off, (knob, s.name, r.evidence)
+
+
+def test_a_knurled_grip_is_ridged_round_and_a_cylinder_or_taper_is_not(tmp_path):
+    """``near_round``: a knurled ring (ridges 7 % deep) with a dot is a body whose angle rests
+    on its marker alone while its ridges fit elsewhere (its "off" needs a second view); a
+    plain cylinder, a taper or a D-shaped grip is not."""
+    from perception.knobs import knob_shape, near_round
+    from worldmodel.homegen_geometry import fan_prism, frustum
+    from worldmodel.nodes import Knob
+    n = 20
+    a = np.linspace(0, 2 * math.pi, 2 * n, endpoint=False)
+    rr = np.where(np.arange(2 * n) % 2 == 0, 0.02, 0.0186)
+    meshes = {"knurl.ply": fan_prism(np.c_[rr * np.cos(a), rr * np.sin(a)], 0.0, 0.02),
+              "taper.ply": frustum(0.02, 0.014, 0.0, 0.02),
+              "d.ply": extrude([(-0.012, -0.01), (0.012, -0.01), (0.02, 0.0), (0.0, 0.02), (-0.02, 0.0)], 0.0, 0.02)}
+    for name, m in meshes.items():
+        (tmp_path / name).write_bytes(ply_bytes(m))
+    dot = Model([_cyl(0.003, 0.002, 0.021, RED, y=0.012, name="dot")])
+
+    def shape(grip):
+        k = Knob("k", Pose(), [KnobState("off", 0.0), KnobState("1", 0.5)], "off", radius=0.02,
+                 depth=0.022, grip=grip, marker=dot)
+        return knob_shape(k, {}, tmp_path)
+    mesh = lambda f: Model([Visual("mesh", file=f, color=STEEL, name="grip")])
+    assert near_round(shape(mesh("knurl.ply")))
+    assert not near_round(shape(mesh("taper.ply")))
+    assert not near_round(shape(mesh("d.ply")))
+    assert not near_round(shape(Model([_cyl(0.02, 0.02, 0.01, STEEL, name="cylinder")])))
