@@ -262,7 +262,7 @@ def copy_world_files(worlds, directory) -> None:
 
 def _file_refs(world):
     """(node id, object, attribute) for every file reference of a world: mesh visuals of the
-    library and of every node, and room point clouds."""
+    library and of every node (a knob's base, grip and marker too), and room point clouds."""
     from worldmodel.validate import iter_nodes
     ap = world.apartment
     for mid, model in ap.library.items():
@@ -270,10 +270,11 @@ def _file_refs(world):
             if v.shape == "mesh" and v.file:
                 yield mid, v, "file"
     for node, _ in iter_nodes(ap):
-        model = getattr(node, "model", None)
-        for v in (model.visuals if model is not None else []):
-            if v.shape == "mesh" and v.file:
-                yield node.id, v, "file"
+        for role in ("model", "base", "grip", "marker"):      # a knob's shape: its models
+            model = getattr(node, role, None)
+            for v in (getattr(model, "visuals", None) or []):
+                if v.shape == "mesh" and v.file:
+                    yield node.id, v, "file"
         if getattr(node, "kind", "") == "Room" and node.pointcloud:
             yield node.id, node, "pointcloud"
 
