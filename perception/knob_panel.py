@@ -200,7 +200,8 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
                 continue
             g = z / max(cam_h - z, 1e-3)
             cx, cy = x + g * (x - cam[0]), y + g * (y - cam[1])
-            disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (rad * (1 + g)) ** 2
+            # at least a canvas pixel across (a thin fin's middle is narrower than one)
+            disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (max(rad, 1.0 / ppm) * (1 + g)) ** 2
             tpl[disc] = np.maximum(tpl[disc], z)
             foots[p.knob_id] = disc | foots.get(p.knob_id, False)
         # the face a bump must show: the widest part standing at least half the top's height

@@ -160,8 +160,10 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 #: 4 = a skirt knob's dot stands 1 mm proud of its cap as built (not level with it on some homes).
 #: 5 = knobs drawn from a design space (base, grip, marker, materials, stand-off), off anywhere in the travel;
 #: 6 = a low-contrast or dark-on-dark line or dot stands 1.5-3 mm proud (a printed pointer stands out in colour);
-#: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it.
-GENERATOR_VERSION = 7
+#: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it;
+#: 8 = the knob panel's place and off mid-travel drawn from the designs' generator (the rest
+#:     of a seed's home as in version 4).
+GENERATOR_VERSION = 8
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -846,10 +848,11 @@ def _knob_states(ctx: _Ctx, symmetry: int = 1) -> tuple[list[KnobState], str, bo
     if abs(a0) > 0 and abs(a0) + step * (n - 1) > math.radians(320):
         a0 = 0.0
     off_state = KnobState(off, _deg(a0))
-    if len(others) >= 2 and ctx.chance(ctx.cfg.off_mid_travel_probability):
+    drng = ctx.design_rng or ctx.rng     # knob design draws: the rest of the home unchanged
+    if len(others) >= 2 and drng.random() < ctx.cfg.off_mid_travel_probability:
         # off in the middle of the travel (a selector: settings either side of off); such a
         # knob turns either way (``direction`` 0)
-        k = ctx.i(1, len(others) - 1)
+        k = int(drng.integers(1, len(others)))
         states = ([KnobState(nm, _deg(a0 - direction * step * (k - i))) for i, nm in enumerate(others[:k])]
                   + [KnobState(nm, _deg(a0 + direction * step * (i + 1))) for i, nm in enumerate(others[k:])])
         return states[:k] + [off_state] + states[k:], off, True, 0.0
@@ -1122,11 +1125,13 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
     z0 = _mm(ctx.u(0.06, 0.12))                 # the door's bottom edge
     # an oven whose knob panel is below its door, knobs at 0.25-0.35 m (z0: the panel's
     # bottom edge then), or one raised in a tall unit, knobs up to 1.4 m
-    panel_low = kind == "oven" and bool(panel_h) and ctx.chance(cfg.low_panel_probability)
+    # (drawn from the knob designs' generator: the rest of the home stays as it was)
+    drng = ctx.design_rng or ctx.rng
+    panel_low = kind == "oven" and bool(panel_h) and drng.random() < cfg.low_panel_probability
     if panel_low:
-        z0 = _mm(ctx.u(0.18, 0.26))
-    lift = (_mm(ctx.u(0.3, 0.5)) if kind == "oven" and not panel_low
-            and ctx.chance(cfg.raised_oven_probability) else 0.0)
+        z0 = _mm(float(drng.uniform(0.18, 0.26)))
+    lift = (_mm(float(drng.uniform(0.3, 0.5))) if kind == "oven" and not panel_low
+            and drng.random() < cfg.raised_oven_probability else 0.0)
     panel_zc = z0 + panel_h / 2 if panel_low else H - panel_h / 2
     door_z0 = _mm(z0 + panel_h + 0.01) if panel_low else z0
     front = D / 2
