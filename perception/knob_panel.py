@@ -14,8 +14,10 @@ whatever their colours, so the depth image says where the panel's knobs are as a
    ``perception.knobs.canvas_heights``); what stands out of the surface by less than a
    knob's width is kept (a top-hat: the panel's slope, edges and steps are taken off), so
    that the pose's error across and about the plane does not matter;
-3. a template of the knobs as the map places them, seen from the camera (cylinders of 0.85
-   radii and the knob's face height, the panel flat around them) is slid over it (OpenCV's
+3. a template of the knobs as the map places them, seen from the camera (what of each knob
+   stands whatever its angle, ``perception.knobs.standing_profile``, as discs of 0.85 of
+   its radius at its height: a round knob a cylinder, a bar grip its middle on its disc;
+   the panel flat around them) is slid over it (OpenCV's
    ``matchTemplate``, normalised correlation), every shift within ``max_shift``; where the
    panel stands off its believed plane (around the best match), that is matched again on
    the panel's own plane;
@@ -182,19 +184,32 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
     tpl = np.zeros((th, tw), np.float32)
     tj, ti = np.meshgrid((np.arange(tw) + 0.5) / ppm + lo[0], hi[1] - (np.arange(th) + 0.5) / ppm)
     tops, foots = {}, {}                    # each knob's face and all of it, as the camera sees them
+    top_h = {}
     for (x, y), p in zip(xy, priors):
-        # a cylinder seen from the camera: the section at height z lands on the plane pushed
-        # away from the camera's foot by z / (h - z) of its distance and magnified as much;
-        # the canvas shows the height of the highest section over each point
-        for z in np.linspace(0.0, p.depth, 6):
+        # what of the knob stands whatever its angle (``standing_profile``: a round cap all
+        # of it, a bar grip only its middle, a bezel its disc; a cylinder of the outline
+        # when the prior has no profile), seen from the camera: the section at height z lands
+        # on the plane pushed away from the camera's foot by z / (h - z) of its distance and
+        # magnified as much; the canvas shows the height of the highest section over each point
+        prof = [(0.85 * min(r, p.radius), zt) for r, zt in getattr(p, "profile", ()) if r > 0] \
+            or [(0.85 * p.radius, p.depth)]
+        z_top = max(zt for _r, zt in prof)
+        for z in np.linspace(0.0, z_top, 6):
+            rad = max((r for r, zt in prof if zt >= z - 1e-9), default=0.0)
+            if rad <= 0:
+                continue
             g = z / max(cam_h - z, 1e-3)
             cx, cy = x + g * (x - cam[0]), y + g * (y - cam[1])
-            disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (0.85 * p.radius * (1 + g)) ** 2
+            # at least a canvas pixel across (a thin fin's middle is narrower than one)
+            disc = (tj - cx) ** 2 + (ti - cy) ** 2 <= (max(rad, 1.0 / ppm) * (1 + g)) ** 2
             tpl[disc] = np.maximum(tpl[disc], z)
             foots[p.knob_id] = disc | foots.get(p.knob_id, False)
-        g = p.depth / max(cam_h - p.depth, 1e-3)
+        # the face a bump must show: the widest part standing at least half the top's height
+        r_top, h_top = max(((r, zt) for r, zt in prof if zt >= 0.5 * z_top), key=lambda q: q[0])
+        g = h_top / max(cam_h - h_top, 1e-3)
+        top_h[p.knob_id] = h_top
         tops[p.knob_id] = ((tj - x - g * (x - cam[0])) ** 2 + (ti - y - g * (y - cam[1])) ** 2
-                           <= (0.6 * p.radius * (1 + g)) ** 2)
+                           <= (max(min(0.6 * p.radius, r_top / 0.85 * 0.7), 1.5 / ppm) * (1 + g)) ** 2)
     S = np.nan_to_num(cv2.matchTemplate(measured, tpl, cv2.TM_CCOEFF_NORMED), nan=-1.0)
     dy, dx = np.mgrid[0:S.shape[0], 0:S.shape[1]]
     sx, sy = (dx - off) / ppm, -(dy - off) / ppm
@@ -233,7 +248,7 @@ def _match(depth, K: Intrinsics, T_wc: np.ndarray, ref: np.ndarray, priors: Sequ
             if not top.any() or seen[top].mean() < 0.5:
                 # out of view or no reading (or a face too small for the canvas' pixels)
                 continue
-            missing += float((window[top & seen] > 0.3 * p.depth).mean()) < 0.5
+            missing += float((window[top & seen] > 0.3 * top_h[p.knob_id]).mean()) < 0.5
         return local, missing
 
     # the peaks of the match, best first, at least ``min_separation`` radii apart; a peak that

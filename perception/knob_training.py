@@ -59,7 +59,7 @@ from perception.knobs import (
 )
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
-CODE_VERSION = 35   # 35: a dot reading's fit the exact check at the body centre and the dot's angle, neither moved; 34: no knob where the depth shows under min_relief of its relief (stands) or beyond max_offset_searches search radii (offset), the detect gate fitted on the others (the middle of the floor and the lowest positive where no negative is left); 33: the best coarse angle's half turn checked at the allowed angle nearest it (a knob that turns one way only); 32: body_center stops at steps under 0.1 mm, not 0.02; 31: dot_max_off_axis_deg 60, not 55 (the dot gates' readings); 30: the same with half a radius of slack; 29: a round body's measured top pixels kept by where their points are, not only by their projection on the top's plane (body_center); 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
+CODE_VERSION = 37   # 37: the relief gate within relief_sigmas standard errors of the depth's slope (stands_se: a flat knob's relief is what the depth cannot pin); 36: the validation readings kept with the reader (``validation_``, each with its knob id), so gates can be calibrated again on other homes' readings (the knob bench's held-out families); 35: a dot reading's fit the exact check at the body centre and the dot's angle, neither moved; 34: no knob where the depth shows under min_relief of its relief (stands) or beyond max_offset_searches search radii (offset), the detect gate fitted on the others (the middle of the floor and the lowest positive where no negative is left); 33: the best coarse angle's half turn checked at the allowed angle nearest it (a knob that turns one way only); 32: body_center stops at steps under 0.1 mm, not 0.02; 31: dot_max_off_axis_deg 60, not 55 (the dot gates' readings); 30: the same with half a radius of slack; 29: a round body's measured top pixels kept by where their points are, not only by their projection on the top's plane (body_center); 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)
 
 _canon = canon   # the name earlier code imported
 
@@ -185,11 +185,12 @@ def validation_readings(reader: KnobReader, views, use_depth: bool = True) -> li
             cx, cy = true_center_m(v)
             near = math.hypot(r.detection.center_m[0] - cx, r.detection.center_m[1] - cy) <= 0.5 * v.truth.radius
         state, inside = snap_to_state(r.angle, v.believed) if r.found else (None, 1.0)
-        out.append(dict(present=bool(v.present), found=bool(r.found), near=near,
+        out.append(dict(knob=v.truth.knob_id, present=bool(v.present), found=bool(r.found), near=near,
                         score=float(r.evidence.get("score", 0.0)),
                         margin=float(r.evidence.get("margin", 0.0)),
                         half_turn=r.evidence.get("half_turn"), rival=r.evidence.get("rival"),
-                        stands=r.evidence.get("stands"), offset=r.evidence.get("offset"),
+                        stands=r.evidence.get("stands"), stands_se=r.evidence.get("stands_se"),
+                        offset=r.evidence.get("offset"),
                         angle=r.angle,
                         right=bool(state == v.state), off=bool(state == v.believed.off_state),
                         snap=round(1.0 - float(inside), 6),
@@ -249,6 +250,17 @@ def calibrate(reader: KnobReader, readings: list[dict], cfg: TrainingConfig) -> 
         out.dot_gates, rival = _level_gates([dict(r, half_turn=r.get("rival")) for r in dots], cfg,
                                             cfg.dot_margin_floor, cfg.dot_margin_safety)
         out.dot_rival_gates = [float(t) for t in rival]
+    return out
+
+
+def gates_from(reader: KnobReader, readings: dict, cfg: TrainingConfig = TrainingConfig()) -> KnobReader:
+    """``reader`` (its templates and read-time settings) with every gate chosen again on
+    ``readings`` ({"depth": [...], "colour": [...]}, ``validation_readings`` of any homes'
+    views: the knob bench pools other design families' readings here, so that the figure of
+    a family is read through gates none of its readings chose)."""
+    out = calibrate(reader, list(readings["depth"]), cfg)
+    out.colour_gates = calibrate(reader, list(readings["colour"]), cfg)
+    out.validation_ = readings
     return out
 
 
@@ -382,6 +394,9 @@ def train(world, cfg: TrainingConfig = TrainingConfig(), knob: KnobConfig = Knob
     colour = calibrate(reader, colour_only, cfg)
     reader = calibrate(reader, with_depth, cfg)
     reader.colour_gates = colour
+    # the evidence the gates were chosen on, kept so that gates can be chosen again on other
+    # readings (the knob bench's leave-one-family-out protocol pools other homes' readings)
+    reader.validation_ = dict(depth=with_depth, colour=colour_only)
     d, s = reader.detect_gate, reader.state_gate
     say(f"gates: fit > {d.threshold_:.3f} ({d.validation_['positives_passed']}/"
         f"{d.validation_['positives']} knobs, {d.validation_['negatives_passed']}/"

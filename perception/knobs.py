@@ -126,7 +126,9 @@ class KnobConfig:
     must lie within this share of half a state step of its state), ``off_margin_factor``
     (an "off" reading needs this many times the calibrated margin; one over the margin but
     under this passes every other check gets evidence ``off_one_view``: two of them from
-    places apart make the knob off, ``OffViews``), ``min_confidence`` (a
+    places apart make the knob off, ``OffViews``), ``off_rival_min`` (an "off" reading must
+    explain the pixels where off and the best "on" candidate differ better than that by this
+    much: evidence ``off_rival``, not calibrated), ``min_confidence`` (a
     reading less confident than this is "unknown"), ``threshold`` /
     ``margin_threshold`` (override the calibrated gates; None: the fitted ones).
     A knob whose body is round about its axis (``round_body_levels``) with a marker off the
@@ -138,7 +140,9 @@ class KnobConfig:
     ``dot_dominance_power`` for its margin); such a reading seen more than
     ``dot_max_off_axis_deg`` off the knob's axis gives no state. ``min_relief``: with depth,
     a knob is found only where the depth shows at least this share of its rendered relief
-    (evidence ``stands``, ``depth_slope``), and ``max_offset_searches``: only within this
+    (evidence ``stands``, ``depth_slope``) within ``relief_sigmas`` standard errors of the
+    slope (``stands_se``: what the depth can show of the described relief; a flat knob's is
+    wide), and ``max_offset_searches``: only within this
     many search radii of where the map puts it (evidence ``offset``), whatever its fit
     (``not_there``)."""
     px_per_radius: float = 8.0
@@ -166,6 +170,8 @@ class KnobConfig:
     depth_settle_radii: float = read_time(0.03)
     round_body_center: bool = read_time(True)
     min_relief: float = read_time(0.45)
+    relief_sigmas: float = read_time(2.0)
+    off_rival_min: float = read_time(0.1)
     max_offset_searches: float = read_time(1.5)
     dot_angle: bool = read_time(True)
     dot_noise_floor: float = read_time(2.0)
@@ -511,6 +517,12 @@ class KnobPrior:
     symmetry: int = 1
     travel: Optional[tuple[float, float]] = None
     off_state: str = ""
+    #: what of the knob stands at every angle (``standing_profile``): ((radius, top height)
+    #: m, ...) per visual but the markers; () unknown (a cylinder of the outline assumed)
+    profile: tuple = ()
+    #: the knob's body is ridged and otherwise round about its axis (``near_round``: a
+    #: knurl): only its marker says its angle, and its ridges fit well at other angles
+    round_grip: bool = False
 
     def T_world_face(self) -> np.ndarray:
         """The knob's front face (z = depth) at angle 0."""
@@ -564,8 +576,63 @@ def knob_priors(world, object_id: Optional[str] = None,
         s = _shape_of(k, lib, world.base_dir)
         out.append(KnobPrior(k.id, T_wp @ k.pose.matrix(), s.radius, s.face,
                              tuple(x.name for x in k.states), tuple(float(x.angle) for x in k.states),
-                             s.key, s.symmetry, knob_travel(k), k.off))
+                             s.key, s.symmetry, knob_travel(k), k.off, standing_profile(s),
+                             near_round(s)))
     return out
+
+
+def near_round(shape: KnobShape, tol: float = 0.1) -> bool:
+    """Whether a knob's body (every visual but the markers) is ridged and otherwise round
+    about its axis: within ``tol`` of its outline radius at every height, and more than 2 %
+    off a circle somewhere (a knurled ring, its ridges a few per cent deep). Its angle rests
+    on its marker alone, a small part of the knob, while its ridges fit well every 12-22
+    degrees, away from the marker's angle. A plain cylinder or a taper (round within 2 %)
+    is not such a knob (its body fits alike at every angle: the marker decides), nor is a
+    symmetric shape or one without a marker."""
+    if shape.symmetry != 1 or "marker" not in shape.roles:
+        return False
+    ridged = False
+    for v, role in zip(shape.vertices, shape.roles):
+        if role == "marker":
+            continue
+        for z in np.unique(np.round(v[:, 2], 4)):
+            ring = v[np.abs(v[:, 2] - z) < 5e-5]
+            rad = np.hypot(ring[:, 0], ring[:, 1])
+            rim = rad > 0.5 * rad.max()
+            if not rim.any():
+                continue
+            if (np.ptp(rad[rim]) > tol * shape.radius or abs(ring[rim, 0].mean()) > tol * shape.radius
+                    or abs(ring[rim, 1].mean()) > tol * shape.radius):
+                return False
+            ridged |= bool(np.ptp(rad[rim]) > 0.02 * shape.radius)
+    return ridged
+
+
+def standing_profile(shape: KnobShape) -> tuple:
+    """What of a knob stands out of its panel whatever its angle: for each visual but the
+    markers, the radius of the largest disc about the axis inside its outline on the face
+    plane (a round cap's rim, a bar's half width, 0 where the visual does not cover the axis)
+    and its top's height (m). A bar grip 8 mm wide on a 2 mm bezel stands 4 mm about the axis
+    at its full height and over the whole bezel 2 mm: the knob panel's match looks for that,
+    not for a cylinder of the outline (knob_panel)."""
+    from scipy.spatial import ConvexHull, QhullError
+    out = []
+    for v, role in zip(shape.vertices, shape.roles):
+        if role == "marker" or len(v) < 3:
+            continue
+        xy = np.asarray(v[:, :2], dtype=float)
+        try:
+            P = xy[ConvexHull(xy).vertices]
+        except (QhullError, ValueError):
+            continue
+        E = np.roll(P, -1, axis=0) - P
+        cross = E[:, 0] * (-P[:, 1]) - E[:, 1] * (-P[:, 0])      # origin left of every edge: inside
+        L = np.hypot(E[:, 0], E[:, 1])
+        ok = L > 1e-9
+        inside = bool(np.all(cross[ok] >= -1e-9))
+        r_in = float(np.min(np.abs(cross[ok]) / L[ok])) if inside and ok.any() else 0.0
+        out.append((round(r_in, 5), round(float(v[:, 2].max()), 5)))
+    return tuple(out)
 
 
 _SHAPES: dict = {}
@@ -799,9 +866,10 @@ def not_there(evidence: dict, config: "KnobConfig") -> Optional[str]:
     ``max_offset_searches`` search radii from where the map puts the knob (``offset``, in
     search radii: a round body's centre follows the depth's tops, and with the knob gone
     it walked to a packed neighbour's)."""
-    if evidence.get("stands") is not None and evidence["stands"] < config.min_relief:
-        return (f"its depth shows {100 * evidence['stands']:.0f} % of a knob's relief, needs "
-                f"{100 * config.min_relief:.0f} %")
+    stands, se = evidence.get("stands"), evidence.get("stands_se") or 0.0
+    if stands is not None and stands + config.relief_sigmas * se < config.min_relief:
+        return (f"its depth shows {100 * stands:.0f} % (+- {100 * se:.0f}) of a knob's relief, "
+                f"needs {100 * config.min_relief:.0f} %")
     if evidence.get("offset") is not None and evidence["offset"] > config.max_offset_searches:
         return (f"the best fit stands {evidence['offset']:.1f} search radii from where the map "
                 f"puts it, at most {config.max_offset_searches:.1f}")
@@ -823,6 +891,28 @@ def depth_slope(heights: np.ndarray, valid: np.ndarray, template: np.ndarray,
     t = t - t.mean()
     vt = float(t @ t)
     return None if vt < 1e-12 else float(t @ (m - m.mean())) / vt
+
+
+def depth_slope_se(heights: np.ndarray, valid: np.ndarray, template: np.ndarray,
+                   min_valid: float = DEPTH_MIN_VALID) -> Optional[tuple[float, float]]:
+    """``depth_slope`` and its standard error (from the fit's residuals: the depth's noise
+    over how much relief the rendering has where it is measured). A knob whose described
+    relief is low (a flat disc 1 mm proud, a thin fin a pixel or two wide) has a slope the
+    depth cannot pin, and the error says by how much; None as ``depth_slope``."""
+    v = valid.ravel()
+    if v.mean() < min_valid or v.sum() < 4:
+        return None
+    m = heights.ravel()[v].astype(np.float64)
+    t = template.ravel()[v].astype(np.float64)
+    t = t - t.mean()
+    vt = float(t @ t)
+    if vt < 1e-12:
+        return None
+    mc = m - m.mean()
+    slope = float(t @ mc) / vt
+    resid = mc - slope * t
+    se = math.sqrt(float(resid @ resid) / max(len(m) - 2, 1) / vt)
+    return slope, se
 
 
 def _onehot(labels: np.ndarray, n_labels: int):
@@ -1391,9 +1481,9 @@ class KnobReader:
             k = int(np.argmin(np.abs(_wrap(tpl.alphas - (float(angle) - psi)))))
             hr, vr = canvas_heights(depth, plane_homography(K, T_wc, T_c, rho, n, center_c), n,
                                     float(C[2]), shape.face)
-            sl = depth_slope(hr, vr, tpl.heights[ti][k])
+            sl = depth_slope_se(hr, vr, tpl.heights[ti][k])
             if sl is not None:
-                ev["stands"] = round(sl, 3)
+                ev["stands"], ev["stands_se"] = round(sl[0], 3), round(sl[1], 4)
         if from_dot:
             ev["dot"] = True
             # the marker's reading against the nearest other state (``fine[1]``, at the same
@@ -1410,6 +1500,25 @@ class KnobReader:
                 ev["rival"] = versus["half_turn"]
         if half_turn is not None:
             ev.update(half_turn)
+        if snap_to_state(float(angle), prior)[0] == prior.off_state and not from_dot:
+            # an "off" reading against the best "on" candidate, compared only where the two
+            # renderings differ (``_half_turn`` with that state in place of the half turn):
+            # the one promise the reader keeps is that a knob that is on is never read off, so
+            # off must explain the pixels that tell it from on better than on does, whatever
+            # the margin over the whole window (``KnobConfig.off_rival_min``)
+            on = [(a, c) for _f, a, c in fine[1:] if snap_to_state(float(a), prior)[0] != prior.off_state]
+            if not on:
+                sa = np.asarray(prior.state_angles, dtype=float)
+                names = np.asarray(prior.state_names)
+                d = np.where(names == prior.off_state, np.inf, np.abs(_wrap(sa - float(angle))))
+                on = [(float(sa[int(np.argmin(d))]), center_c)] if np.isfinite(d).any() else []
+            if on:
+                vs = self._half_turn(rgb, K, T_wc, prior, shape, T_c, C, (float(angle) - psi, center_c),
+                                     (float(on[0][0]) - psi, on[0][1]), psi, r_px,
+                                     depth if use_depth else None, theta, windows=windows)
+                if vs is not None:
+                    ev["off_rival"] = vs["half_turn"]
+                    ev["off_rival_state"] = snap_to_state(float(on[0][0]), prior)[0]
         return KnobReading(prior.knob_id, True, angle=float(angle), detection=det,
                            angles={"fused": float(angle)}, evidence=ev)
 
@@ -1459,6 +1568,9 @@ class KnobReader:
             if ev.get("dot") and ev.get("rival") is not None and ev["rival"] <= need_turn:
                 return (f"unsure ({state}: its marker fits nearly as well at {ev['runner_up']}, "
                         f"{ev['rival']:.2f}, needs {need_turn:.2f})")
+            if is_off and ev.get("off_rival") is not None and ev["off_rival"] <= cfg.off_rival_min:
+                return (f"unsure ({state}: {ev.get('off_rival_state')} fits nearly as well where "
+                        f"the two differ, {ev['off_rival']:.2f}, needs {cfg.off_rival_min:.2f})")
             if 1.0 - c_snap > cfg.max_snap:
                 return f"unsure ({state}: {math.degrees(r.angle):.0f} degrees lies between states)"
             if r.confidence < cfg.min_confidence:
@@ -1466,6 +1578,15 @@ class KnobReader:
             return None
 
         r.reason = doubt(need) or ""
+        if not r.reason and is_off and getattr(prior, "round_grip", False):
+            # a round body's angle rests on its marker alone: one view never says off (a
+            # knurled grip with a dot, read 37 degrees off at its off state from one view,
+            # passed every gate: home 102 of generator version 7); a second such reading from
+            # another place does (``OffViews``)
+            r.reason = f"unsure ({state}: a ridged round grip's marker alone says it"
+            ev["off_one_view"] = True
+            r.reason += ") from this view alone"
+            return r
         if not r.reason:
             r.state = state
         elif is_off and need > gate and doubt(gate) is None:

@@ -44,7 +44,7 @@ import numpy as np
 from worldmodel.errors import WorldError
 from worldmodel.frames import planar_T, transform_xy
 from worldmodel.homegen_geometry import (
-    box_mesh, convex_hull_xy, disc_clear, extrude, merge, ply_bytes,
+    box_mesh, convex_hull_xy, disc_clear, extrude, fan_prism, frustum, merge, ply_bytes,
     polygon_inside_rect, polygons_overlap, rounded_rect, transform_polygon, transformed,
 )
 from worldmodel.nodes import (
@@ -88,6 +88,10 @@ class HomeConfig:
     top_knobs_probability: float = 0.5          #: a hob's knobs on its top, not its front
     second_appliance_probability: float = 0.35
     knob_on_probability: float = 0.1            #: a knob left on in the map
+    plain_knob_probability: float = 0.1         #: a row of format-1 plain knobs (else the design space)
+    off_mid_travel_probability: float = 0.2     #: a knob whose off lies between its settings
+    low_panel_probability: float = 0.2          #: an oven's knob panel below its door
+    raised_oven_probability: float = 0.25       #: an oven raised on a cabinet (knobs up to 1.4 m)
     small_objects: tuple[int, int] = (7, 14)
     close_hue_probability: float = 0.6          #: a pair of objects close in hue (blue, navy)
     under_table_probability: float = 0.4
@@ -154,7 +158,12 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 #: Bump when a seed's home changes (executive/scenarios.py keeps generated homes per version):
 #: 2 = knob designs varied (KNOB_FAMILIES); 3 = a tip or dot stands out from the grip it sits on;
 #: 4 = a skirt knob's dot stands 1 mm proud of its cap as built (not level with it on some homes).
-GENERATOR_VERSION = 4
+#: 5 = knobs drawn from a design space (base, grip, marker, materials, stand-off), off anywhere in the travel;
+#: 6 = a low-contrast or dark-on-dark line or dot stands 1.5-3 mm proud (a printed pointer stands out in colour);
+#: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it;
+#: 8 = the knob panel's place and off mid-travel drawn from the designs' generator (the rest
+#:     of a seed's home as in version 4).
+GENERATOR_VERSION = 8
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -163,7 +172,7 @@ KNOB_DESIGNS = [
     ("cream", (0.93, 0.88, 0.75), (0.35, 0.2, 0.1), (0.013, 0.018), (0.012, 0.02)),
     ("red marker", (0.15, 0.15, 0.16), (0.85, 0.1, 0.1), (0.02, 0.028), (0.02, 0.03)),
 ]
-OFF_NAMES = ["off", "0", "aus", "OFF", "min", "Off"]
+OFF_NAMES = ["off", "0", "aus", "OFF", "min", "Off", "O", "stop", "standby", "zero", "Aus"]
 
 # The knob frame's axes in its parent's frame: on a front face whose outward normal is +x
 # (knob x = parent y, marker at angle 0 = parent z, axis = parent x), and on a top face
@@ -839,6 +848,14 @@ def _knob_states(ctx: _Ctx, symmetry: int = 1) -> tuple[list[KnobState], str, bo
     if abs(a0) > 0 and abs(a0) + step * (n - 1) > math.radians(320):
         a0 = 0.0
     off_state = KnobState(off, _deg(a0))
+    drng = ctx.design_rng or ctx.rng     # knob design draws: the rest of the home unchanged
+    if len(others) >= 2 and drng.random() < ctx.cfg.off_mid_travel_probability:
+        # off in the middle of the travel (a selector: settings either side of off); such a
+        # knob turns either way (``direction`` 0)
+        k = int(drng.integers(1, len(others)))
+        states = ([KnobState(nm, _deg(a0 - direction * step * (k - i))) for i, nm in enumerate(others[:k])]
+                  + [KnobState(nm, _deg(a0 + direction * step * (i + 1))) for i, nm in enumerate(others[k:])])
+        return states[:k] + [off_state] + states[k:], off, True, 0.0
     states = [KnobState(nm, _deg(a0 + direction * step * (i + 1))) for i, nm in enumerate(others)]
     order = ctx.rng.random()
     if order < 0.6:
@@ -852,22 +869,34 @@ def _knob_states(ctx: _Ctx, symmetry: int = 1) -> tuple[list[KnobState], str, bo
     return listed, off, explicit, direction
 
 
-#: The knob design families ``_knob_design`` draws from (docs/world-format.md, "Knobs"):
-#: "plain" (format 1: a cylinder with a marker bar, colours from KNOB_DESIGNS), "bar" (a disc
-#: with a plain bar grip across it: symmetric, read modulo 180 degrees), "tip" (a disc with a
-#: grip bar and a coloured tip at one end), "pointer" (a fixed bezel on the panel and a
-#: pointer-shaped grip given as a mesh, a line marker on it), "skirt" (a wide skirt with a
-#: cap and a coloured dot).
+#: The knob design space ``_knob_design`` draws from (docs/world-format.md, "Knobs"): a knob is
+#: a base (BASE_TYPES: none, a disc or a skirt turning with it, a bezel fixed on the panel) at a
+#: stand-off from the panel (flush to a few mm), a grip (GRIP_TYPES) and a marker
+#: (MARKER_TYPES: a line, a dot, a tip at the end of a bar or fin, a printed pointer, or none
+#: of its own: a fixed printed dial ring with ticks around a grip whose shape shows its angle,
+#: or the shape alone), in materials (MATERIAL_STYLES: a marker that stands out, low
+#: contrast, dark on dark, metallic). ``plain_probability`` of knobs are the format-1 knob.
+#: Until generator version 4 the knobs came in five families (plain, bar, tip, pointer, skirt).
 KNOB_FAMILIES = ("plain", "bar", "tip", "pointer", "skirt")
+BASE_TYPES = ("none", "disc", "skirt", "bezel")
+GRIP_TYPES = ("cylinder", "bar", "fin", "d-shape", "knurled", "tapered")
+MARKER_TYPES = ("line", "dot", "tip", "printed", "dial", "none")
+MATERIAL_STYLES = ("contrast", "low-contrast", "dark-on-dark", "metallic")
+#: markers each grip can carry: a round grip needs a marker of its own; a bar or fin alone
+#: reads modulo half a turn (symmetry 2); a D shows its angle by its flat
+_MARKERS_OF = {"cylinder": ("line", "dot", "printed"), "knurled": ("line", "dot", "printed"),
+               "tapered": ("line", "dot", "printed"), "bar": ("tip", "line", "printed", "dial", "none"),
+               "fin": ("tip", "line", "dial", "none"), "d-shape": ("line", "dot", "printed", "dial", "none")}
 _KNOB_COLOURS = [(0.9, 0.9, 0.88), (0.08, 0.08, 0.09), (0.74, 0.75, 0.77), (0.93, 0.88, 0.75),
                  (0.15, 0.15, 0.16), (0.55, 0.56, 0.6)]
 _MARKER_COLOURS = [(0.85, 0.1, 0.1), (0.95, 0.55, 0.05), (0.1, 0.35, 0.85), (0.05, 0.05, 0.05),
                    (0.95, 0.95, 0.92)]
+_METALLIC = [(0.74, 0.75, 0.77), (0.82, 0.82, 0.84), (0.62, 0.6, 0.55)]
 
 
-def _distinct(a, b) -> bool:
-    """Colours the eye tells apart (L1 distance of RGB over 0.6)."""
-    return sum(abs(x - y) for x, y in zip(a, b)) > 0.6
+def _distinct(a, b, by: float = 0.6) -> bool:
+    """Colours the eye tells apart (L1 distance of RGB over ``by``)."""
+    return sum(abs(x - y) for x, y in zip(a, b)) > by
 
 
 def _contrast(drng, body, palette):
@@ -876,68 +905,160 @@ def _contrast(drng, body, palette):
     return ok[int(drng.integers(len(ok)))]
 
 
-def _knob_design(ctx: _Ctx, family: str, r: float, depth: float) -> dict:
-    """The shape fields of a ``Knob`` of ``family`` (KNOB_FAMILIES) with outline radius ``r``
-    and front ``depth`` (m): base, grip and marker models in the knob frame at angle 0 (+y:
-    the pointer), base_fixed, symmetry. Colours and proportions come from ``design_rng``."""
+def _near_colour(drng, body, lo: float = 0.3, hi: float = 0.45):
+    """A colour of low contrast with ``body``: every channel moved the same way (lighter on a
+    dark body, darker on a light one), L1 distance ``lo``-``hi`` in all."""
+    d = float(drng.uniform(lo, hi)) / 3
+    sign = 1.0 if sum(body) < 1.5 else -1.0
+    return tuple(round(min(1.0, max(0.0, c + sign * d)), 3) for c in body)
+
+
+def _colours(drng, style: str):
+    """(body, grip, marker, material) of a material style (MATERIAL_STYLES)."""
+    if style == "metallic":
+        body = _METALLIC[int(drng.integers(len(_METALLIC)))]
+        mark = _contrast(drng, body, _MARKER_COLOURS) if drng.random() < 0.6 else _near_colour(drng, body, 0.35, 0.5)
+        return body, body, mark, "shiny"
+    if style == "dark-on-dark":
+        body = (0.08, 0.08, 0.09) if drng.random() < 0.5 else (0.15, 0.15, 0.16)
+        return body, body, _near_colour(drng, body, 0.3, 0.45), "matte"
+    body = _KNOB_COLOURS[int(drng.integers(len(_KNOB_COLOURS)))]
+    if style == "low-contrast":
+        return body, body, _near_colour(drng, body), "matte"
+    grip = body if drng.random() < 0.6 else _contrast(drng, body, _KNOB_COLOURS)
+    mark = _contrast(drng, body, _MARKER_COLOURS)
+    if not _distinct(mark, grip):
+        mark = next(c for c in _MARKER_COLOURS if _distinct(c, body) and _distinct(c, grip))
+    return body, grip, mark, "matte"
+
+
+def _grip_mesh(ctx: _Ctx, kind: str, rg: float, z0: float, z1: float, drng):
+    """The grip of ``kind`` (mesh grips) of radius ``rg`` from z0 to z1 (knob frame)."""
+    rg = rg - 0.0002            # within rg once the vertices are rounded to 0.1 mm
+    if kind == "d-shape":
+        cut = rg * float(drng.uniform(0.45, 0.7))       # the flat, towards -y (the back of the D)
+        t0 = -math.asin(cut / rg)
+        ts = np.linspace(t0, math.pi - t0, 16)          # the round part through +y
+        rq = rg
+        poly = [(round(rq * math.cos(t), 4), round(rq * math.sin(t), 4)) for t in ts]
+        poly += [(round(-rq * math.cos(t0), 4), round(-cut, 4)), (round(rq * math.cos(t0), 4), round(-cut, 4))]
+        return ctx.meshes.add("knob-d", extrude(_ccw(poly), z0, z1))
+    if kind == "knurled":
+        n = int(drng.integers(16, 31))
+        a = np.linspace(0, TAU, 2 * n, endpoint=False)
+        rr = np.where(np.arange(2 * n) % 2 == 0, rg, rg * 0.93)
+        poly = np.c_[rr * np.cos(a), rr * np.sin(a)]
+        return ctx.meshes.add("knob-knurled", fan_prism(np.round(poly, 4), z0, z1))
+    top = rg * float(drng.uniform(0.6, 0.8))           # tapered: narrower at its front
+    return ctx.meshes.add("knob-tapered", frustum(rg, top, z0, z1))
+
+
+def _knob_design(ctx: _Ctx, r: float, depth: float) -> dict:
+    """The shape fields of a ``Knob`` drawn from the design space (above) with outline radius
+    ``r`` and front ``depth`` (m): base, grip and marker models in the knob frame at angle 0
+    (+y: the pointer), base_fixed, symmetry; and ``design`` (what was drawn, for the docs and
+    the bench). Everything comes from ``design_rng``."""
     drng = ctx.design_rng or ctx.rng
     u = lambda lo, hi: float(drng.uniform(lo, hi))
-    body = _KNOB_COLOURS[int(drng.integers(len(_KNOB_COLOURS)))]
-    mark = _contrast(drng, body, _MARKER_COLOURS)
-    grip_c = body if drng.random() < 0.6 else _contrast(drng, body, _KNOB_COLOURS)
-    if not _distinct(mark, grip_c):
-        # a tip or dot sits on the grip: the colour of the grip would hide it (a black tip on a
-        # black bar is a bar symmetric by half a turn, which no reader can read). The first
-        # marker colour that stands out from both (no draw: other designs stay as they were).
-        mark = next(c for c in _MARKER_COLOURS if _distinct(c, body) and _distinct(c, grip_c))
-    if family == "bar":
-        hb = _mm(depth * u(0.3, 0.45))
-        w = r * u(0.28, 0.4)
-        return dict(base=Model([cyl(r, hb, z=hb / 2, color=body, name="disc")]),
-                    grip=Model([box(w, 2 * r * 0.95, depth - hb, z=hb + (depth - hb) / 2,
-                                    color=grip_c, name="bar")]),
-                    symmetry=2)
-    if family == "tip":
-        hb = _mm(depth * u(0.3, 0.45))
-        w, tl = r * u(0.28, 0.4), r * u(0.25, 0.4)
-        bar_l = 2 * r * 0.95 - tl
-        return dict(base=Model([cyl(r, hb, z=hb / 2, color=body, name="disc")]),
-                    grip=Model([box(w, bar_l, depth - hb, y=-tl / 2, z=hb + (depth - hb) / 2,
-                                    color=grip_c, name="bar")]),
-                    marker=Model([box(w, tl, depth - hb, y=0.95 * r - tl / 2,
-                                      z=hb + (depth - hb) / 2, color=mark, name="tip")]))
-    if family == "pointer":
-        hb = _mm(min(0.004, depth * 0.25))
-        rg = r * u(0.55, 0.7)                       # the grip's round end
-        # a teardrop: the round end about the axis (its lower half), the point towards +y
-        poly = [(_mm(rg * math.cos(t)), _mm(rg * math.sin(t)))
-                for t in np.linspace(math.radians(160), math.radians(380), 12)]
-        poly.append((0.0, _mm(0.95 * r)))
-        poly = _ccw(poly)
-        grip = extrude(poly, hb, depth)
-        line = box(r * 0.12, 0.95 * r * 0.7, 0.001, y=0.95 * r * 0.45, z=depth + 0.0005,
-                   color=mark, name="line")
-        return dict(base=Model([cyl(r, hb, z=hb / 2, color=_contrast(drng, body, _KNOB_COLOURS),
-                                    name="bezel")]),
-                    grip=Model([Visual("mesh", file=ctx.meshes.add("knob-pointer", grip),
-                                       color=body, name="pointer")]),
-                    marker=Model([line]), base_fixed=True)
-    if family == "skirt":
-        hs = _mm(depth * u(0.3, 0.5))
-        rc = r * u(0.6, 0.75)
-        dot = rc * u(0.24, 0.3)
-        cap = cyl(rc, depth - hs, z=hs + (depth - hs) / 2, color=grip_c, name="cap")
-        # the dot 1 mm proud of the cap as built: its centre from the cap's top after the
-        # cap's centre was rounded to the millimetre. Rounded to the millimetre itself, the
-        # dot's top came level with the cap's on some homes (generator version 3: home 1's
-        # cap 9.5-26.5 mm, its dot 25.5-26.5 mm), and the two faces fought in the renderer:
-        # the dot a speckle of pixels that no real knob shows
-        top = cap.pose.z + cap.length / 2
-        mk = cyl(dot, 0.001, y=rc - 1.25 * dot, color=mark, name="dot")
-        mk = replace(mk, pose=Pose(mk.pose.x, mk.pose.y, round(top + 0.0005, 4) + 0.0))
-        return dict(base=Model([cyl(r, hs, z=hs / 2, color=body, name="skirt")]),
-                    grip=Model([cap]), marker=Model([mk]))
-    return {}
+    pick = lambda seq: seq[int(drng.integers(len(seq)))]
+    grip_kind = pick(GRIP_TYPES)
+    marker_kind = pick(_MARKERS_OF[grip_kind])
+    base_kind = pick(BASE_TYPES)
+    if marker_kind == "dial":
+        base_kind = "bezel"                              # the printed ring stays on the panel
+    style = pick(MATERIAL_STYLES)
+    if marker_kind in ("tip", "printed") and style in ("low-contrast", "dark-on-dark"):
+        # a tip is the bar's own end and a printed pointer has no relief: only their colour
+        # tells them
+        style = "contrast"
+    body, grip_c, mark, material = _colours(drng, style)
+    standoff = 0.0 if drng.random() < 0.5 else _mm(u(0.0005, 0.003))   # flush .. 3 mm off
+    # the base: how thick it is (a flat disc down to 1 mm) and how wide the grip on it is
+    hb = {"none": 0.0, "disc": _mm(max(0.001, depth * u(0.05, 0.4))),
+          "skirt": _mm(depth * u(0.25, 0.45)), "bezel": _mm(u(0.001, 0.004))}[base_kind]
+    rg = r if base_kind == "none" else r * (u(0.55, 0.75) if base_kind in ("skirt", "bezel") else u(0.7, 0.95))
+    if grip_kind in ("bar", "fin") and base_kind in ("disc", "none"):
+        rg = 0.95 * r                                    # a bar across its disc
+    z_base0 = 0.0 if base_kind == "bezel" else standoff  # a bezel sits on the panel
+    z_grip0 = standoff + (hb if base_kind in ("disc", "skirt") else 0.0)
+    z_grip0 = max(z_grip0, hb if base_kind == "bezel" else 0.0)
+    z1 = max(depth, z_grip0 + 0.004)
+    hg = z1 - z_grip0
+    zc = z_grip0 + hg / 2
+    sym = 1
+    out: dict = dict(design=dict(base=base_kind, grip=grip_kind, marker=marker_kind, material=style,
+                                 standoff_mm=round(standoff * 1000, 1)))
+    base_vis = []
+    if base_kind != "none":
+        ring_c = body if base_kind != "bezel" else _contrast(drng, body, _KNOB_COLOURS)
+        base_vis.append(cyl(r, hb, z=z_base0 + hb / 2, color=ring_c, material=material, name=base_kind))
+        if marker_kind == "dial":
+            # ticks printed on the fixed ring between the grip and its rim, every 30 degrees
+            # or at 8-12 evenly spaced places; numbers are ticks of another length here
+            n_ticks = int(drng.integers(8, 13))
+            tick_c = _contrast(drng, ring_c, _MARKER_COLOURS)
+            tl = (r - rg) * 0.6
+            for i in range(n_ticks):
+                a = TAU * i / n_ticks
+                ym = rg + (r - rg) * 0.5
+                base_vis.append(Visual("box", Pose(_mm(-ym * math.sin(a)), _mm(ym * math.cos(a)),
+                                                   _mm(z_base0 + hb + 0.00015), 0, 0, round(a, 4)),
+                                       size=(_mm(max(0.0008, r * 0.05)), _mm(max(tl, 0.002)), 0.0003),
+                                       color=tick_c, name="tick"))
+    if grip_kind == "cylinder":
+        grip = cyl(rg, hg, z=zc, color=grip_c, material=material, name="cylinder")
+        top_r = rg
+    elif grip_kind in ("bar", "fin"):
+        w = r * (u(0.28, 0.4) if grip_kind == "bar" else u(0.1, 0.18))
+        length = 2 * rg
+        if marker_kind == "tip":
+            tl = r * u(0.25, 0.4)
+            grip = box(w, length - tl, hg, y=-tl / 2, z=zc, color=grip_c, material=material, name=grip_kind)
+        else:
+            grip = box(w, length, hg, z=zc, color=grip_c, material=material, name=grip_kind)
+        top_r = w / 2
+        if marker_kind in ("dial", "none"):
+            sym = 2
+    else:
+        grip = Visual("mesh", file=_grip_mesh(ctx, grip_kind, rg, z_grip0, z1, drng), color=grip_c,
+                      material=material, name=grip_kind)
+        top_r = rg * (0.6 if grip_kind == "tapered" else 0.95)
+    # the grip's top as built (a primitive's centre and size are rounded to the millimetre:
+    # a marker put on the unrounded top was buried half a millimetre inside the grip on
+    # some knobs, generator versions 5 and 6)
+    if grip.shape == "cylinder":
+        z1 = grip.pose.z + grip.length / 2
+    elif grip.shape == "box":
+        z1 = grip.pose.z + grip.size[2] / 2
+    marker = None
+    # a marker of little contrast stands proud of the grip (a raised ridge or bump: what
+    # makes a dark-on-dark knob readable to a person, by its shading and its relief); one
+    # that stands out in colour is printed or inlaid, half a millimetre proud
+    proud = _mm(u(0.0015, 0.003)) if style in ("low-contrast", "dark-on-dark") else 0.0005
+    zt = z1 + proud / 2
+    if marker_kind == "line":
+        if grip_kind in ("bar", "fin"):
+            lw = min(w * 0.5, r * 0.12)
+            marker = box(lw, rg * 0.7, proud, y=rg * 0.5, z=zt, color=mark, name="line")
+        else:
+            marker = box(max(0.0015, top_r * 0.14), top_r * 0.6, proud, y=top_r * 0.5, z=zt,
+                         color=mark, name="line")
+    elif marker_kind == "dot":
+        rd = max(0.002, top_r * u(0.15, 0.25))
+        marker = cyl(rd, proud, y=top_r - 1.4 * rd, z=zt, color=mark, name="dot")
+    if marker_kind in ("line", "dot"):
+        marker = replace(marker, pose=replace(marker.pose, z=round(zt, 5)))
+    elif marker_kind == "tip":
+        marker = box(w, tl, hg, y=rg - tl / 2, z=zc, color=mark, material=material, name="tip")
+    elif marker_kind == "printed":
+        half = max(0.001, top_r * 0.18)
+        tri = [(-half, 0.0), (half, 0.0), (0.0, 0.9 * top_r if grip_kind not in ("bar", "fin") else 0.9 * rg)]
+        marker = Visual("mesh", file=ctx.meshes.add("knob-printed", extrude(_ccw(tri), z1, z1 + 0.0003)),
+                        color=mark, name="printed")
+    out.update(base=Model(base_vis) if base_vis else None, grip=Model([grip]),
+               marker=Model([marker]) if marker is not None else None,
+               base_fixed=base_kind == "bezel", symmetry=sym)
+    return out
 
 
 def _ccw(poly):
@@ -958,13 +1079,14 @@ def _knobs(ctx: _Ctx, oid: str, count: int, place: Callable[[int], Pose],
     _, body, marker, rr, dr = ctx.pick(KNOB_DESIGNS)
     r, depth = _mm(min(ctx.u(*rr), max_radius)), _mm(ctx.u(*dr))
     drng = ctx.design_rng
-    family, turn_stop, packed = "plain", False, None
+    design, turn_stop, packed = {}, False, None
     if drng is not None:
-        family = KNOB_FAMILIES[int(drng.integers(len(KNOB_FAMILIES)))]
         turn_stop = bool(drng.random() < 0.5)
         if pitch is not None and drng.random() < 0.3:
             packed = r * float(drng.uniform(2.0, 2.2))      # the row closed up, centred
-    design = _knob_design(ctx, family, r, depth)
+        if drng.random() >= ctx.cfg.plain_knob_probability:
+            design = _knob_design(ctx, r, depth)
+    design.pop("design", None)
 
     def pose(i: int) -> Pose:
         p = place(i)
@@ -976,7 +1098,7 @@ def _knobs(ctx: _Ctx, oid: str, count: int, place: Callable[[int], Pose],
         on = ctx.chance(ctx.cfg.knob_on_probability)
         choices = [s for s in states if (s.name != off) == on] or states
         st = choices[int(ctx.rng.integers(len(choices)))]
-        turns = ("clockwise" if direction < 0 else "counterclockwise") if turn_stop else "either"
+        turns = ("clockwise" if direction < 0 else "counterclockwise") if turn_stop and direction else "either"
         out.append(Knob(f"{oid}_knob_{i + 1}", pose(i), states, st.name, angle=st.angle,
                         radius=r, depth=depth, color=body, marker_color=marker,
                         off_state=off if explicit else "", turns=turns, **design))
@@ -1001,6 +1123,17 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
     t = _mm(ctx.u(0.02, 0.035))                 # door (and flush panel) thickness
     panel_h = 0.0 if top_knobs else _mm(ctx.u(0.1, 0.16))
     z0 = _mm(ctx.u(0.06, 0.12))                 # the door's bottom edge
+    # an oven whose knob panel is below its door, knobs at 0.25-0.35 m (z0: the panel's
+    # bottom edge then), or one raised in a tall unit, knobs up to 1.4 m
+    # (drawn from the knob designs' generator: the rest of the home stays as it was)
+    drng = ctx.design_rng or ctx.rng
+    panel_low = kind == "oven" and bool(panel_h) and drng.random() < cfg.low_panel_probability
+    if panel_low:
+        z0 = _mm(float(drng.uniform(0.18, 0.26)))
+    lift = (_mm(float(drng.uniform(0.3, 0.5))) if kind == "oven" and not panel_low
+            and drng.random() < cfg.raised_oven_probability else 0.0)
+    panel_zc = z0 + panel_h / 2 if panel_low else H - panel_h / 2
+    door_z0 = _mm(z0 + panel_h + 0.01) if panel_low else z0
     front = D / 2
     panel_color = ctx.pick([DARK, color, BLACK])
     v: list[Visual] = []
@@ -1009,7 +1142,7 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
         v.append(box(t, W, z0, front - t / 2, 0, z0 / 2, color=color, material=material,
                      name="plinth"))
         if panel_h:
-            v.append(box(t, W, panel_h, front - t / 2, 0, H - panel_h / 2, color=panel_color,
+            v.append(box(t, W, panel_h, front - t / 2, 0, panel_zc, color=panel_color,
                          name="panel"))
         knob_x, door_x, face_x = front, front - t / 2, front
     else:
@@ -1020,7 +1153,7 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
         else:                                   # the door stands out; a thin panel plate
             out = 0.004
         if panel_h:
-            v.append(box(out, W, panel_h, front + out / 2, 0, H - panel_h / 2, color=panel_color,
+            v.append(box(out, W, panel_h, front + out / 2, 0, panel_zc, color=panel_color,
                          name="panel"))
         knob_x = front + (out if panel_h else 0.0)
         face_x = max(front + 0.002 + t, knob_x)
@@ -1031,9 +1164,9 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
         for x, y in [(x, y) for x in (-0.14, 0.06) for y in (-W / 4, W / 4)][:ctx.i(2, 4)]:
             v.append(cyl(_mm(ctx.u(0.06, 0.09)), 0.003, x, y, H + hob_h + 0.0015,
                          color=(0.3, 0.3, 0.32), name="burner"))
-    door_top = H - panel_h - 0.01
+    door_top = H - 0.01 if panel_low else H - panel_h - 0.01
     if kind in ("oven", "cooker"):
-        door_h = _mm(door_top - z0)
+        door_h = _mm(door_top - door_z0)
         door_color, door_mat = ctx.pick([(DARK, "shiny"), (BLACK, "glass"), (color, material),
                                          (DARK, "matte")])
         if ctx.chance(cfg.mesh_probability):
@@ -1048,14 +1181,14 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
                         radius=_mm(ctx.u(0.008, 0.012)), length=_mm(W * ctx.u(0.5, 0.8)),
                         standoff=standoff)
         door = Part(f"{oid}_door", "door",
-                    Joint("revolute", origin=Pose(_mm(door_x), 0.0, z0), axis=(0.0, 1.0, 0.0),
+                    Joint("revolute", origin=Pose(_mm(door_x), 0.0, door_z0), axis=(0.0, 1.0, 0.0),
                           lower=0.0, upper=_deg(math.radians(ctx.u(85, 95))), state=0.0),
                     name="oven door", model=Model([face]), handles=[handle])
     else:
         side = ctx.pick([+1, -1])
         door = _hinged_door(ctx, f"{oid}_door", "door", door_x - t / 2 - 0.002, side * W / 2,
-                            _mm(W - 0.006), _mm(door_top - z0), z0, side, color, t,
-                            _mm((door_top - z0) * 0.8))
+                            _mm(W - 0.006), _mm(door_top - door_z0), door_z0, side, color, t,
+                            _mm((door_top - door_z0) * 0.8))
         door.model.visuals[0].material = material
     # Knobs in a row, centred: on the front panel, or on the top near the front edge.
     span = W - 0.12
@@ -1068,17 +1201,26 @@ def appliance(ctx: _Ctx, kind: str, n_knobs: int) -> Piece:
                        pitch)
         knob_view = View("knobs", (kx, 0.0, kz), (0.0, 0.0, 1.0), max_angle=math.radians(62))
     else:
-        kx, kz = _mm(knob_x), _mm(H - panel_h / 2)
+        kx, kz = _mm(knob_x), _mm(panel_zc)
         knobs = _knobs(ctx, oid, n_knobs, lambda i: _rot_pose(_R_FRONT, kx, ky[i], kz), max_r,
                        pitch)
         knob_view = View("knobs", (kx, 0.0, kz), (1.0, 0.0, 0.0), max_angle=math.radians(55))
+    if lift:
+        # the whole oven on a cabinet of ``lift``
+        v = [replace(x, pose=replace(x.pose, z=_mm(x.pose.z + lift))) for x in v]
+        v.append(box(D, W, lift, 0, 0, lift / 2, color=color, material=material, name="cabinet"))
+        door.joint.origin = replace(door.joint.origin, z=_mm(door.joint.origin.z + lift))
+        for k in knobs:
+            k.pose = replace(k.pose, z=_mm(k.pose.z + lift))
+        knob_view = replace(knob_view, point=(knob_view.point[0], 0.0, _mm(knob_view.point[2] + lift)))
     names = {"oven": "oven", "cooker": "cooker", "hob": "hob"}
     obj = LargeArticulatedObject(
         id=oid, type=kind, name=ctx.ids.name(f"{ctx.room_name} {names[kind]}"), pose=Pose(),
         model=Model(v), affordances=["appliance", "openable"], parts=[door], knobs=knobs,
         description=f"{'flush' if flush else 'stepped'} front, {n_knobs} knobs "
-                    f"{'on top' if top_knobs else 'on the front panel'}")
-    views = [View("face", (face_x, 0.0, H / 2)), knob_view]
+                    f"{'on top' if top_knobs else 'on the front panel'}"
+                    f"{' below the door' if panel_low else ''}{' raised on a cabinet' if lift else ''}")
+    views = [View("face", (face_x, 0.0, lift + H / 2)), knob_view]
     reach = [(k.pose.x, k.pose.y, k.pose.z) for k in knobs] + [tuple(_handle_point(door))]
     return Piece(obj, "wall", front_parking(ctx, oid, face_x, W), views=views, reach=reach)
 

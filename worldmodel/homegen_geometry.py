@@ -167,3 +167,31 @@ def ply_bytes(mesh: Mesh) -> bytes:
     lines += [f"{x:.5f} {y:.5f} {z:.5f}" for x, y, z in np.round(V, 5) + 0.0]
     lines += [f"3 {a} {b} {c}" for a, b, c in F]
     return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def fan_prism(poly_xy, z0: float, z1: float) -> Mesh:
+    """A prism of a polygon star-shaped about its centroid (a knurled grip's ridged outline,
+    counter-clockwise), from z0 to z1: caps fanned from the centroid (``extrude`` fans from a
+    corner and needs a convex polygon)."""
+    P = np.asarray(poly_xy, dtype=float)
+    n = len(P)
+    c = P.mean(axis=0)
+    V = np.vstack([np.c_[P, np.full(n, z0)], np.c_[P, np.full(n, z1)], [[c[0], c[1], z0], [c[0], c[1], z1]]])
+    F = []
+    for i in range(n):
+        j = (i + 1) % n
+        F += [[2 * n, j, i], [2 * n + 1, n + i, n + j], [i, j, n + j], [i, n + j, n + i]]
+    return V, np.array(F, dtype=int)
+
+
+def frustum(r0: float, r1: float, z0: float, z1: float, segments: int = 24) -> Mesh:
+    """A truncated cone about +z: radius r0 at z0, r1 at z1 (a tapered knob grip)."""
+    a = np.linspace(0, 2 * math.pi, segments, endpoint=False)
+    ring = lambda r, z: np.c_[r * np.cos(a), r * np.sin(a), np.full(segments, z)]
+    n = segments
+    V = np.vstack([ring(r0, z0), ring(r1, z1), [[0, 0, z0], [0, 0, z1]]])
+    F = []
+    for i in range(n):
+        j = (i + 1) % n
+        F += [[2 * n, j, i], [2 * n + 1, n + i, n + j], [i, j, n + j], [i, n + j, n + i]]
+    return V, np.array(F, dtype=int)

@@ -45,7 +45,15 @@ whose nearest neighbour is at most ``PACKED_RADII`` radii away. ``state_over_vie
 ``generated``): state accuracy, read-wrong rate and on read as off when each knob is read
 from 1, 2 or 3 of its held-out views at the same state, the first state given kept, as a
 mission reads a knob from one place and then from others while it stays unknown
-(``over_views``); the per-view figures above are the issue's.
+(``over_views``); the per-view figures above are the issue's. Each ``per_level`` entry also
+says ``n`` (knobs present). ``per_family``: the same figures per design family
+(``family_of``: the grip's type). ``renderer``: what drew the frames ("hearth"; ``render`` is
+the one place frames are made).
+
+``--held-out-families``: leave one design family out. ``held_out_families`` ({family:
+{"near_state_accuracy", "n", ...}}): each family's views read again through gates chosen on
+the other families' validation readings alone, pooled over the run's worlds
+(``held_out_families``); the figures at the top level stay those of each home's own gates.
 """
 from __future__ import annotations
 
@@ -53,7 +61,10 @@ import math
 import os
 import time
 
+from typing import Optional
+
 import numpy as np
+
 #: Knobs whose nearest neighbour stands at most this many radii away count as ``packed``.
 PACKED_RADII = 2.25
 #: ``per_level`` keys, by ``perception.knobs.view_level``.
@@ -66,6 +77,9 @@ def add_arguments(parser) -> None:  # pragma: no cover - argparse wiring
     _worlds.add_arguments(parser, homes=0)   # --world W (repeatable), --homes N, --no-demo
     from hearth.robot.mujoco_render import add_renderer_argument
     add_renderer_argument(parser)            # --renderer hearth|mujoco (held-out frames)
+    parser.add_argument("--held-out-families", action="store_true",
+                        help="also read each design family through gates chosen on the other "
+                             "families' validation readings alone (held_out_families)")
 
 
 def _wrap_deg(a: float, period: float = 2 * math.pi) -> float:
@@ -94,15 +108,42 @@ def design_of(knob) -> str:
     return " ".join(parts) + (f" sym{knob.symmetry}" if knob.symmetry > 1 else "")
 
 
-def _measure(world, reader, n: int, seed: int, noise, label: str,
-             renderer: str = "hearth") -> list[dict]:
-    """One record per held-out view of ``world``'s knobs, drawn by ``renderer``."""
-    from hearth.robot.mujoco_render import knob_scenes
-    from perception.knob_data import KnobDataConfig, render_views, true_center_m
-    from perception.knobs import view_level
+def family_of(knob) -> str:
+    """A knob's design family for the held-out protocol: its grip's type, "plain" for the
+    format-1 knob. The type is the name of the grip's first visual where the generator named
+    it by type (``worldmodel.homegen.GRIP_TYPES``), else that visual's primitive kind
+    ("box", "cylinder", "mesh"); a knob without a grip is named by its marker ("marker:...")
+    or base."""
+    if not knob.described:
+        return "plain"
+    from worldmodel.homegen import GRIP_TYPES
+    for role in ("grip", "marker", "base"):
+        m = getattr(knob, role)
+        if m is not None and m.visuals:
+            v = m.visuals[0]
+            if role == "grip" and v.name in GRIP_TYPES:
+                return v.name
+            return v.shape if role == "grip" else f"{role}:{v.shape}"
+    return "plain"
+
+
+def render(world, n: int, seed: int, config, noise, scenes) -> list:
+    """The bench's held-out views of ``world``'s knobs (``perception.knob_data.KnobView``): a
+    camera 0.5-1.5 m from a knob, every knob at one of its states, 20 % of views with the knob
+    removed, drawn with ``seed``; ``config``: the reader's ``KnobConfig`` (the crop around the
+    knob). ``scenes``: what draws the frames (``hearth.robot.mujoco_render.knob_scenes``:
+    Hearth's own ray caster or MuJoCo, chosen with ``--renderer``). The one place the bench
+    makes its frames."""
+    from perception.knob_data import KnobDataConfig, render_views
     data = KnobDataConfig(at_states=True, missing_rate=0.2)
-    scenes = knob_scenes(world, renderer)
-    views = render_views(world, n, seed, data, reader.config, noise=noise, scenes=scenes)
+    return render_views(world, n, seed, data, config, noise=noise, scenes=scenes)
+
+
+def _measure(world, reader, views, label: str, scenes) -> list[dict]:
+    """One record per held-out view of ``world``'s knobs (``views``, from ``render``), read by
+    ``reader``."""
+    from perception.knob_data import true_center_m
+    from perception.knobs import view_level
     pitch = {}
     for owner, ids in scenes.knobs_of.items():
         for a in ids:
@@ -122,6 +163,7 @@ def _measure(world, reader, n: int, seed: int, noise, label: str,
         knob = world.get(v.truth.knob_id)
         period = 2 * math.pi / max(1, v.truth.symmetry)
         out.append(dict(world=label, knob=v.truth.knob_id, design=design_of(knob),
+                        family=family_of(knob),
                         present=v.present, found=r.found,
                         hit=hit, state=r.state, truth=v.state, off=knob.off,
                         err=_wrap_deg(r.angle - v.angle, period) if hit else None,
@@ -140,6 +182,7 @@ def _figures(recs: list[dict]) -> dict:
     n = max(len(present), 1)
     return dict(
         views=len(recs), knobs_present=len(present), knobs_missing=len(recs) - len(present),
+        n=len(present),
         detection_precision=round(tp / max(tp + fp, 1), 4),
         detection_recall=round(tp / n, 4),
         angle_err_deg_median=s["median"], angle_err_deg_mean=s["mean"],
@@ -209,9 +252,12 @@ def _frames_ms(world, reader, seed: int, n: int, renderer: str = "hearth") -> li
     return out
 
 
-def _world(spec: str, args, seed: int) -> tuple[list[dict], dict]:
+def _world(spec: str, args, seed: int, keep: Optional[dict] = None) -> tuple[list[dict], dict]:
     """The held-out views of one world (``demo``, ``home:SEED`` or a file) and what else is
-    reported of it: the reader's making, its gates, the full-frame reading time."""
+    reported of it: the reader's making, its gates, the full-frame reading time. ``keep``:
+    given, the world, its reader, views and scenes are kept in it under ``spec`` (the
+    held-out protocol reads the views again)."""
+    from hearth.robot.mujoco_render import knob_scenes
     from skills.knob_models import _noise, load_or_train
     from hearth.benchmarks import _worlds
     world = _worlds.load(spec)
@@ -223,8 +269,12 @@ def _world(spec: str, args, seed: int) -> tuple[list[dict], dict]:
     quick = getattr(args, "quick", False)
     n = getattr(args, "scenarios", None) or ((150 if quick else 800) if spec == "demo" else
                                             (40 if quick else 120))
-    renderer = getattr(args, "renderer", "hearth") or "hearth"
-    recs = _measure(world, reader, n, seed, _noise(), spec, renderer)
+    renderer = getattr(args, "renderer", None) or "hearth"
+    scenes = knob_scenes(world, renderer)
+    views = render(world, n, seed, reader.config, _noise(), scenes)
+    recs = _measure(world, reader, views, spec, scenes)
+    if keep is not None:
+        keep[spec] = dict(world=world, reader=reader, views=views, scenes=scenes)
     f = _figures(recs)
     return recs, dict(world=spec, knobs=len(world.knobs()),
                       designs=sorted({r["design"] for r in recs}),
@@ -249,10 +299,12 @@ def run(args) -> dict:
     if not specs:
         raise _worlds.NoScenes("knobs: no world to run on (--no-demo needs --world or --homes)")
     base = int(getattr(args, "seed", 0) or 0)
+    held_out = bool(getattr(args, "held_out_families", False))
+    kept: Optional[dict] = {} if held_out else None
     recs, per_world, frame_ms = [], [], []
     for spec in specs:
         seed = 10_000 + (int(spec.split(":", 1)[1]) if _worlds.is_generated(spec) else base)
-        rs, about = _world(spec, args, seed)
+        rs, about = _world(spec, args, seed, kept)
         recs += rs
         frame_ms += about.pop("frame_ms", [])
         per_world.append(about)
@@ -268,7 +320,7 @@ def run(args) -> dict:
     gen = [r for r in recs if _worlds.is_generated(r["world"])]
     out.update(
         angle_method="analysis by synthesis",
-        renderer=getattr(args, "renderer", "hearth") or "hearth",
+        renderer=getattr(args, "renderer", None) or "hearth",
         worlds=specs, homes=sum(_worlds.is_generated(s) for s in specs),
         views_per_world={w: sum(r["world"] == w for r in recs) for w in specs},
         per_world={w["world"]: _figures([r for r in recs if r["world"] == w["world"]]) for w in read},
@@ -278,6 +330,8 @@ def run(args) -> dict:
         packed=_figures([r for r in recs if r["pitch_radii"] <= PACKED_RADII]),
         per_level={lv: _figures([r for r in recs if r["level"] == lv])
                    for lv in LEVELS if any(r["level"] == lv for r in recs)},
+        per_family={f: _figures([r for r in recs if r["family"] == f])
+                    for f in sorted({r["family"] for r in recs})},
         state_over_views=over_views(recs),
         angle_err_deg_median_beyond_1_2m=_summary(far_err)["median"],
         angle_err_deg_median_beyond_45deg=_summary(oblique_err)["median"],
@@ -294,6 +348,8 @@ def run(args) -> dict:
         ratio_angle_err_vs_ramcip=(round(med / REFERENCE["angle_err_deg"], 3) if med is not None else None),
         ratio_ms_per_knob_vs_ramcip=round(ms / REFERENCE["ms_per_knob"], 4),
     )
+    if held_out:
+        out["held_out_families"] = held_out_families(kept)
     if gen and len(gen) < len(recs):
         out["generated"] = dict(_figures(gen), state_over_views=over_views(gen))
     if len(read) == 1:      # one world: its reader's gates at the top level, as before
@@ -303,4 +359,53 @@ def run(args) -> dict:
                    state_margin_threshold=w["state_margin_threshold"],
                    models=dict(source=w["model_source"], path=w["model_path"],
                                load_or_train_s=w["load_or_train_s"]))
+    return out
+
+
+def held_out_families(kept: dict) -> dict:
+    """Leave one design family out (``family_of``): for each family F of the knobs read, every
+    world's views of F's knobs read again by that world's reader (its templates: renderings
+    of the described shapes, nothing tuned) through gates chosen on the validation readings
+    of the other families' knobs alone, pooled over every world of the run
+    (``perception.knob_training.gates_from``). Per family: ``near_state_accuracy`` and ``n``
+    (knobs present in near views), the figures over every view (``all``), and ``trained_on``
+    (the validation readings the gates were chosen on). A family with no other family in the
+    run has no figure (``skipped``)."""
+    from perception.knob_training import gates_from
+    fam: dict = {}           # (world, knob id) -> family
+    for spec, k in kept.items():
+        for kn in k["world"].knobs():
+            fam[(spec, kn.id)] = family_of(kn)
+    pool = {"depth": [], "colour": []}
+    for spec, k in kept.items():
+        val = getattr(k["reader"], "validation_", None)
+        if val is None:
+            raise RuntimeError(f"knobs: the reader of {spec} keeps no validation readings "
+                               "(made by an older Hearth: hearth train knobs --force)")
+        for kind in pool:
+            pool[kind] += [dict(r, family=fam[(spec, r["knob"])]) for r in val[kind]]
+    out = {}
+    for f in sorted(set(fam.values())):
+        others = {kind: [r for r in rs if r["family"] != f] for kind, rs in pool.items()}
+        if not others["depth"]:
+            out[f] = dict(skipped="no other family to choose gates on", n=0,
+                          near_state_accuracy=None)
+            continue
+        recs = []
+        for spec, k in kept.items():
+            views = [v for v in k["views"] if fam[(spec, v.truth.knob_id)] == f]
+            if views:
+                reader = gates_from(k["reader"], others)
+                recs += _measure(k["world"], reader, views, spec, k["scenes"])
+        near = _figures([r for r in recs if r["level"] == "near"])
+        out[f] = dict(near_state_accuracy=near["state_accuracy"] if near["n"] else None,
+                      n=near["n"], on_read_as_off=_figures(recs)["on_read_as_off"],
+                      all={k: v for k, v in _figures(recs).items()
+                           if k in ("n", "state_accuracy", "state_wrong_rate", "on_read_as_off",
+                                    "detection_recall")},
+                      per_level={lv: dict(state_accuracy=g["state_accuracy"], n=g["n"])
+                                 for lv in LEVELS
+                                 for g in [_figures([r for r in recs if r["level"] == lv])]
+                                 if g["n"]},
+                      trained_on=len(others["depth"]))
     return out

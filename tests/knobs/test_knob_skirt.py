@@ -88,22 +88,22 @@ def _frame(world, scenes, kid, angle, distance, off_axis_deg, up_deg, seed=3):
     return frame, T_wc, pr
 
 
-def test_the_skirt_is_a_round_body_with_a_dot():
-    from worldmodel.homegen import generate_home
+def test_the_skirt_is_a_round_body_with_a_dot(tmp_path):
     from perception.knobs import knob_shape
-    w = generate_home(1)
-    k = w.knobs()[0]
+    w = skirt_world(tmp_path)
+    k = w.get("oven_knob_1")
     s = knob_shape(k, w.apartment.library, w.base_dir)
     assert round_body_levels(s) is not None
     a0, rho, size, top = marker_dot(s)
     assert size < 0.6 * rho < top
 
 
-def test_a_pointer_is_not_a_round_body():
+def test_a_d_shaped_grip_is_not_a_round_body():
     from worldmodel.homegen import generate_home
     from perception.knobs import knob_shape
-    w = generate_home(4)
+    w = generate_home(1)            # generator version 6: a D-shaped grip on a bezel
     k = w.knobs()[0]
+    assert k.grip.visuals[0].name == "d-shape"
     assert round_body_levels(knob_shape(k, w.apartment.library, w.base_dir)) is None
 
 

@@ -23,6 +23,8 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
     assert set(out["per_level"]) <= {"near", "hard", "very_hard"}
     assert sum(f["views"] for f in out["per_level"].values()) == 40
     assert sum(f["knobs_present"] for f in out["per_level"].values()) == out["knobs_present"]
+    assert sum(f["n"] for f in out["per_level"].values()) == out["knobs_present"]
+    assert out["renderer"] == "hearth" and "held_out_families" not in out
     # read from more views as a mission does; from one view, the per-view figure
     views = out["state_over_views"]
     assert views["1"]["state_accuracy"] == out["state_accuracy"]
@@ -47,6 +49,11 @@ def test_bench_knobs_pools_the_worlds_it_is_given_and_says_when_it_has_none(read
     assert out["views"] == 24 and set(out["per_world"]) == {"demo", str(DEMO_WORLD)}
     assert sum(w["views"] for w in out["per_world"].values()) == out["views"]
     assert [w["world"] for w in out["per_home"]] == out["worlds"]
+    # one family only: no other family's readings to choose its gates on, said so
+    assert main(["bench", "knobs", "--json", "--scenarios", "8", "--quick", "--held-out-families"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["held_out_families"] == {"plain": {"skipped": "no other family to choose gates on",
+                                                  "n": 0, "near_state_accuracy": None}}
     assert main(["bench", "knobs", "--json", "--no-demo"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].endswith("knobs: no world to run on (--no-demo needs --world or --homes)")
@@ -76,3 +83,21 @@ def test_a_knob_read_from_more_views_keeps_the_first_state_a_view_gives():
     # three views: only a, right from every start
     assert out["3"] == dict(sequences=3, state_accuracy=1.0, state_wrong_rate=0.0,
                             on_read_as_off=0)
+
+
+def test_gates_chosen_again_on_a_readers_own_readings_are_its_gates(reader):
+    """The held-out protocol chooses gates on other families' readings with the function
+    training used (``gates_from``): on the reader's own validation readings it gives the
+    reader's gates to the digit, and on readings with every wrong one left out, state gates
+    no higher."""
+    from perception.knob_training import TrainingConfig, gates_from
+    val = reader.validation_
+    assert {"depth", "colour"} <= set(val) and all("knob" in r for r in val["depth"])
+    again = gates_from(reader, val, TrainingConfig().tiny())
+    assert again.detect_gate.threshold_ == reader.detect_gate.threshold_
+    assert [again.margin_threshold_for(lv) for lv in range(3)] == \
+           [reader.margin_threshold_for(lv) for lv in range(3)]
+    assert again.half_turn_gates == reader.half_turn_gates
+    right = {k: [r for r in rs if r["right"] or not r["present"]] for k, rs in val.items()}
+    easier = gates_from(reader, right, TrainingConfig().tiny())
+    assert all(easier.margin_threshold_for(lv) <= reader.margin_threshold_for(lv) for lv in range(3))

@@ -284,9 +284,10 @@ def test_knobs_come_in_several_designs_states_directions_and_off_names(worlds):
 
 
 def test_knob_designs_vary_and_describe_their_shape(worlds):
-    """Generated knobs come in the families of KNOB_FAMILIES: plain ones, described ones with a
-    base, grip and marker, a symmetric bar (states distinct modulo 180 degrees), a mesh grip
-    on a fixed bezel; some packed 2-2.2 radii apart; some with a turning direction."""
+    """Generated knobs come from the design space (BASE_TYPES, GRIP_TYPES, MARKER_TYPES):
+    plain ones, described ones with a base, grip and marker, a symmetric bar (states distinct
+    modulo 180 degrees), a mesh grip on a fixed bezel; some packed 2-2.2 radii apart; some
+    with a turning direction."""
     import math
     from perception.knobs import knob_shape
     knobs = [(w, k) for w in worlds.values() for k in w.knobs()]
@@ -313,16 +314,20 @@ def test_knob_designs_vary_and_describe_their_shape(worlds):
 
 def test_a_tip_or_dot_stands_out_from_the_grip_it_sits_on(worlds):
     """A marker the colour of its grip (a black tip on a black bar) would make a knob that is
-    the same turned by half a turn: no reader, human or not, could read it."""
-    seen = 0
+    the same turned by half a turn: no reader, human or not, could read it. A tip (the bar's
+    own end, no relief of its own) stands out clearly; a line, dot or printed pointer may be
+    of low contrast (dark on dark), but never the grip's colour."""
+    seen, low = 0, 0
     for w in worlds.values():
         for k in w.knobs():
-            if k.marker is None or k.grip is None or k.base_fixed:
+            if k.marker is None or k.grip is None:
                 continue
             mark, grip = k.marker.visuals[0].color, k.grip.visuals[0].color
-            assert sum(abs(a - b) for a, b in zip(mark, grip)) > 0.6, (k.id, mark, grip)
+            d = sum(abs(a - b) for a, b in zip(mark, grip))
+            assert d > (0.6 if k.marker.visuals[0].name == "tip" else 0.29), (k.id, mark, grip)
             seen += 1
-    assert seen >= 20
+            low += d <= 0.6
+    assert seen >= 20 and low >= 2
 
 
 def test_some_furniture_and_doors_are_meshes_that_load(worlds, homes):
