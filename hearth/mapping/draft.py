@@ -113,6 +113,9 @@ def register_build_stage() -> bool:
     ``hearth.mapping.build.STAGE_MODULES`` joins the two."""
     try:
         from hearth.mapping.build import STAGES, Stage, register_stage
+        # the metric stages first, whichever module is imported first (a draft stage
+        # registered before them would run before the map it drafts from exists)
+        import hearth.mapping.metric  # noqa: F401
     except ImportError:
         return False
     after = "picture" if any(s.name == "picture" for s in STAGES) else None
