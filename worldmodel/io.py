@@ -91,6 +91,9 @@ def _parse_tree(data: bytes, name: str) -> etree._ElementTree:
         line = err.lineno if getattr(err, "lineno", None) else 0
         msg = err.msg if hasattr(err, "msg") else str(err)
         msg = re.sub(r", line \d+, column \d+$", "", msg)
+        # libxml2 quotes the document after some messages ("CData section not finished"
+        # and the text that follows, newlines and all): the first line says what is wrong.
+        msg = (msg.strip().splitlines() or ["unreadable XML"])[0].strip()
         raise WorldError(f"XML syntax error: {msg}", file=name, line=line) from None
     docinfo = tree.docinfo
     if docinfo.doctype or docinfo.internalDTD is not None or docinfo.externalDTD is not None:

@@ -127,6 +127,9 @@ HOSTILE_44 = {
                            "no node 'no_such_table' in the map"),
     "stat_twice": (_stats(("red_cup", "kitchen_table", 2, 1), ("red_cup", "kitchen_table", 3, 1)),
                    "given twice"),
+    # libxml2 quotes the text after an unfinished CDATA section, newlines and all
+    "cdata_unfinished": (first(r'(<room id="kitchen")', r'<![CDATA[\n\n  </box>\n  \1'),
+                         "XML syntax error: CData section not finished"),
 }
 HOSTILE.update(HOSTILE_44)
 
