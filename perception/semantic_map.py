@@ -458,7 +458,6 @@ def _proud(u: np.ndarray, v: np.ndarray, d: np.ndarray, cfg: DraftConfig, top_fa
         cu = cells[:, 0] * g + u.min() + g / 2
         cv = cells[:, 1] * g + v.min() + g / 2
         ext_u, ext_v = np.ptp(cu) + g, np.ptp(cv) + g
-        height = filled[cells[:, 0], cells[:, 1]] - bg[cells[:, 0], cells[:, 1]]
         length, width = max(ext_u, ext_v), min(ext_u, ext_v)
         base = float(np.median(bg[cells[:, 0], cells[:, 1]]))
         top = float(np.percentile(filled[cells[:, 0], cells[:, 1]], 90))

@@ -21,7 +21,6 @@ is a ``WorldError`` with the file and the line of the element at fault.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Optional
 
 import numpy as np

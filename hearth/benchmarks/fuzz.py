@@ -1158,7 +1158,6 @@ def _issue_44_cases(world: str, first, w, m) -> list[Case]:
         out.append(Case("recording", name, f, "rec", expect, klass))
 
     caps = rec["rec/captures.jsonl"].decode().splitlines()
-    acts = rec["rec/actions.jsonl"].decode()
     big = "9" * 5000
     r2("v2_valid", "", expect="accepted")
     r2("manifest_integer_5000_digits", "huge-integer", {"rec/manifest.json": rec[

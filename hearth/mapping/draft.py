@@ -45,7 +45,6 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
                      progress: Optional[Callable[[str], None]] = None) -> dict:
     """Run the draft on ``map_dir``'s fused map and write it to ``out_dir`` (see the module
     docstring); a summary dict (paths, counts, seconds, unlabelled lines)."""
-    import numpy as np
     from perception.errors import PerceptionError
     from perception.semantic_map import articulate, draft_geometry, label
     from worldmodel.draft import draft_world, draw_draft

@@ -3,7 +3,6 @@ a strange request body can no longer do to the server (freeze it, steer it, make
 from __future__ import annotations
 
 import re
-import textwrap
 import threading
 from pathlib import Path
 

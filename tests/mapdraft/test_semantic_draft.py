@@ -5,7 +5,6 @@ their faces' normals and colours), so the tests take seconds; the benchmark
 (`hearth bench mapping_draft`) drafts from rendered, fused views."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import open3d as o3d
