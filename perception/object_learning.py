@@ -462,6 +462,39 @@ def learn_object(frames, support_height: float, centre_xy,
 
 # -- where to look from, and what colour it is ------------------------------------------------
 
+def find_new_object(depth: np.ndarray, K: Intrinsics, T_world_camera: np.ndarray,
+                    T_world_surface: np.ndarray, size_xy, known_xy,
+                    min_novelty: float = 0.05) -> tuple[Optional[np.ndarray], str]:
+    """Where an object the map does not know stands on a surface in one view: the Euclidean
+    cluster of the points 8 mm to 45 cm over the surface (``T_world_surface``: centre of its
+    top face, z up; ``size_xy`` its extent) farthest from every known object's world x, y
+    (``known_xy``). (world point (x, y, surface z), "") when found; (None, "nothing") when
+    nothing stands there; (None, "known") when every cluster is within ``min_novelty`` (m)
+    of an object the map has."""
+    from perception.objects import euclidean_clusters
+    ok = np.isfinite(depth) & (depth > 0)
+    T = np.asarray(T_world_camera, dtype=float)
+    pw = depth_to_points(depth, K, mask=ok, stride=2) @ T[:3, :3].T + T[:3, 3]
+    Ts = np.asarray(T_world_surface, dtype=float)
+    local = (pw - Ts[:3, 3]) @ Ts[:3, :3]
+    on = (np.abs(local[:, 0]) < size_xy[0] / 2) & (np.abs(local[:, 1]) < size_xy[1] / 2) \
+        & (local[:, 2] > 0.008) & (local[:, 2] < 0.45)
+    sel = pw[on]
+    clusters = euclidean_clusters(sel, 0.02, 20) if len(sel) else []
+    if not clusters:
+        return None, "nothing"
+    known = [np.asarray(k, dtype=float)[:2] for k in known_xy]
+
+    def novelty(c) -> float:
+        m = sel[c, :2].mean(axis=0)
+        return min((float(np.hypot(*(k - m))) for k in known), default=math.inf)
+    best = max(clusters, key=novelty)
+    if novelty(best) < min_novelty:
+        return None, "known"
+    xy = sel[best, :2].mean(axis=0)
+    return np.array([xy[0], xy[1], float(Ts[2, 3])]), ""
+
+
 def views_around(world, point, room_id: str, radii=(0.6, 0.75, 0.9, 1.1, 1.3),
                  bearings: int = 16, robot_radius: float = 0.30,
                  start_xy=None) -> list[tuple[float, float, float]]:
@@ -524,3 +557,12 @@ def colour_name(rgb, palette: dict) -> str:
         if d < bd:
             best, bd = name, d
     return best
+
+
+def hue_name(rgb, palette: dict, min_saturation: float = 0.25) -> str:
+    """``colour_name`` for a colour with a hue; "" for a grey, white or black, which differ
+    from each other in brightness only, which the light decides as much as the object."""
+    import colorsys
+    if colorsys.rgb_to_hsv(*np.clip(np.asarray(rgb, dtype=float), 0, 1))[1] < min_saturation:
+        return ""
+    return colour_name(rgb, palette)

@@ -9,7 +9,6 @@ half-way, the skill cancels the drive and leaves the map as it was.
 """
 from __future__ import annotations
 
-import math
 from typing import Optional
 
 import numpy as np
@@ -97,30 +96,17 @@ class LearnObject(Skill):
 
     def _find_on(self, level) -> np.ndarray:
         """The world point (x, y, support z) of the object on ``level`` in the current view
-        that the map does not know (the cluster farthest from every known small object)."""
-        from perception.camera import depth_to_points
-        from perception.objects import euclidean_clusters
+        that the map does not know (perception.object_learning.find_new_object)."""
+        from perception.object_learning import find_new_object
         depth, _, K, T = capture(self.robot)
-        ok = np.isfinite(depth) & (depth > 0)
-        pw = depth_to_points(depth, K, mask=ok, stride=2) @ T[:3, :3].T + T[:3, 3]
-        Ts = level.T_world_surface
-        local = (pw - Ts[:3, 3]) @ Ts[:3, :3]
-        on = (np.abs(local[:, 0]) < level.size_x / 2) & (np.abs(local[:, 1]) < level.size_y / 2) \
-            & (local[:, 2] > 0.008) & (local[:, 2] < 0.45)
-        sel = pw[on]
-        clusters = euclidean_clusters(sel, 0.02, 20) if len(sel) else []
-        if not clusters:
-            raise ValueError(f"I see nothing standing on the {self.world.label(level.place)}")
         known = [self.world.T_world(o.id)[:2, 3] for o in self.world.small_objects()]
-
-        def novelty(c) -> float:
-            m = sel[c, :2].mean(axis=0)
-            return min((float(np.hypot(*(k - m))) for k in known), default=math.inf)
-        best = max(clusters, key=novelty)
-        if novelty(best) < 0.05:
+        point, why = find_new_object(depth, K, T, level.T_world_surface,
+                                     (level.size_x, level.size_y), known)
+        if why == "nothing":
+            raise ValueError(f"I see nothing standing on the {self.world.label(level.place)}")
+        if why == "known":
             raise ValueError("everything I see there is already in my map")
-        xy = sel[best, :2].mean(axis=0)
-        return np.array([xy[0], xy[1], float(Ts[2, 3])])
+        return point
 
     def update(self) -> S:
         if self.problem is not None:
@@ -152,7 +138,7 @@ class LearnObject(Skill):
 
     def _finish(self) -> S:
         from perception.errors import PerceptionError
-        from perception.object_learning import build_model, colour_name
+        from perception.object_learning import build_model, hue_name
         from worldmodel.errors import WorldError
         from worldmodel.homegen import COLOURS
         from worldmodel.learned import add_learned_object
@@ -161,14 +147,7 @@ class LearnObject(Skill):
             from worldmodel.learned import support_colour
             model = build_model(self.views, given=len(self.views),
                                 reference_rgb=support_colour(self.world, self.parent, self.centre))
-            colour = ""
-            if model.colours:
-                import colorsys
-                rgb = model.colours[0][0]
-                # A grey, white or black differs from another in brightness only, which the
-                # light decides as much as the object: named only when it has a hue.
-                if colorsys.rgb_to_hsv(*rgb)[1] >= 0.25:
-                    colour = colour_name(rgb, COLOURS)
+            colour = hue_name(model.colours[0][0], COLOURS) if model.colours else ""
             obj = add_learned_object(self.world, model, name, self.parent,
                                      kind=str(self.input("kind") or ""),
                                      words=str(self.input("words") or ""), colour=colour,
