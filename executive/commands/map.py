@@ -35,7 +35,8 @@ def register(sub) -> None:
                     "e.g. from `hearth tour`) in named stages, each writing under DIR so one "
                     "can be rerun alone (--stages): odometry (keyframes, ICP on the odometry), "
                     "posegraph (loop closures, global optimisation), fuse (TSDF: "
-                    "fused/map.ply, fused/mesh.ply), picture (map.png); DIR/build.json holds "
+                    "fused/map.ply, fused/mesh.ply), picture (map.png), draft (the semantic "
+                    "draft: draft/world.xml, draft.png; docs/mapping.md); DIR/build.json holds "
                     "each stage's timing, counts and warnings. Exit 0 when every stage "
                     "succeeded, 1 when one failed (the others still wrote what they found), "
                     "2 for a recording a map cannot be built from.")
