@@ -7,7 +7,7 @@ import pkgutil
 import sys
 import traceback
 
-PACKAGES = ("hearth", "executive", "skills", "perception", "worldmodel")
+PACKAGES = ("hearth",)
 
 
 def main() -> int:

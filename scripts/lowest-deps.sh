@@ -41,7 +41,7 @@ fi
 cd "$work"     # away from the checkout: only PYTHONPATH finds Hearth
 export PYTHONPATH="$root" MPLBACKEND=Agg
 "$py" "$root/scripts/import_all.py"
-"$py" -m executive.cli validate "$root/data/demo_home/world.xml" "$root"/missions/*.yaml
-"$py" -m executive.cli show "$root/missions/fetch_object.yaml" > /dev/null
-"$py" -m executive.cli run "$root/missions/go_to_rest.yaml" --runs-dir "$work/runs" --quiet
+"$py" -m hearth validate "$root/data/demo_home/world.xml" "$root"/missions/*.yaml
+"$py" -m hearth show "$root/missions/fetch_object.yaml" > /dev/null
+"$py" -m hearth run "$root/missions/go_to_rest.yaml" --runs-dir "$work/runs" --quiet
 echo "lowest-deps: ok"

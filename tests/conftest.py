@@ -26,7 +26,7 @@ def demo_world_path() -> Path:
 
 @pytest.fixture
 def demo_world():
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     return load_world(DEMO_WORLD)
 
 

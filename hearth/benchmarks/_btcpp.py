@@ -137,8 +137,8 @@ def tick_times(path: str, skills: dict[str, type], ticks: int, warmup: int = 50,
         return reason
     import behaviortreepy as bt
 
-    from executive.btcpp import export_mission
-    from executive.missionfile import load_mission
+    from hearth.executive.btcpp import export_mission
+    from hearth.executive.missionfile import load_mission
 
     mission = load_mission(path, skills)
     duration = {n.name: int(n.inputs[port].value) for n in mission.nodes()

@@ -1,7 +1,7 @@
 """The worlds a benchmark runs on, what it picks from their maps, and per-world figures.
 
 Every perception benchmark runs on any world: the demo home, generated homes
-(worldmodel.homegen) and the user's own world files. Nothing here knows one home: surfaces,
+(hearth.worldmodel.homegen) and the user's own world files. Nothing here knows one home: surfaces,
 objects and viewpoints come from each map.
 
 Worlds (options and loading)::
@@ -12,7 +12,7 @@ Worlds (options and loading)::
 
 ``world_specs``: ``"demo"`` first (unless ``--no-demo``), then ``--world`` files when given,
 else ``"home:SEED"`` for ``--homes`` generated homes, seeds ``--seed`` .. ``--seed + N - 1``
-(written once per machine, see executive/scenarios.py ``world_path``). The same spellings as
+(written once per machine, see hearth/executive/scenarios.py ``world_path``). The same spellings as
 ``hearth bench missions``.
 
 Figures per world and pooled::
@@ -50,7 +50,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from hearth.errors import HearthError
+from hearth.util.errors import HearthError
 
 #: Free height above a surface is measured up to this (m).
 MAX_HEADROOM = 0.6
@@ -90,13 +90,13 @@ def is_generated(spec: str) -> bool:
 
 @lru_cache(maxsize=None)
 def _path(spec: str):
-    from executive.scenarios import world_path
+    from hearth.executive.scenarios import world_path
     return world_path(spec)
 
 
 @lru_cache(maxsize=8)
 def _loaded(spec: str):
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     return load_world(_path(spec))
 
 
@@ -147,7 +147,7 @@ def head_camera(base_pose, point) -> np.ndarray:
     """``T_world_camera`` of the simulated robot's head camera at ``base_pose`` (x, y, yaw or
     a Pose) with the head turned to look at the world ``point`` (within its limits)."""
     from hearth.robot.sim import camera_pose, pan_tilt_to
-    from worldmodel.frames import as_base_pose
+    from hearth.worldmodel.frames import as_base_pose
     base = as_base_pose(base_pose)
     return camera_pose(base, *pan_tilt_to(base, point))
 
@@ -163,7 +163,7 @@ def extent(world, object_id: str) -> tuple[float, float]:
 def extent_of_model(world, obj) -> tuple[float, float]:
     """``extent`` of a SmallObject ``obj`` that need not be in ``world`` (whose folder its
     mesh files are found from)."""
-    from worldmodel.geometry import small_object_meshes
+    from hearth.worldmodel.geometry import small_object_meshes
     meshes = small_object_meshes(world, obj, T_world_object=np.eye(4))
     v = np.vstack([np.asarray(lm.mesh.vertices) for lm in meshes]) if meshes else np.zeros((1, 3))
     return float(np.hypot(v[:, 0], v[:, 1]).max()), float(v[:, 2].max())
@@ -190,7 +190,7 @@ def opened(world, object_id: str) -> dict[str, float]:
 def _furniture_scene(world, object_id: str):
     """An open3d ray-casting scene of one large object without its small objects."""
     import open3d as o3d
-    from worldmodel.geometry import object_meshes
+    from hearth.worldmodel.geometry import object_meshes
     scene = o3d.t.geometry.RaycastingScene()
     for lm in object_meshes(world, world.get(object_id), children=False):
         if len(lm.mesh.triangles):
@@ -261,8 +261,8 @@ class Place:
     def to_parent(self, u: float, v: float, yaw: float = 0.0):
         """The Pose, in the furniture's frame, of a point (u, v) of the surface turned by
         ``yaw`` about the surface's z (what a SmallObject standing there has as its pose)."""
-        from worldmodel.frames import planar_T
-        from worldmodel.pose import Pose
+        from hearth.worldmodel.frames import planar_T
+        from hearth.worldmodel.pose import Pose
         return Pose.from_matrix(self.T_parent_surface @ planar_T(u, v, yaw))
 
     def world_xy(self, uv) -> np.ndarray:
@@ -283,7 +283,7 @@ def places(world, min_seen: float = 0.3, max_height: float = 1.3,
     furniture's parking positions that see at least ``min_seen`` of it (doors and drawers
     open; checked on a quarter-resolution rendering); surfaces no parking position sees are
     left out. Ordered as the map lists them."""
-    from perception.camera import Intrinsics
+    from hearth.perception.camera import Intrinsics
     K = Intrinsics.kinect().scaled(0.25)
     out = []
     for obj in world.large_objects():
@@ -343,8 +343,8 @@ def grid(place: Place, step: float = 0.03, inset: float = 0.0) -> np.ndarray:
 
 
 def _static_depth(world, room_id: str, K, T_world_camera: np.ndarray) -> np.ndarray:
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import scene_meshes
     small = tuple(o.id for o in world.small_objects())
     return Scene(scene_meshes(world, room_ids=[room_id], exclude=small)).render(
         K, T_world_camera).depth
@@ -357,7 +357,7 @@ def visible_spots(world, place: Place, T_world_camera: np.ndarray, K,
     of ``heights`` above the surface: inside the image by ``margin_px`` and not hidden by the
     room and its furniture (small objects left out; ``depth`` a rendering of them, else
     rendered now)."""
-    from perception.camera import project
+    from hearth.perception.camera import project
     uv = grid(place) if uv is None else np.asarray(uv, dtype=float)
     if not len(uv):
         return uv

@@ -5,7 +5,7 @@ schema-driven fuzz.
 ``submit_p99_ms`` are those of ``clients_50``; ``load_model`` in the JSON says all of this):
 the real app (uvicorn on 127.0.0.1, an ephemeral port, in a thread of this process) over an
 Executive ticking on a wall clock at ``--tick-hz`` (default 10 Hz), whose skills are
-scripted stand-ins (executive.testing): a 6-step mission whose steps each run 2 ticks with
+scripted stand-ins (hearth.executive.testing): a 6-step mission whose steps each run 2 ticks with
 feedback. The clients are other processes (``--procs``, default 2; the clients are shared
 out between them), each client with its own kept-alive connections (httpx), opened before
 the clock starts. Each client submits missions (POST /api/runs, timed) at random moments and
@@ -102,10 +102,10 @@ def _percentile(values: list[float], q: float) -> float:
 
 
 def _service(tmp: str, clock, hz: float):
-    from executive.command.server import make_service
-    from executive.testing import Script, Substitution, test_skills
+    from hearth.executive.command.server import make_service
+    from hearth.executive.testing import Script, Substitution, test_skills
     from hearth import demo_world_path
-    from worldmodel.io import load_world
+    from hearth.worldmodel.io import load_world
 
     (Path(tmp) / "chores.yaml").write_text(MISSION)
     world = load_world(demo_world_path())
@@ -256,8 +256,8 @@ def _get(q, workers: list, timeout: float, missing):
 
 
 def _as_users(args, clients: int, samples: int) -> dict:
-    from executive.command.api import create_app
-    from executive.command.server import ServerThread
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.server import ServerThread
     from hearth.robot.clock import WallClock
 
     hz = getattr(args, "tick_hz", 10.0) or 10.0
@@ -400,8 +400,8 @@ async def _load(url: str, clients: int, rounds: int, limit: float) -> dict:
 
 
 def _stress(args, clients: int, rounds: int, limit: float) -> dict:
-    from executive.command.api import create_app
-    from executive.command.server import ServerThread
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.server import ServerThread
     from hearth.robot.clock import SimClock
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -439,9 +439,9 @@ def _stress(args, clients: int, rounds: int, limit: float) -> dict:
 def _fuzz(n: int, seed: int) -> dict:
     import httpx
 
-    from executive.command.api import create_app
-    from executive.command.fuzz import run_fuzz
-    from executive.command.server import ServerThread
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.fuzz import run_fuzz
+    from hearth.executive.command.server import ServerThread
     from hearth.robot.clock import SimClock
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -462,7 +462,7 @@ def _fuzz(n: int, seed: int) -> dict:
 
 
 def _uvicorn_impl() -> dict:
-    """uvicorn's HTTP protocol (always h11, see executive.command.server.make_server) and
+    """uvicorn's HTTP protocol (always h11, see hearth.executive.command.server.make_server) and
     event loop: uvloop where installed, else asyncio's own."""
     import importlib.util
     return {"http": "h11",

@@ -3,7 +3,7 @@
 Each figure is the median wall time of several runs of a fresh process (interpreter start,
 imports, the command itself), after one warm-up run that fills the OS file cache and the
 ``__pycache__`` folders. The `hearth` console script next to this interpreter is run when
-there is one (what a user types), else ``python -m executive.cli``.
+there is one (what a user types), else ``python -m hearth``.
 
 Figures: ``help_s_median`` (target 0.3 s), ``validate_world_s_median`` (target 0.6 s) on
 ``--world`` (default: the shipped demo home), ``import_modules_help`` (how many modules
@@ -34,7 +34,7 @@ def hearth_command() -> list[str]:
     script = Path(sys.executable).with_name("hearth")
     if script.is_file() and os.access(script, os.X_OK):
         return [str(script)]
-    return [sys.executable, "-m", "executive.cli"]
+    return [sys.executable, "-m", "hearth"]
 
 
 def _cpu() -> float:
@@ -60,7 +60,7 @@ def _time(cmd: list[str], runs: int) -> tuple[list[float], list[float]]:
 def _modules_loaded(argv: list[str]) -> int:
     """How many modules a `hearth ARGV` process has imported when it exits."""
     code = ("import sys, contextlib, io\n"
-            "from executive.cli import main\n"
+            "from hearth.cli.main import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    try:\n"
             f"        main({argv!r})\n"

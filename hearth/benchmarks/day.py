@@ -40,8 +40,8 @@ def add_arguments(parser) -> None:
 
 def day_plan(world, rng, hours: float = 24.0):
     """(schedule, happenings, user's first room, battery level) of one random day."""
-    from executive.day import REMINDER, BatteryPolicy, Entry, Schedule
-    from executive.daysim import Happening
+    from hearth.executive.day import REMINDER, BatteryPolicy, Entry, Schedule
+    from hearth.executive.daysim import Happening
     start = 7 * 3600.0
     end = start + hours * 3600.0
     rooms = [r.id for r in world.rooms]
@@ -98,7 +98,7 @@ def day_plan(world, rng, hours: float = 24.0):
 
 def _user_rooms(hap, first):
     """An emergency's call comes from the user's room ("@user"): fill it in."""
-    from executive.daysim import Happening
+    from hearth.executive.daysim import Happening
     room, out = first, []
     for h in hap:
         if h.kind in ("user_moves", "home") and h.room:
@@ -111,9 +111,9 @@ def _user_rooms(hap, first):
 
 def run(args) -> dict:
     import numpy as np
-    from executive.daysim import simulate_day
+    from hearth.executive.daysim import simulate_day
     from hearth.benchmarks._worlds import load, world_specs
-    from worldmodel.chargers import place_charger
+    from hearth.worldmodel.chargers import place_charger
 
     specs = world_specs(args, homes=2)
     per_world, responses, preempting, walls = {}, [], [], []

@@ -8,7 +8,7 @@ statuses keep changing (Hearth has events to track). Hearth ticks it through
 ``Executive.tick()`` on a simulated clock, with the execution log written (the cost every
 run pays); ``tick_ms_subscribed`` is the same with one (empty) subscriber, so every event is
 also made an ``Event`` and delivered, as under the HTTP API. The executive ticks the tree by
-direct calls (executive/treetick.py), not py_trees' generators; docs/missions.md,
+direct calls (hearth/executive/treetick.py), not py_trees' generators; docs/missions.md,
 "Performance", has the profile.
 
 The baseline is the same behaviour classes assembled by hand from py_trees composites and
@@ -34,7 +34,7 @@ import py_trees
 from py_trees import common
 
 from hearth.benchmarks import _btcpp
-from skills.base import Bindings, Port, Skill
+from hearth.skills.base import Bindings, Port, Skill
 
 GROUPS = 18
 
@@ -77,7 +77,7 @@ def mission_yaml(seed: int) -> str:
 
 
 def direct_tree(seed: int) -> py_trees.behaviour.Behaviour:
-    from skills.base import Literal
+    from hearth.skills.base import Literal
     durations = iter(_durations(seed))
     groups = []
     for g in range(GROUPS):
@@ -110,8 +110,8 @@ def add_arguments(parser) -> None:  # pragma: no cover - argparse wiring
 
 
 def run(args) -> dict:
-    from executive.executive import Executive
-    from executive.missionfile import load_mission
+    from hearth.executive.executive import Executive
+    from hearth.executive.missionfile import load_mission
     from hearth.robot.clock import SimClock
 
     seed = getattr(args, "seed", 0)

@@ -34,7 +34,7 @@ The ``http`` block sends hostile requests to a real server over the demo home (i
 hand-made ones by class (cross-site POST/PUT with foreign ``Origin`` or ``Sec-Fetch-Site``,
 malformed ``Host``, bodies with Infinity, NaN, 1e400, 5,000-digit integers, lone surrogates,
 a key twice, the worst template's utterance) with the answer each must get, and
-``--http-requests`` schema-generated ones (executive/command/fuzz.py) with hostile bodies and
+``--http-requests`` schema-generated ones (hearth/executive/command/fuzz.py) with hostile bodies and
 foreign origins mixed in; it counts ``5xx`` and ``cross_site_accepted`` and reports how long
 ``/api/health`` took while the worst template was matched.
 
@@ -73,7 +73,7 @@ FAILURES = ("tracebacks", "hangs", "crashes", "accepted_then_unloadable",
 _OUTCOME_KEY = {"traceback": "tracebacks", "hang": "hangs", "crash": "crashes",
                 "unloadable": "accepted_then_unloadable", "out_of_bounds": "accepted_out_of_bounds"}
 
-#: The world format's bound on coordinates, lengths and angles (worldmodel.validate.MAX_COORD),
+#: The world format's bound on coordinates, lengths and angles (hearth.worldmodel.validate.MAX_COORD),
 #: restated here so the check is independent of the loader.
 WORLD_MAX_COORD = 1e4
 #: A refusal is a line a person reads: longer than this, it counts as a traceback.
@@ -247,7 +247,7 @@ def _world_files(apartment) -> list[str]:
     for room in apartment.rooms:
         if room.pointcloud is not None:
             out.append(room.pointcloud)
-    from worldmodel.validate import iter_nodes
+    from hearth.worldmodel.validate import iter_nodes
     for node, _ in iter_nodes(apartment):
         if hasattr(node, "model"):
             models.append(node.model)
@@ -288,8 +288,8 @@ def _mesh_references(base: Path, rel: str) -> list[str]:
 
 
 def check_world(root: Path, entry: Path) -> Verdict:
-    from worldmodel.errors import WorldError
-    from worldmodel.io import load_world, save_world
+    from hearth.worldmodel.errors import WorldError
+    from hearth.worldmodel.io import load_world, save_world
 
     try:
         world = load_world(entry)
@@ -328,7 +328,7 @@ def check_world(root: Path, entry: Path) -> Verdict:
 
 def _update(world) -> None:
     """What a mission does to a map: move a joint, turn a knob, move a small object."""
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     parts = [p for p in world.nodes("Part") if p.joint.type != "fixed"]
     if parts:
         j = parts[0].joint
@@ -345,7 +345,7 @@ def _update(world) -> None:
 def _use(world) -> None:
     """What the simulator and the skills do with a map: meshes, world poses, parking poses."""
     import numpy as np
-    from worldmodel.geometry import scene_meshes
+    from hearth.worldmodel.geometry import scene_meshes
     for m in scene_meshes(world):
         v = np.asarray(m.mesh.vertices)
         if v.size and not np.isfinite(v).all():
@@ -365,7 +365,7 @@ _REGISTRY: Optional[dict] = None
 def _registry() -> dict:
     global _REGISTRY
     if _REGISTRY is None:
-        from executive.missionfile import skill_registry
+        from hearth.executive.missionfile import skill_registry
         _REGISTRY = skill_registry()
     return _REGISTRY
 
@@ -387,7 +387,7 @@ def _finite_everywhere(value, depth: int = 0) -> bool:
 
 
 def _mission_out_of_bounds(mission) -> Optional[str]:
-    from executive.missionfile import Lit
+    from hearth.executive.missionfile import Lit
     for n in mission.nodes():
         a = n.attrs
         if n.kind == "retry" and not 1 <= a["times"] <= 1000:
@@ -408,9 +408,9 @@ def _mission_out_of_bounds(mission) -> Optional[str]:
 
 
 def check_mission(root: Path, entry: Path) -> Verdict:
-    from executive.errors import MissionError
-    from executive.missionfile import load_mission, validate_file
-    from executive.tree import build_tree
+    from hearth.executive.errors import MissionError
+    from hearth.executive.missionfile import load_mission, validate_file
+    from hearth.executive.tree import build_tree
 
     skills = _registry()
     try:
@@ -442,7 +442,7 @@ def check_mission(root: Path, entry: Path) -> Verdict:
             params = None   # a sample value the mission refuses (an enum of lists...): skip
         if params is not None:
             built = build_tree(mission, params, f"/fuzz/{os.getpid()}")
-        from executive.render import ascii_tree
+        from hearth.executive.render import ascii_tree
         ascii_tree(mission.root)
     except Exception as err:  # noqa: BLE001
         return Verdict("unloadable", _describe(err), outside)
@@ -451,7 +451,7 @@ def check_mission(root: Path, entry: Path) -> Verdict:
             built.teardown()
             built = None
     try:     # what `hearth serve` does with the file's utterances: compile, then match
-        from executive.command.vocabulary import normalise, read_templates
+        from hearth.executive.command.vocabulary import normalise, read_templates
         templates = read_templates(mission, str(entry))
     except MissionError as err:
         why = _one_line_each(str(err))
@@ -1231,7 +1231,7 @@ def _worker(conn, timeout: float) -> None:   # pragma: no cover - runs in a chil
     import resource
     os.chdir(tempfile.gettempdir())
     _registry()                                  # import the skills once, before timing
-    import worldmodel.geometry  # noqa: F401
+    import hearth.worldmodel.geometry  # noqa: F401
     import hearth.robot.recording  # noqa: F401
     try:    # a memory bomb ends as MemoryError (a traceback) rather than swapping
         soft, hard = resource.getrlimit(resource.RLIMIT_AS)
@@ -1269,12 +1269,12 @@ class _Worker:
             raise RuntimeError("fuzz worker did not start")
 
     def restart(self) -> None:
-        from executive.suite import stop_worker
+        from hearth.executive.suite import stop_worker
         stop_worker(self.proc, self.conn, kill=True)
         self.start()
 
     def close(self) -> None:
-        from executive.suite import stop_worker
+        from hearth.executive.suite import stop_worker
         stop_worker(self.proc, self.conn)
 
 
@@ -1370,9 +1370,9 @@ def check_http(n: int, seed: int) -> dict:
 
     import httpx
 
-    from executive.command.api import create_app
-    from executive.command.fuzz import run_fuzz
-    from executive.command.server import ServerThread
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.fuzz import run_fuzz
+    from hearth.executive.command.server import ServerThread
     from hearth.benchmarks.api import _service
     from hearth.robot.clock import SimClock
 

@@ -1,7 +1,7 @@
 """Knob detection, angle and state on held-out rendered views of the knobs of the demo home
 (unless ``--no-demo``), of world files and of generated homes (``--world W``, repeatable:
 a file, ``demo`` or ``home:SEED``; ``--homes N``: ``home:SEED`` for seeds ``--seed`` ..
-``--seed + N - 1``, worldmodel/homegen.py, knob designs varied, see ``KNOB_FAMILIES``), with
+``--seed + N - 1``, hearth/worldmodel/homegen.py, knob designs varied, see ``KNOB_FAMILIES``), with
 the reader made for each world (its time: ``per_home[].load_or_train_s``, ``train_s_max``).
 
 ``--renderer mujoco`` draws the held-out frames with MuJoCo (hearth/robot/mujoco_render.py,
@@ -32,7 +32,7 @@ lower is better). The models are the default ones (trained on first use, see doc
 Figures are pooled over the worlds at the top level, with ``per_world`` (the same figures per
 world), ``generated`` (the generated homes alone) and ``per_home`` (each world's reader:
 time to make it, its gates, headline figures). ``per_level``: the same figures by how hard
-the view is for the state gates (``perception.knobs.view_level`` of the knob's true radius
+the view is for the state gates (``hearth.perception.knobs.view_level`` of the knob's true radius
 in the image and its angle off-axis): ``near`` (12 px radius or more and at most 45 degrees
 off-axis), ``hard`` (under 12 px or beyond 45 degrees), ``very_hard`` (under 8 px or beyond
 55 degrees), so that where the reader reads and where a view is too small or oblique to
@@ -67,7 +67,7 @@ import numpy as np
 
 #: Knobs whose nearest neighbour stands at most this many radii away count as ``packed``.
 PACKED_RADII = 2.25
-#: ``per_level`` keys, by ``perception.knobs.view_level``.
+#: ``per_level`` keys, by ``hearth.perception.knobs.view_level``.
 LEVELS = ("near", "hard", "very_hard")
 REFERENCE = dict(detection=0.96, angle_err_deg=10.0, ms_per_knob=1250.0)
 
@@ -111,12 +111,12 @@ def design_of(knob) -> str:
 def family_of(knob) -> str:
     """A knob's design family for the held-out protocol: its grip's type, "plain" for the
     format-1 knob. The type is the name of the grip's first visual where the generator named
-    it by type (``worldmodel.homegen.GRIP_TYPES``), else that visual's primitive kind
+    it by type (``hearth.worldmodel.homegen.GRIP_TYPES``), else that visual's primitive kind
     ("box", "cylinder", "mesh"); a knob without a grip is named by its marker ("marker:...")
     or base."""
     if not knob.described:
         return "plain"
-    from worldmodel.homegen import GRIP_TYPES
+    from hearth.worldmodel.homegen import GRIP_TYPES
     for role in ("grip", "marker", "base"):
         m = getattr(knob, role)
         if m is not None and m.visuals:
@@ -128,13 +128,13 @@ def family_of(knob) -> str:
 
 
 def render(world, n: int, seed: int, config, noise, scenes) -> list:
-    """The bench's held-out views of ``world``'s knobs (``perception.knob_data.KnobView``): a
+    """The bench's held-out views of ``world``'s knobs (``hearth.perception.knob_data.KnobView``): a
     camera 0.5-1.5 m from a knob, every knob at one of its states, 20 % of views with the knob
     removed, drawn with ``seed``; ``config``: the reader's ``KnobConfig`` (the crop around the
     knob). ``scenes``: what draws the frames (``hearth.robot.mujoco_render.knob_scenes``:
     Hearth's own ray caster or MuJoCo, chosen with ``--renderer``). The one place the bench
     makes its frames."""
-    from perception.knob_data import KnobDataConfig, render_views
+    from hearth.perception.knob_data import KnobDataConfig, render_views
     data = KnobDataConfig(at_states=True, missing_rate=0.2)
     return render_views(world, n, seed, data, config, noise=noise, scenes=scenes)
 
@@ -142,8 +142,8 @@ def render(world, n: int, seed: int, config, noise, scenes) -> list:
 def _measure(world, reader, views, label: str, scenes) -> list[dict]:
     """One record per held-out view of ``world``'s knobs (``views``, from ``render``), read by
     ``reader``."""
-    from perception.knob_data import true_center_m
-    from perception.knobs import view_level
+    from hearth.perception.knob_data import true_center_m
+    from hearth.perception.knobs import view_level
     pitch = {}
     for owner, ids in scenes.knobs_of.items():
         for a in ids:
@@ -230,9 +230,9 @@ def over_views(recs: list[dict], views=(1, 2, 3)) -> dict:
 def _frames_ms(world, reader, seed: int, n: int, renderer: str = "hearth") -> list[float]:
     """Wall ms of reading every knob of the map's appliance with the most knobs in full
     640x480 frames, from 0.7-1.1 m in front of its knob panel and 0.3-0.6 m above it."""
-    from perception.camera import Intrinsics, look_at
+    from hearth.perception.camera import Intrinsics, look_at
     from hearth.robot.mujoco_render import knob_scenes
-    from perception.knobs import knob_priors
+    from hearth.perception.knobs import knob_priors
     K = Intrinsics.kinect()
     scenes = knob_scenes(world, renderer)
     owner = max(sorted(scenes.knobs_of), key=lambda o: len(scenes.knobs_of[o]))
@@ -258,7 +258,7 @@ def _world(spec: str, args, seed: int, keep: Optional[dict] = None) -> tuple[lis
     given, the world, its reader, views and scenes are kept in it under ``spec`` (the
     held-out protocol reads the views again)."""
     from hearth.robot.mujoco_render import knob_scenes
-    from skills.knob_models import _noise, load_or_train
+    from hearth.skills.knob_models import _noise, load_or_train
     from hearth.benchmarks import _worlds
     world = _worlds.load(spec)
     if not world.knobs():
@@ -367,11 +367,11 @@ def held_out_families(kept: dict) -> dict:
     world's views of F's knobs read again by that world's reader (its templates: renderings
     of the described shapes, nothing tuned) through gates chosen on the validation readings
     of the other families' knobs alone, pooled over every world of the run
-    (``perception.knob_training.gates_from``). Per family: ``near_state_accuracy`` and ``n``
+    (``hearth.perception.knob_training.gates_from``). Per family: ``near_state_accuracy`` and ``n``
     (knobs present in near views), the figures over every view (``all``), and ``trained_on``
     (the validation readings the gates were chosen on). A family with no other family in the
     run has no figure (``skipped``)."""
-    from perception.knob_training import gates_from
+    from hearth.perception.knob_training import gates_from
     fam: dict = {}           # (world, knob id) -> family
     for spec, k in kept.items():
         for kn in k["world"].knobs():

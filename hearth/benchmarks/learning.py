@@ -1,4 +1,4 @@
-"""Objects learned from views (perception/object_learning.py) against the models they were
+"""Objects learned from views (hearth/perception/object_learning.py) against the models they were
 rendered from.
 
 ``hearth bench learning --json [--homes N] [--seed S] [--world W ...] [--scenarios K]``.
@@ -54,19 +54,19 @@ def add_arguments(parser) -> None:
 
 
 def colour_name(rgb) -> str:
-    """The nearest of the generator's colour words (perception.object_learning.colour_name)."""
-    from perception.object_learning import colour_name as name
-    from worldmodel.homegen import COLOURS
+    """The nearest of the generator's colour words (hearth.perception.object_learning.colour_name)."""
+    from hearth.perception.object_learning import colour_name as name
+    from hearth.worldmodel.homegen import COLOURS
     return name(rgb, COLOURS)
 
 
 def views_of(truth, oid, K, rng):
     """(true T_world_camera, believed T_world_camera) of up to MAX_VIEWS views around the
-    object (perception.object_learning.views_around, as the learn_object mission plans
+    object (hearth.perception.object_learning.views_around, as the learn_object mission plans
     them), each kept when it sees at least 40 % of the object, spread round it."""
-    from perception.object_learning import spread, views_around
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes, small_object_meshes
+    from hearth.perception.object_learning import spread, views_around
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
     room = truth.room_of(oid)
     c = truth.T_world(oid)[:3, 3]
     h = _worlds.extent(truth, oid)[1]
@@ -91,14 +91,14 @@ def views_of(truth, oid, K, rng):
 
 
 def _surface(world, oid, T_world_object=None, spacing=0.002):
-    from perception.objects import model_from_world
+    from hearth.perception.objects import model_from_world
     m = model_from_world(world, oid, spacing)
     T = world.T_world(oid) if T_world_object is None else T_world_object
     return m.points @ T[:3, :3].T + T[:3, 3]
 
 
 def _dims(points_world, support):
-    from perception.object_learning import object_frame
+    from hearth.perception.object_learning import object_frame
     T = object_frame(points_world, support)
     Ti = np.linalg.inv(T)
     p = points_world @ Ti[:3, :3].T + Ti[:3, 3]
@@ -146,9 +146,9 @@ def score(truth, oid, model) -> dict:
 
 
 def run_world(spec: str, per_kind: int, seed: int) -> tuple[list[dict], str]:
-    from perception.camera import Intrinsics
-    from perception.errors import PerceptionError
-    from perception.object_learning import learn_object
+    from hearth.perception.camera import Intrinsics
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.object_learning import learn_object
     from hearth.benchmarks.objects import observe
     truth = _worlds.load(spec)
     K = Intrinsics.kinect()
@@ -180,7 +180,7 @@ def run_world(spec: str, per_kind: int, seed: int) -> tuple[list[dict], str]:
             known = [tuple(truth.bounds_world(o.id)) for o in truth.small_objects()
                      if o.id != oid and np.hypot(*(truth.T_world(o.id)[:2, 3] - c[:2])) < 0.5]
             try:       # the map knows the objects around it (as LearnObject's belief does)
-                from worldmodel.learned import support_colour
+                from hearth.worldmodel.learned import support_colour
                 model = learn_object(frames, float(c[2]), c[:2], known=known,
                                      reference_rgb=support_colour(truth, truth.parent(oid).id, c))
             except PerceptionError as err:

@@ -69,7 +69,7 @@ def true_surface_samples(world, step: float = 0.05, height: float = 2.2) -> np.n
 def map_accuracy(world, points: np.ndarray) -> dict:
     import open3d as o3d
     from scipy.spatial import cKDTree
-    from worldmodel.geometry import merge, scene_meshes
+    from hearth.worldmodel.geometry import merge, scene_meshes
     mesh = merge(scene_meshes(world))
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
@@ -89,7 +89,7 @@ def tour_and_build(world, work: Path, width: int, seed: int, drift) -> dict:
     import open3d as o3d
     from hearth.mapping.build import build
     from hearth.robot.tour import TourOptions, record_tour
-    from perception.camera import Intrinsics
+    from hearth.perception.camera import Intrinsics
     t0 = time.perf_counter()
     summary = record_tour(world, work / "rec", TourOptions(), drift, seed=seed,
                           intrinsics=Intrinsics.kinect(width, width * 3 // 4))
@@ -122,7 +122,7 @@ def _world(spec: str):
     """A generated home made in memory by this checkout's generator (the shared file cache of
     generated homes can hold a file another version of the generator wrote), else the file."""
     if _worlds.is_generated(spec):
-        from worldmodel.homegen import generate_home
+        from hearth.worldmodel.homegen import generate_home
         return generate_home(int(spec.split(":", 1)[1]))
     return _worlds.load(spec)
 

@@ -2,8 +2,8 @@
 
 For each generated home (``--homes N`` from ``--seed S``, or ``--world W``): its fused map
 FROM TRUE POSES (hearth/benchmarks/true_pose_map.py, cached), the draft
-(perception/semantic_map.py, the classifier trained on other generated homes), the draft
-world (worldmodel/draft.py), and ``score_draft(draft_world, true_world)``:
+(hearth/perception/semantic_map.py, the classifier trained on other generated homes), the draft
+world (hearth/worldmodel/draft.py), and ``score_draft(draft_world, true_world)``:
 
 - rooms: each true room's best outline IoU with a drafted room (``room_iou_mean``), counts;
 - large objects: drafted and true objects matched one to one by centre (within 0.5 m,
@@ -64,7 +64,7 @@ class _Obj:
 
 
 def _body_points(world, obj, T_wo):
-    from worldmodel.geometry import object_meshes
+    from hearth.worldmodel.geometry import object_meshes
     skip = {h.id for h in getattr(obj, "handles", [])} | {k.id for k in getattr(obj, "knobs", [])}
     for p in getattr(obj, "parts", []):
         skip |= {h.id for h in p.handles} | {k.id for k in p.knobs}
@@ -77,7 +77,7 @@ def _front_in_object(obj) -> Optional[float]:
     """The direction of the object's front in its own frame (generated homes turn some
     objects' contents inside their frame): away from a carcass's back board, towards an
     appliance's knobs, out along a drawer's axis; None for tables and chairs."""
-    from worldmodel.nodes import LargeArticulatedObject
+    from hearth.worldmodel.nodes import LargeArticulatedObject
     if isinstance(obj, LargeArticulatedObject) and obj.knobs:
         m = np.mean([k.pose.position[:2] for k in obj.knobs], axis=0)
         return _snap(math.atan2(m[1], m[0]))
@@ -93,9 +93,9 @@ def _snap(a: float) -> float:
 
 def truth_objects(world, drafted: bool = False) -> list[_Obj]:
     """Every large object of ``world`` as the scoring sees it; ``drafted``: a draft world
-    (worldmodel/draft.py), whose objects face their +x."""
-    from worldmodel.geometry import part_T
-    from worldmodel.nodes import LargeArticulatedObject
+    (hearth/worldmodel/draft.py), whose objects face their +x."""
+    from hearth.worldmodel.geometry import part_T
+    from hearth.worldmodel.nodes import LargeArticulatedObject
     out = []
     for room in world.rooms:
         T_wr = room.pose.matrix()
@@ -139,7 +139,7 @@ def truth_objects(world, drafted: bool = False) -> list[_Obj]:
 # -- scoring ------------------------------------------------------------------------------------
 
 def _room_polygons(world):
-    from worldmodel.frames import room_corners
+    from hearth.worldmodel.frames import room_corners
     return [room_corners(r) for r in world.rooms if r.bounds is not None]
 
 
@@ -289,8 +289,8 @@ def _label_of(obj, truth: list[_Obj]) -> str:
 
 def training_samples(seeds=TRAIN_SEEDS, progress=None):
     """(X, y) of the drafted objects of generated homes ``seeds`` (their true-pose maps)."""
-    from perception.semantic_map import draft_geometry, object_features, room_context
-    from worldmodel.homegen import HomeConfig
+    from hearth.perception.semantic_map import draft_geometry, object_features, room_context
+    from hearth.worldmodel.homegen import HomeConfig
     from hearth.benchmarks.true_pose_map import cached_fused
     X, y = [], []
     for i, seed in enumerate(seeds):
@@ -308,8 +308,8 @@ def training_samples(seeds=TRAIN_SEEDS, progress=None):
 
 def _configuration() -> dict:
     from dataclasses import asdict
-    from perception.semantic_map import FEATURES, DraftConfig
-    from worldmodel.homegen import GENERATOR_VERSION
+    from hearth.perception.semantic_map import FEATURES, DraftConfig
+    from hearth.worldmodel.homegen import GENERATOR_VERSION
     from hearth.benchmarks.true_pose_map import TruePoseMapConfig
     return dict(version=CLASSIFIER_VERSION, seeds=list(TRAIN_SEEDS), features=list(FEATURES),
                 draft=asdict(DraftConfig()), fusion=asdict(TruePoseMapConfig()),
@@ -319,8 +319,8 @@ def _configuration() -> dict:
 def classifier(retrain: bool = True, progress=None):
     """The large-object classifier from the model store (``mapdraft.joblib``), trained now
     on the true-pose maps of ``TRAIN_SEEDS`` when missing or stale."""
-    from perception.semantic_map import LargeObjectClassifier
-    from worldmodel import model_store
+    from hearth.perception.semantic_map import LargeObjectClassifier
+    from hearth.worldmodel import model_store
 
     def train():
         X, y = training_samples(progress=progress)
@@ -329,7 +329,7 @@ def classifier(retrain: bool = True, progress=None):
         clf, info = model_store.load_or_train("mapdraft", _configuration(), train,
                                               retrain=retrain)
     except model_store.ModelUnavailable as err:
-        from perception.errors import PerceptionError
+        from hearth.perception.errors import PerceptionError
         raise PerceptionError(f"large-object classifier: {err}; run `hearth bench "
                               "mapping_draft` once to train it") from None
     return clf
@@ -339,17 +339,17 @@ def classifier(retrain: bool = True, progress=None):
 
 def run(args) -> dict:
     import sys
-    from perception.semantic_map import draft_geometry, label
-    from worldmodel.draft import draft_world
-    from worldmodel.homegen import HomeConfig
-    from worldmodel.world import World
+    from hearth.perception.semantic_map import draft_geometry, label
+    from hearth.worldmodel.draft import draft_world
+    from hearth.worldmodel.homegen import HomeConfig
+    from hearth.worldmodel.world import World
     from hearth.benchmarks.true_pose_map import cached_fused, fused_from_true_poses
     verbose = getattr(args, "verbose", False)
     say = (lambda m: print(f"mapping_draft: {m}", file=sys.stderr, flush=True)) if verbose else None
     clf = classifier(progress=say)
     cases = []
     if getattr(args, "world", None):
-        from worldmodel.io import load_world
+        from hearth.worldmodel.io import load_world
         for w in args.world:
             cases.append((w, lambda w=w: _fuse_world(load_world(w), fused_from_true_poses)))
     else:

@@ -1,11 +1,11 @@
 """`hearth bench missions --json [--homes N] [--world W] [--scenarios K] [--jobs J]
 [--engine local|ray|local,ray] [--address ADDR] [--timeout S]`: the named missions on
-generated homes and the demo home (executive/scenarios.py), on an engine of
-executive/suite.py (the same as `hearth suite`): spawned worker processes here, or one Ray
+generated homes and the demo home (hearth/executive/scenarios.py), on an engine of
+hearth/executive/suite.py (the same as `hearth suite`): spawned worker processes here, or one Ray
 task per scenario.
 
 Worlds: by default the demo home and ``--homes`` generated homes (``home:SEED`` for seeds
-``--seed`` .. ``--seed + N - 1``, made by worldmodel.homegen and cached); ``--world W`` (a
+``--seed`` .. ``--seed + N - 1``, made by hearth.worldmodel.homegen and cached); ``--world W`` (a
 world file, repeatable) runs on those instead; ``--no-demo`` leaves the demo home out.
 Per world and mission, ``--scenarios`` cases (fetch: at least one per kind of small object
 of the home), targets taken from the map.
@@ -33,7 +33,7 @@ every mission figure, and make the command exit 1.
 first engine's, and ``engines`` gives each one's ``scenarios_per_s``, ``total_wall_s`` and
 ``startup_s`` (until its first result), ``ray_over_local`` the ratio of their wall times, and
 ``same_results`` whether every case gave the same result on both (all but
-``executive.suite.VARYING``), with the keys of those that did not in ``differing``.
+``hearth.executive.suite.VARYING``), with the keys of those that did not in ``differing``.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ import time
 
 
 def add_arguments(parser) -> None:
-    from executive.cliutil import suite_missions
+    from hearth.cli.util import suite_missions
     parser.add_argument("--missions", type=suite_missions,
                         default=("fetch_object", "turn_off_oven", "refine_localisation"),
                         help="comma-separated missions (default: the three named ones)")
@@ -57,7 +57,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--verbose", action="store_true", help="per-case lines on stderr")
     from hearth.robot.mujoco_render import add_renderer_argument
     add_renderer_argument(parser)       # the simulated robot's frames ($HEARTH_SIM_RENDERER)
-    from executive.suite import add_engine_arguments
+    from hearth.executive.suite import add_engine_arguments
     add_engine_arguments(parser, several=True)
 
 
@@ -70,8 +70,8 @@ def worlds_of(args) -> list[str]:
 
 
 def run(args) -> dict:
-    from executive import suite
-    from executive.scenarios import suite_cases, summarise
+    from hearth.executive import suite
+    from hearth.executive.scenarios import suite_cases, summarise
 
     n = args.scenarios or (2 if args.quick else 4)
     missions = getattr(args, "missions", None) or ("fetch_object", "turn_off_oven",
@@ -127,7 +127,7 @@ def incomplete(result: dict) -> str | None:
 def _run_on(name: str, cases, jobs: int, args, verbose: bool) -> dict:
     from collections import Counter
 
-    from executive import suite
+    from hearth.executive import suite
     engine = suite.make_engine(name, jobs=jobs, address=getattr(args, "address", None),
                                timeout=getattr(args, "timeout", suite.DEFAULT_TIMEOUT_S))
     done = [0]

@@ -40,7 +40,7 @@ from hearth.benchmarks import _worlds
 from hearth.benchmarks._worlds import summary_stats
 from hearth.benchmarks.objects import (box_object, cluttered_scene, distinct, fitting_objects,
                                        observe, visible_fractions)
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 
 REFERENCE = dict(recognised_within_two_views=0.825, occlusion_avoided=0.85)
 MATCH_M = 0.03
@@ -100,10 +100,10 @@ def clear_view_exists(truth, target, K, threshold: float = 0.9,
     head-camera views from bases on rings around it (facing it, inside its room by the robot
     radius, clear of the furniture's footprints by it), rendered from the truth at half
     resolution, nearest first, until one does. Independent of the planner."""
-    from perception.nbv import NBVConfig, footprints
-    from perception.render import Scene
-    from worldmodel.frames import room_contains
-    from worldmodel.geometry import scene_meshes, small_object_meshes
+    from hearth.perception.nbv import NBVConfig, footprints
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.frames import room_contains
+    from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
     rr = NBVConfig().robot_radius
     room = truth.room_of(target)
     c = truth.T_world(target)[:3, 3]
@@ -140,7 +140,7 @@ def _footprint_distance(xy, T, box) -> float:
 def believed(base, truth, rng, place, ids):
     """The belief: the scene's objects near their true places on the surface (1.5 cm noise),
     no clutter, the furniture's doors open as in truth."""
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     belief = base.copy()
     if place.inside:
         _worlds.opened(belief, place.object_id)
@@ -160,7 +160,7 @@ def recognised(det, truth, oid) -> bool:
 
 def hypotheses_for(det, belief, target):
     """The target's hypotheses from a detection, competitors at the same place, else the map."""
-    from perception.nbv import ObjectHypothesis, from_map
+    from hearth.perception.nbv import ObjectHypothesis, from_map
     p = belief.T_world(target)[:2, 3]
     hs = [ObjectHypothesis(h.object_id, h.T_world_object, max(h.confidence, 0.05))
           for h in det.hypotheses if np.linalg.norm(h.position[:2] - p) < 0.06]
@@ -180,9 +180,9 @@ def run_world(spec: str, n: int, seed, K) -> tuple[list[dict], int, str]:
     """Per-scene records of ``n`` NBV scenes of one world, scenes tried, and a note when it
     has no place for one. Scene ``t`` draws from its own generator seeded with
     ``(*seed, t)``, so what one scene's detection decides never changes the scenes after it."""
-    from perception.errors import PerceptionError
-    from perception.nbv import plan_next_best_view
-    from perception.objects import detect_objects
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.nbv import plan_next_best_view
+    from hearth.perception.objects import detect_objects
     base = _worlds.load(spec)
     ps = [p for p in _worlds.places(base) if fitting_objects(base, p)]
     if not ps:

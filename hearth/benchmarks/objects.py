@@ -18,7 +18,7 @@ disparity quantisation, dropouts, colour noise). The detector gets the belief ma
 clutter, objects at their old places, the doors open as in truth) and the surface it looks
 at (as a mission's DetectObject gets the level it searches), and tries every small object of
 the map as a candidate. ``auto_surface_agreement``: the share of scenes where the detector,
-not told the surface, would pick that one (``perception.objects.expected_surfaces``).
+not told the surface, would pick that one (``hearth.perception.objects.expected_surfaces``).
 
 Look-alikes (``lookalike`` in the JSON): a quarter as many scenes again per world, each with
 one of the map's objects taken away and, at a spot the camera sees, a look-alike of it the map
@@ -53,7 +53,7 @@ import numpy as np
 
 from hearth.benchmarks import _worlds
 from hearth.benchmarks._worlds import summary_stats
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 
 REFERENCE = dict(f1_low=0.37, f1_high=1.0, ms_per_object_low=3000.0, ms_per_object_high=8000.0)
 MATCH_M = 0.03
@@ -70,8 +70,8 @@ def add_arguments(parser) -> None:
 def box_object(oid: str, size, color, pose):
     """A SmallObject box (clutter or occluder) of ``size`` (x, y, z) standing at ``pose``
     (its base centre, in its parent's frame)."""
-    from worldmodel.nodes import Model, SmallObject, Visual
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.nodes import Model, SmallObject, Visual
+    from hearth.worldmodel.pose import Pose
     sx, sy, sz = size
     vis = Visual("box", Pose(0, 0, sz / 2), size=(sx, sy, sz), color=tuple(color), name="body")
     return SmallObject(oid, "box", pose, color="", model=Model(visuals=[vis]))
@@ -97,8 +97,8 @@ class Placer:
 def _looks(world) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per small object of the map: (sorted x, y extents and height (m), HSV of its biggest
     visual's colour)."""
-    from perception.objects import rgb_to_hsv
-    from worldmodel.geometry import small_object_meshes
+    from hearth.perception.objects import rgb_to_hsv
+    from hearth.worldmodel.geometry import small_object_meshes
     out = []
     for o in world.small_objects():
         meshes = small_object_meshes(world, o, T_world_object=np.eye(4))
@@ -117,7 +117,7 @@ def distinct(looks, size, color, tolerance: float = 0.025) -> bool:
     of the map: clutter must be something the map does not know, not a look-alike of one of
     its objects. A look-alike has a similar colour, a similar height and one side as wide as
     one of the object's (one view shows a box's front face: its depth is not seen)."""
-    from perception.objects import color_agreement, rgb_to_hsv
+    from hearth.perception.objects import color_agreement, rgb_to_hsv
     sides, height = np.asarray(size[:2], float), float(size[2])
     hsv = rgb_to_hsv(np.asarray([color], float))
     for ext, h in looks:
@@ -253,9 +253,9 @@ def observe(truth, T_world_camera, rng, K: Intrinsics | None = None, scene=None,
     (``robot.sim.render_view``: Kinect-class noise on depth and colour); ``room``: render
     that room only (default: the room the camera stands in, else every room)."""
     from hearth.robot.sim import render_view
-    from perception.render import Scene
-    from worldmodel.frames import room_at
-    from worldmodel.geometry import scene_meshes
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.frames import room_at
+    from hearth.worldmodel.geometry import scene_meshes
     K = K or Intrinsics.kinect()
     if scene is None:
         if room is None:
@@ -276,8 +276,8 @@ def bystanders(truth, rendering, ids) -> frozenset:
 def visible_fractions(truth, rendering, T_world_camera, K, ids) -> dict[str, float]:
     """Per object: pixels it shows in the view / pixels it would show alone (1 - occlusion);
     0 when out of view."""
-    from perception.render import Scene
-    from worldmodel.geometry import small_object_meshes
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import small_object_meshes
     out = {}
     for oid in ids:
         alone = Scene(small_object_meshes(truth, truth.get(oid))).render(K, T_world_camera)
@@ -383,8 +383,8 @@ def detect_on(belief, place, depth, color, K, T_wc):
     accepted (every object missed)."""
     from types import SimpleNamespace
 
-    from perception.errors import PerceptionError
-    from perception.objects import detect_objects
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.objects import detect_objects
     try:
         return detect_objects(belief, depth, color, K, T_wc, surface=place.name)
     except PerceptionError:
@@ -426,8 +426,8 @@ def run_world(spec: str, n: int, rng, K) -> tuple[list[dict], str]:
     """Per-scene records of ``n`` scenes of one world, and a note when it has no place."""
     from types import SimpleNamespace
 
-    from perception.errors import PerceptionError
-    from perception.objects import detect_objects, expected_surfaces
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.objects import detect_objects, expected_surfaces
     base = _worlds.load(spec)
     ps = [p for p in _worlds.places(base) if fitting_objects(base, p)]
     if not ps:

@@ -2,7 +2,7 @@
 
 ``hearth bench registration --json [--world W ...] [--homes N] [--seed S] [--scenarios K]
 [--jobs J]``. Worlds: ``--world`` (repeatable: a world file, ``demo`` or ``home:SEED``) and
-``--homes N`` generated homes (worldmodel.homegen, seeds S..S+N-1, cached like the mission
+``--homes N`` generated homes (hearth.worldmodel.homegen, seeds S..S+N-1, cached like the mission
 suite's); with neither, the demo home. Every figure is pooled over the worlds at the top
 level of the JSON and given per world under ``per_world``.
 
@@ -10,7 +10,7 @@ What is measured comes from the map, never from ids: the landmarks with a front 
 the floor (localisation and large objects), every articulated object with doors (revolute
 parts), with drawers (prismatic parts), with handles on its parts; the camera looks at each
 object's front, wherever it faces: the front is the outward normal of its parts' faces
-(perception.articulated.part_face), or the way to its first parking position. Viewpoints lie
+(hearth.perception.articulated.part_face), or the way to its first parking position. Viewpoints lie
 1.3-1.8 m in front of the object's origin (+-35 cm aside, the camera 1.4 m up), and must be
 free: in the object's room, away from other furniture, with nothing large between camera and
 object (else 0.9-1.3 m; a scene without a free viewpoint is left out and counted in
@@ -54,8 +54,8 @@ from itertools import cycle, islice
 
 import numpy as np
 
-from perception.camera import Intrinsics, look_at
-from worldmodel.frames import planar_T as planar
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.worldmodel.frames import planar_T as planar
 
 #: A camera on the robot's head: 1.35 m up, 10 cm ahead of the base centre, looking down
 #: at a point 2 m ahead at 0.4 m height.
@@ -81,7 +81,7 @@ def add_arguments(parser) -> None:
     add_renderer_argument(parser)            # --renderer hearth|mujoco (the observed frames)
 
 
-#: What draws the observed (truth) frames: "hearth" (perception/render.py) or "mujoco"
+#: What draws the observed (truth) frames: "hearth" (hearth/perception/render.py) or "mujoco"
 #: (hearth/robot/mujoco_render.py); set by ``run`` from ``--renderer``.
 RENDERER = "hearth"
 
@@ -140,9 +140,9 @@ def front_direction(world, object_id: str) -> np.ndarray:
     """Unit floor direction (world x, y) the object's front faces: the mean outward normal of
     its parts' faces at their closed state, else the way to its first parking position, else
     its local +x."""
-    from perception.articulated import part_face
-    from perception.errors import PerceptionError
-    from worldmodel.frames import joint_T
+    from hearth.perception.articulated import part_face
+    from hearth.perception.errors import PerceptionError
+    from hearth.worldmodel.frames import joint_T
     obj = world.get(object_id)
     To = world.T_world(object_id)
     normals = []
@@ -199,7 +199,7 @@ class Layout:
     def free(self, world, object_id: str, eye: np.ndarray, target: np.ndarray) -> bool:
         """The camera's floor point in the object's room (30 cm inside its walls), 25 cm clear
         of other furniture, and nothing large on the line of sight."""
-        from worldmodel.frames import room_contains
+        from hearth.worldmodel.frames import room_contains
         if not room_contains(world.room_of(object_id), eye[0], eye[1], margin=-0.3):
             return False
         line = eye + np.linspace(0.0, 0.85, 18)[:, None] * (target - eye)
@@ -291,7 +291,7 @@ def _rate(bad, n):
 def _articulated_scene(world, oid, rng, states, max_offset=(0.02, 1.0)):
     """Truth: the object moved a little from where the map has it and its parts at
     ``states``; the map (belief) keeps its parts closed."""
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     truth = world.copy()
     Tm = world.T_world(oid)
     r, th = rng.uniform(0, max_offset[0]), rng.uniform(0, 2 * math.pi)
@@ -350,7 +350,7 @@ class Tally:
 # -- the figures ------------------------------------------------------------------------------
 
 def bench_localisation(world, n: int, rng, layout: Layout, t: Tally) -> None:
-    from perception.localisation import refine_localisation
+    from hearth.perception.localisation import refine_localisation
     objects = front_objects(world)
     if not objects:
         return
@@ -403,8 +403,8 @@ def _front_view(world, truth, oid: str, K, rng, layout: Layout, t: Tally, scenes
 
 def bench_large_object(world, n: int, rng, layout: Layout, t: Tally) -> None:
     """The object stands up to 5 cm / 4 deg from where the map has it (as in the issue's trial)."""
-    from perception.articulated import register_base
-    from worldmodel.pose import Pose
+    from hearth.perception.articulated import register_base
+    from hearth.worldmodel.pose import Pose
     objects = front_objects(world)
     if not objects:
         return
@@ -447,7 +447,7 @@ def _part_error(kind: str, st, truth_value: float) -> float:
 def bench_parts(world, n: int, rng, layout: Layout, t: Tally, kind: str) -> None:
     """Doors (``kind`` "door": revolute parts, error in degrees, wrong beyond 3) or drawers
     ("drawer": prismatic, millimetres, wrong beyond 10), with the second view."""
-    from perception.articulated import register_articulated
+    from hearth.perception.articulated import register_articulated
     jt, limit = ("revolute", 3.0) if kind == "door" else ("prismatic", 10.0)
     objects = articulated_with(world, jt)
     if not objects:
@@ -502,7 +502,7 @@ def bench_parts(world, n: int, rng, layout: Layout, t: Tally, kind: str) -> None
 
 
 def _face_kind(world, part) -> str:
-    from worldmodel.geometry import model_visuals
+    from hearth.worldmodel.geometry import model_visuals
     vis = model_visuals(part.model, world.apartment.library)
     named = [v for v in vis if v.name == "face"] or vis
     return "box" if named and all(v.shape == "box" for v in named) else "mesh"
@@ -511,7 +511,7 @@ def _face_kind(world, part) -> str:
 def bench_handles(world, n: int, rng, layout: Layout, t: Tally) -> None:
     """Objects with handles on their parts: base, parts and handles, timed together (an
     object with two doors with handles also gives ``articulated_two_doors_ms``)."""
-    from perception.articulated import register_articulated, register_handles
+    from hearth.perception.articulated import register_articulated, register_handles
     objects = with_handles(world)
     if not objects:
         return
@@ -563,7 +563,7 @@ def bench_handles(world, n: int, rng, layout: Layout, t: Tally) -> None:
 def _handle_error(t: Tally, truth, h, est, face: str, suffix: str) -> bool:
     """Tallies a handle estimate's errors (``suffix`` "" for the first view, "_second_view"
     for the second); True when it is wrong (> 10 mm or > 2 deg)."""
-    from perception.handles import rotation_error_deg
+    from hearth.perception.handles import rotation_error_deg
     Tt = truth.T_world(h.id)
     pos = 1000 * float(np.linalg.norm(est.T_world_handle[:3, 3] - Tt[:3, 3]))
     rot = rotation_error_deg(est.T_world_handle, Tt)
@@ -576,7 +576,7 @@ def _handle_error(t: Tally, truth, h, est, face: str, suffix: str) -> bool:
 def _second_handle_view(world, oid, Tc, layout, truth, unknown, rng, t: Tally) -> None:
     """The handles unknown from the first view, looked for again from the second (the parts
     they stand on registered again from there, as the missions do)."""
-    from perception.articulated import register_articulated, register_handles
+    from hearth.perception.articulated import register_articulated, register_handles
     K = Intrinsics.kinect()
     Tc2 = second_viewpoint(world, oid, Tc, layout)
     hs = {}
@@ -669,7 +669,7 @@ FIGURES = (bench_localisation, bench_large_object,
 
 def bench_world(spec: str, n: int, seed: int) -> Tally:
     """Every figure's raw results on one world (``demo``, ``home:SEED`` or a world file)."""
-    from executive.scenarios import resolve_world
+    from hearth.executive.scenarios import resolve_world
     world = resolve_world(spec)
     layout = Layout.of(world)
     t = Tally()

@@ -67,10 +67,10 @@ def _door(world) -> tuple[str, str]:
 
 def _plane_std(z: float, rng) -> float:
     import open3d as o3d
-    from perception.camera import Intrinsics
-    from perception.render import Scene
+    from hearth.perception.camera import Intrinsics
+    from hearth.perception.render import Scene
     from hearth.robot.noise import add_kinect_noise
-    from worldmodel.geometry import LabelledMesh
+    from hearth.worldmodel.geometry import LabelledMesh
     m = o3d.geometry.TriangleMesh.create_box(8.0, 8.0, 0.01)
     m.translate((-4.0, -4.0, z))
     r = Scene([LabelledMesh("wall", "wall", m, (0.8, 0.8, 0.8))]).render(Intrinsics.kinect(),
@@ -123,7 +123,7 @@ def _render_figures(world, K, rng, n: int) -> dict:
 
 
 def run(args) -> dict:
-    from perception.camera import Intrinsics
+    from hearth.perception.camera import Intrinsics
     from hearth.robot.adapter import wait
     from hearth.robot.clock import SimClock
     from hearth.robot.noise import KinectNoise, add_kinect_noise

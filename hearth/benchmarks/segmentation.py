@@ -3,7 +3,7 @@
 Two sets of frames:
 
 - held-out random rooms (seeds never used in training: random tables, chairs, cabinets and
-  small objects, see perception/segmentation_training.py), ``--scenarios`` frames (40; 8
+  small objects, see hearth/perception/segmentation_training.py), ``--scenarios`` frames (40; 8
   with ``--quick``): ``class_average_accuracy`` and the other top-level figures, as before;
 - views of homes from their parking positions: worlds from hearth/benchmarks/_worlds.py, by
   default the demo home and 2 generated homes (``--homes N``, ``--world W`` repeatable,
@@ -37,8 +37,8 @@ import time
 import numpy as np
 
 from hearth.benchmarks import _worlds
-from perception.camera import Intrinsics
-from perception.segmentation import LABELS, accuracy, segment
+from hearth.perception.camera import Intrinsics
+from hearth.perception.segmentation import LABELS, accuracy, segment
 
 REFERENCE = dict(class_average_accuracy=0.717, ms_per_frame=1000.0)
 TEST_SEED = 99000
@@ -62,7 +62,7 @@ def _pool(results):
 def home_views(world, rng: np.random.Generator, n: int) -> list[np.ndarray]:
     """Head-camera poses at the parking positions of a home's large objects (in turn),
     stepped 0.5 m back when that stays inside the room, looking at their objects."""
-    from worldmodel.frames import room_contains
+    from hearth.worldmodel.frames import room_contains
     out = []
     objs = [o for o in world.large_objects() if o.parking]
     for i in range(n if objs else 0):
@@ -79,9 +79,9 @@ def home_views(world, rng: np.random.Generator, n: int) -> list[np.ndarray]:
 
 def run_world(spec: str, n: int, rng, clf, K) -> list[dict]:
     """Per-view records (accuracy counts, times) of ``n`` views of one world."""
-    from perception.render import Scene
-    from skills.segmentation_model import ground_truth, noisy
-    from worldmodel.geometry import scene_meshes
+    from hearth.perception.render import Scene
+    from hearth.skills.segmentation_model import ground_truth, noisy
+    from hearth.worldmodel.geometry import scene_meshes
     world = _worlds.load(spec)
     scene = Scene(scene_meshes(world))
     out = []
@@ -106,7 +106,7 @@ def summarise_homes(records: list[dict]) -> dict:
 
 
 def run(args) -> dict:
-    from skills.segmentation_model import MODEL_FILE, load_or_train, model_dir, render_random
+    from hearth.skills.segmentation_model import MODEL_FILE, load_or_train, model_dir, render_random
 
     n = args.scenarios or (8 if args.quick else 40)
     views = getattr(args, "views", None) or (4 if args.quick else 12)

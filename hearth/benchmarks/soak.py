@@ -176,12 +176,12 @@ def soak(missions: int = 300, clients: int = 4, seed: int = 0, tick_hz: float = 
          speed: float = 8.0, drain_s: float = 120.0, world_path: str | None = None,
          runs_dir: str | None = None) -> dict:
     """Run the soak (see the module docstring); its figures."""
-    from executive.command.api import create_app
-    from executive.command.server import ServerThread, make_service
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.server import ServerThread, make_service
     from hearth import demo_world_path, missions_dir
     from hearth.robot.clock import WallClock
     from hearth.robot.simulated import SimulatedRobot
-    from worldmodel.io import load_world
+    from hearth.worldmodel.io import load_world
 
     with tempfile.TemporaryDirectory() as tmp:
         runs_path = Path(runs_dir) if runs_dir else Path(tmp) / "runs"

@@ -33,9 +33,9 @@ import time
 import numpy as np
 
 from hearth.benchmarks import _worlds
-from perception.camera import Intrinsics, project
-from perception.render import Scene
-from perception.tracking import ParticleTracker, TrackerConfig, reference_from_view, scene_cloud
+from hearth.perception.camera import Intrinsics, project
+from hearth.perception.render import Scene
+from hearth.perception.tracking import ParticleTracker, TrackerConfig, reference_from_view, scene_cloud
 
 REFERENCE = dict(ote_px=14.6, hz_low=7.0, hz_high=25.0)
 SCENARIOS = dict(demo=8, other=3, demo_quick=2, other_quick=1)
@@ -85,7 +85,7 @@ class PushScene:
 
     def __init__(self, world, K: Intrinsics, T_world_camera: np.ndarray,
                  rng: np.random.Generator, object_id: str, room=None):
-        from worldmodel.geometry import scene_meshes, small_object_meshes
+        from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
         self.world, self.K, self.T_wc, self.rng = world, K, T_world_camera, rng
         self.obj = world.get(object_id)
         rooms = None if room is None else [room]
@@ -94,7 +94,7 @@ class PushScene:
         self._small_object_meshes = small_object_meshes
 
     def frame(self, T_world_object: np.ndarray):
-        from skills.segmentation_model import noisy
+        from hearth.skills.segmentation_model import noisy
         r = Scene(self._small_object_meshes(self.world, self.obj, T_world_object)).render(
             self.K, self.T_wc)
         base = self.static
@@ -128,7 +128,7 @@ def run_scenario(world, place, object_id: str, seed: int, frames: int,
     K = K or Intrinsics.kinect()
     T_wc = camera_at(place, rng)
     sim = PushScene(world, K, T_wc, rng, object_id, room=world.room_of(place.object_id).id)
-    from worldmodel.frames import planar_T
+    from hearth.worldmodel.frames import planar_T
 
     def T_obj(i):
         u, v, yaw = path[i]
@@ -170,7 +170,7 @@ def scenarios_for(spec: str, args) -> int:
 def run_world(spec: str, n: int, frames: int, seed: int) -> tuple[list[dict], str]:
     """Per-scenario records of one world, and a note when it has nowhere to push an object."""
     from hearth.benchmarks.objects import fitting_objects
-    from perception.errors import PerceptionError
+    from hearth.perception.errors import PerceptionError
     world = _worlds.load(spec)
     ps = [(p, fitting_objects(world, p)) for p in track_places(world)]
     ps = [(p, objs) for p, objs in ps if objs]

@@ -34,8 +34,8 @@ class TruePoseMapConfig:
 def _view_poses(world, cfg: TruePoseMapConfig, few: bool = False) -> list[np.ndarray]:
     """True ``T_world_camera`` of every view (see the module docstring)."""
     from hearth.robot.sim import camera_pose, pan_tilt_to
-    from worldmodel.frames import T_world_room
-    from worldmodel.geometry import object_meshes
+    from hearth.worldmodel.frames import T_world_room
+    from hearth.worldmodel.geometry import object_meshes
     out = []
     for room in world.rooms:
         T_wr = T_world_room(room)
@@ -80,7 +80,7 @@ def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), p
     import open3d.core as o3c
     from hearth.robot.noise import KinectNoise
     from hearth.robot.sim import render_view, world_scene
-    from perception.camera import Intrinsics
+    from hearth.perception.camera import Intrinsics
     K = Intrinsics.kinect().scaled(cfg.scale)
     scene = world_scene(world)
     rng = np.random.default_rng(cfg.seed)
@@ -119,7 +119,7 @@ def cached_fused(seed: int, config=None, cache_dir=None, cfg: TruePoseMapConfig 
     import os
     from pathlib import Path
     import open3d as o3d
-    from worldmodel.homegen import GENERATOR_VERSION, HomeConfig, generate_home
+    from hearth.worldmodel.homegen import GENERATOR_VERSION, HomeConfig, generate_home
     config = config or HomeConfig()
     world = generate_home(seed, config)
     key = hashlib.sha1(json.dumps([repr(config), repr(cfg), GENERATOR_VERSION]).encode()).hexdigest()[:10]

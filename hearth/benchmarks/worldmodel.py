@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from worldmodel.demo_home import build, small, box
-from worldmodel.io import load_world, to_xml
+from hearth.worldmodel.demo_home import build, small, box
+from hearth.worldmodel.io import load_world, to_xml
 
 COLORS = ["red", "blue", "green", "yellow", "white", "black", "orange", "purple"]
 TYPES = ["cup", "plate", "bowl", "box", "bottle", "jar", "spoon", "book"]

@@ -166,7 +166,7 @@ def build(recording_path, out, config: Optional[dict] = None, only: Optional[lis
             except MappingError:
                 raise
             except Exception as err:  # noqa: BLE001 - a bug or odd data in one stage: keep the rest
-                from perception.errors import PerceptionError
+                from hearth.perception.errors import PerceptionError
                 if not isinstance(err, PerceptionError):
                     ctx.warnings.append(f"{stage.name}: {traceback.format_exc(limit=3)}")
                 info, status = {"error": f"{type(err).__name__}: {err}"}, "failed"

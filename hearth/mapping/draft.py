@@ -3,8 +3,8 @@ draft world file, its picture and the list of what could not be labelled.
 
 ``draft_from_fused(map_dir, out_dir)`` reads ``MAP_DIR/fused/map.ply`` (an open3d coloured
 point cloud with normals in the map frame: z up, floor at z = 0, metres), runs the draft
-(perception/semantic_map.py, the classifier from the model store), writes the world
-(worldmodel/draft.py) as ``OUT_DIR/world.xml`` (validated before it is written),
+(hearth/perception/semantic_map.py, the classifier from the model store), writes the world
+(hearth/worldmodel/draft.py) as ``OUT_DIR/world.xml`` (validated before it is written),
 ``OUT_DIR/draft.png`` (the draft over the fused map) and ``OUT_DIR/unlabelled.txt``. A
 draft that fails part way (no classifier, an object it cannot type) still writes what it
 found: rooms and untyped boxes are kept, and the list says what is missing.
@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-from hearth.errors import HearthError
+from hearth.util.errors import HearthError
 
 
 class DraftError(HearthError):
@@ -45,12 +45,12 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
                      progress: Optional[Callable[[str], None]] = None) -> dict:
     """Run the draft on ``map_dir``'s fused map and write it to ``out_dir`` (see the module
     docstring); a summary dict (paths, counts, seconds, unlabelled lines)."""
-    from perception.errors import PerceptionError
-    from perception.semantic_map import articulate, draft_geometry, label
-    from worldmodel.draft import draft_world, draw_draft
-    from worldmodel.io import atomic_write, checked_xml
-    from worldmodel.topdown import save_png
-    from worldmodel.world import World
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.semantic_map import articulate, draft_geometry, label
+    from hearth.worldmodel.draft import draft_world, draw_draft
+    from hearth.worldmodel.io import atomic_write, checked_xml
+    from hearth.worldmodel.topdown import save_png
+    from hearth.worldmodel.world import World
     say = progress or (lambda m: None)
     t0 = time.perf_counter()
     P, N, C = read_fused(map_dir)
@@ -95,7 +95,7 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
 
 def _stage_run(ctx) -> dict:
     """The ``draft`` stage: ``ctx.out/fused/map.ply`` -> ``ctx.out/draft/``."""
-    from perception.errors import PerceptionError
+    from hearth.perception.errors import PerceptionError
     try:
         done = draft_from_fused(ctx.out, ctx.out / "draft", progress=ctx.progress)
     except DraftError as err:

@@ -60,7 +60,7 @@ def read_frame(rec, i: int):
 def base_camera(rec) -> tuple[np.ndarray, np.ndarray]:
     """Believed ``T_world_base`` (N, 4, 4) and ``T_base_camera`` (N, 4, 4) of every capture;
     a capture without a base pose gets a base on the floor under its camera, facing its way."""
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     B, C = [], []
     for c in rec.captures:
         T = np.asarray(c.T_world_camera, float)

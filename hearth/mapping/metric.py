@@ -1,5 +1,5 @@
 """The metric map's stages of `hearth map build` (docs/mapping.md), each over the pure
-functions of perception/mapping.py, each writing under the build directory:
+functions of hearth/perception/mapping.py, each writing under the build directory:
 
 - ``odometry``: keyframes of the tour (by the believed motion), each keyframe's cloud of
   upright surfaces, and ICP between consecutive keyframes with the robot's odometry as the
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hearth.mapping.build import BuildContext, Stage, StageFailed, register_stage
-from perception import mapping as pm
+from hearth.perception import mapping as pm
 
 
 @dataclass(frozen=True)

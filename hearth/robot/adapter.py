@@ -2,7 +2,7 @@
 
 Every long-running request returns an ``Action`` at once (never blocks): skills start it in
 ``initialise()``, poll ``status()`` in ``update()`` and ``cancel()`` it in ``terminate()``.
-Poses are world-frame ``worldmodel.pose.Pose`` values; a base pose uses x, y and yaw only.
+Poses are world-frame ``hearth.worldmodel.pose.Pose`` values; a base pose uses x, y and yaw only.
 The adapter reports what the robot *believes* (its localisation); simulators keep the truth
 apart and expose it only as ground truth (``Frame.T_world_camera_true``).
 """
@@ -13,8 +13,8 @@ from typing import Any, Callable, Optional, Protocol, runtime_checkable
 
 
 from hearth.robot.errors import RobotError
-from worldmodel import frames
-from worldmodel.pose import Pose
+from hearth.worldmodel import frames
+from hearth.worldmodel.pose import Pose
 
 STATUSES = ("running", "succeeded", "failed", "cancelled")
 

@@ -1,7 +1,7 @@
 """The robot adapters' exception family."""
 from __future__ import annotations
 
-from hearth.errors import HearthError
+from hearth.util.errors import HearthError
 
 
 class RobotError(HearthError):

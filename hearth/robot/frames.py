@@ -22,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hearth.files import file_inside
+from hearth.util.files import file_inside
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MAX_FRAME_BYTES = 256 << 20          # one frame file; a 4k 16-bit PNG is ~20 MB

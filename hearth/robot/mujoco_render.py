@@ -1,7 +1,7 @@
 """A second renderer: the world file's geometry as an MJCF model, drawn by MuJoCo's OpenGL
 renderer (software rendering: Mesa's llvmpipe through EGL, or OSMesa), with the same camera
 intrinsics and the same Kinect-class noise (hearth/robot/noise.py) as Hearth's ray caster
-(perception/render.py). docs/renderers-and-assets.md says what maps to what and what differs.
+(hearth/perception/render.py). docs/renderers-and-assets.md says what maps to what and what differs.
 
 - ``world_to_mjcf(world)``: the MJCF text of a world and the labels of its geoms. Rooms,
   switches and large objects are bodies fixed in the world; every part is a body with a hinge
@@ -11,7 +11,7 @@ intrinsics and the same Kinect-class noise (hearth/robot/noise.py) as Hearth's r
   primitives (MuJoCo tessellates them itself); meshes are read as Hearth reads them (open3d)
   and handed to MuJoCo as vertex and face arrays.
 - ``MujocoScene(world)``: the compiled model and its renderer; ``render(K, T_world_camera)``
-  returns a ``perception.render.Rendering`` as Hearth's ``Scene.render`` does (depth in
+  returns a ``hearth.perception.render.Rendering`` as Hearth's ``Scene.render`` does (depth in
   metres along the optical axis, colour, per-pixel node labels, incidence), so the noise model
   and every consumer take it unchanged. ``set_states`` and ``hide`` change joint positions and
   hide nodes between frames.
@@ -30,14 +30,14 @@ from typing import Optional
 import numpy as np
 
 from hearth.robot.errors import RobotError
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 
 #: The OpenGL back-end asked for when ``MUJOCO_GL`` is not set.
 DEFAULT_GL = "egl"
 #: Near and far clipping planes (m). MuJoCo 3+ draws with a reversed float depth buffer, so
 #: depth keeps ~1e-6 relative precision over the whole range.
 NEAR, FAR = 0.02, 20.0
-#: Lights as Hearth's shading has them (perception/render.py: colour x (0.85 (1 - 0.45) lit
+#: Lights as Hearth's shading has them (hearth/perception/render.py: colour x (0.85 (1 - 0.45) lit
 #: + 0.85 x 0.45), lit the cosine to ``LIGHT_WORLD``): a directional light from the same
 #: direction and an ambient term. MuJoCo then shades per pixel with interpolated normals, adds
 #: specular highlights on shiny materials and anti-aliases edges (4 samples), which Hearth's
@@ -130,9 +130,9 @@ class _Writer:
         self.states: dict[str, float] = {}
 
     def _mesh(self, v) -> str:
-        from worldmodel.geometry import visual_mesh
-        from worldmodel.nodes import Visual
-        from worldmodel.pose import Pose
+        from hearth.worldmodel.geometry import visual_mesh
+        from hearth.worldmodel.nodes import Visual
+        from hearth.worldmodel.pose import Pose
         key = (v.file, tuple(v.scale))
         if key not in self.meshes:
             m = visual_mesh(Visual("mesh", Pose(), file=v.file, scale=v.scale), self.base_dir)
@@ -172,7 +172,7 @@ class _Writer:
 def _knob_bodies(w: _Writer, k, library, owner: str) -> str:
     """A knob: a body at its pose with a hinge about +z (its angle is the joint's position);
     a fixed base in a body of its own beside it."""
-    from worldmodel.geometry import knob_parts
+    from hearth.worldmodel.geometry import knob_parts
     turning, fixed = [], []
     for _role, v, turns in knob_parts(k, library):
         (turning if turns else fixed).append(v)
@@ -189,7 +189,7 @@ def _knob_bodies(w: _Writer, k, library, owner: str) -> str:
 
 
 def _part_body(w: _Writer, part, library, owner: str) -> str:
-    from worldmodel.geometry import handle_visuals, model_visuals
+    from hearth.worldmodel.geometry import handle_visuals, model_visuals
     j = part.joint
     body = f'<body {_pose_attrs(j.origin.matrix())}>'
     if j.type in ("revolute", "prismatic"):
@@ -212,13 +212,13 @@ def _part_body(w: _Writer, part, library, owner: str) -> str:
 
 
 def world_to_mjcf(world, width: int = 640, height: int = 480) -> MJCF:
-    """The MJCF model of ``world``'s geometry as ``worldmodel.geometry.scene_meshes`` draws it
+    """The MJCF model of ``world``'s geometry as ``hearth.worldmodel.geometry.scene_meshes`` draws it
     (rooms, switches, large objects with their parts, handles, knobs and children), in the
     world's current joint states and knob angles; ``width`` x ``height``: the largest image
     it will render (MuJoCo's off-screen buffer)."""
-    from worldmodel.geometry import handle_visuals, model_visuals, room_visuals
-    from worldmodel.nodes import LargeArticulatedObject, Visual
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.geometry import handle_visuals, model_visuals, room_visuals
+    from hearth.worldmodel.nodes import LargeArticulatedObject, Visual
+    from hearth.worldmodel.pose import Pose
     w = _Writer(world.base_dir)
     library = world.apartment.library
     bodies = []
@@ -244,7 +244,7 @@ def world_to_mjcf(world, width: int = 640, height: int = 480) -> MJCF:
             for c in obj.children:
                 b += w.geoms(model_visuals(c.model, library), c.pose.matrix(), c.id, c.id)
             bodies.append(b + "</body>")
-    from perception.render import LIGHT_WORLD
+    from hearth.perception.render import LIGHT_WORLD
     L = -np.asarray(LIGHT_WORLD, dtype=float)
     a, d = _f(AMBIENT), _f(DIFFUSE)
     xml = (
@@ -288,7 +288,7 @@ class _Context:
 
 class MujocoScene:
     """A world compiled to MuJoCo and ready to render (``render`` as
-    ``perception.render.Scene.render``). ``states``: joint states / knob angles by node id
+    ``hearth.perception.render.Scene.render``). ``states``: joint states / knob angles by node id
     that differ from the world's."""
 
     def __init__(self, world, states: Optional[dict] = None):
@@ -351,7 +351,7 @@ class MujocoScene:
     def _camera(self, K: Intrinsics, T_world_camera: np.ndarray, near: float, far: float) -> None:
         """The scene's OpenGL camera: pose from ``T_world_camera`` (x right, y down, z
         forward; OpenGL's camera looks along -z with +y up) and a frustum whose pixel grid is
-        K's, pixel centres at integer coordinates as perception/camera.py has them."""
+        K's, pixel centres at integer coordinates as hearth/perception/camera.py has them."""
         T = np.asarray(T_world_camera, dtype=float)
         for cam in (self._scn.camera[0], self._scn.camera[1]):
             cam.pos[:] = T[:3, 3]
@@ -369,8 +369,8 @@ class MujocoScene:
             cam.frustum_bottom = -(K.height - K.cy - 0.5) * near / K.fy
 
     def render(self, K: Intrinsics, T_world_camera: np.ndarray, max_range: float = 8.0):
-        """A ``perception.render.Rendering`` of the view (noise-free)."""
-        from perception.render import Rendering
+        """A ``hearth.perception.render.Rendering`` of the view (noise-free)."""
+        from hearth.perception.render import Rendering
         mujoco = self._mj
         W, H = int(K.width), int(K.height)
         con = self._context(W, H)
@@ -521,11 +521,11 @@ def add_renderer_argument(parser) -> None:  # pragma: no cover - argparse wiring
 
 def scene_for(world, renderer: str = "hearth", states: Optional[dict] = None):
     """A scene of ``world`` with ``render(K, T_world_camera)`` -> ``Rendering``: Hearth's
-    ray caster (``perception.render.Scene``) or a ``MujocoScene``."""
+    ray caster (``hearth.perception.render.Scene``) or a ``MujocoScene``."""
     if renderer == "mujoco":
         return MujocoScene(world, states)
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import scene_meshes
     return Scene(scene_meshes(world, states=states))
 
 
@@ -546,10 +546,10 @@ class _KnobFrame:
 
 
 def knob_scenes(world, renderer: str = "hearth"):
-    """``perception.knob_data.KnobScenes`` of ``world`` whose frames (``scene(...).render``)
+    """``hearth.perception.knob_data.KnobScenes`` of ``world`` whose frames (``scene(...).render``)
     are drawn by ``renderer``; where a camera may stand (``placeable``) is decided on Hearth's
     geometry either way, so both renderers get the same views."""
-    from perception.knob_data import KnobScenes
+    from hearth.perception.knob_data import KnobScenes
     if renderer != "mujoco":
         return KnobScenes(world)
     mj = MujocoScene(world)

@@ -1,6 +1,6 @@
 """A Kinect-class (structured light, first generation) RGB-D noise model.
 
-Applied to a noise-free ``perception.render.Rendering``; pure: a rendering and a numpy
+Applied to a noise-free ``hearth.perception.render.Rendering``; pure: a rendering and a numpy
 ``Generator`` in, a new rendering with noisy ``depth`` and ``color`` out (labels, normals and
 incidence stay the noise-free ground truth). Every constant is a field of ``KinectNoise``;
 docs/robot-adapter.md gives the formulas and where the numbers come from.
@@ -50,8 +50,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from perception import kernels
-from perception.bands import in_bands, pool, row_bands
+from hearth.perception import kernels
+from hearth.perception.bands import in_bands, pool, row_bands
 
 MATERIAL_CODES = {"matte": 0, "dark": 1, "shiny": 2, "glass": 3}
 
@@ -189,7 +189,7 @@ def finish_kinect_noise(rendering, started: NoiseDraws):
 class NoiseBands:
     """The noise of one frame applied band by band of rows (``band``), from the draws
     started on its depth (``start_kinect_noise``): the renderer calls ``band`` for each band
-    as soon as it has shaded it (``perception.render.Scene.shade``'s ``after``), so that the
+    as soon as it has shaded it (``hearth.perception.render.Scene.shade``'s ``after``), so that the
     noise's per-pixel work runs in the shading's threads while its inputs are in the cache,
     with no wait between the two. The same frame as ``finish_kinect_noise``, whatever the
     bands."""
@@ -226,7 +226,7 @@ def _spread(incidence: np.ndarray, labels: np.ndarray, codes: np.ndarray, z: np.
     deviation of the Gaussian part of the axial noise, and the dropout probability (inf
     where nothing was seen: always dropped); ``codes``: per label, and a trailing one for
     label -1, the material's code. float32 throughout, in one compiled pass per pixel
-    (perception.kernels; the numpy expressions it replaced, operation for operation, are in
+    (hearth.perception.kernels; the numpy expressions it replaced, operation for operation, are in
     tests/robot/test_noise_kernels.py): this runs on every simulated frame. The arrays are
     C-contiguous image rows (a band of them)."""
     f = np.float32
@@ -272,7 +272,7 @@ def _noisy_depth(z: np.ndarray, std: np.ndarray, p_drop: np.ndarray, gauss: np.n
                  uniform: np.ndarray, m: KinectNoise, out: np.ndarray) -> np.ndarray:
     """Axial noise, quantisation and dropouts of the depth ``z`` into ``out``, given the
     per-pixel spread (``_spread``) and draws (C-contiguous image rows), in one compiled pass
-    (perception.kernels)."""
+    (hearth.perception.kernels)."""
     f = np.float32
     kernels.noise_depth(_flat_in(z), _flat_in(std), _flat_in(p_drop), _flat_in(gauss),
                         _flat_in(uniform), _flat_out(out), f(1e-3),

@@ -34,18 +34,18 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
-from hearth.files import BadJSON, load_json, read_limited
+from hearth.util.files import BadJSON, load_json, read_limited
 from hearth.robot.frames import (MAX_FRAME_PIXELS, MAX_IMAGE_SIDE, FrameFileError,
                                  check_color_png, check_depth_png, decode_color, decode_depth,
                                  inside)
 from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged
-from worldmodel.io import atomic_write
-from worldmodel.pose import Pose, wrap_angle
-from worldmodel.validate import MAX_COORD
+from hearth.worldmodel.io import atomic_write
+from hearth.worldmodel.pose import Pose, wrap_angle
+from hearth.worldmodel.validate import MAX_COORD
 
 FORMAT = "hearth-recording"
 VERSION = 2

@@ -37,11 +37,11 @@ import numpy as np
 
 from hearth.robot.adapter import as_base_pose
 from hearth.robot.errors import RobotError
-from hearth.files import BadJSON, load_json, read_limited
+from hearth.util.files import BadJSON, load_json, read_limited
 from hearth.robot.recording import (Capture, _Bad, check_intrinsics, depth_to_mm, frame_entry)
-from worldmodel.validate import MAX_COORD
+from hearth.worldmodel.validate import MAX_COORD
 from hearth.robot.sim import Frame
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 INSTALL = "pip install 'hearth[ros]' (rosbags, mcap, mcap-ros2-support, foxglove-sdk)"
 
@@ -588,7 +588,7 @@ class BagRecording:
         m, K = self.topics, self.intrinsics
         d0, c0 = depth[0], color[0]
         # Depth in the colour camera's frame and size is registered; otherwise it is moved
-        # into the colour camera with both camera_infos and tf (perception.camera.
+        # into the colour camera with both camera_infos and tf (hearth.perception.camera.
         # register_depth), as a RealSense driver's aligned_depth_to_color does.
         self._registered = d0.frame_id == c0.frame_id and \
             (d0.width, d0.height) == (c0.width, c0.height)
@@ -757,7 +757,7 @@ class BagRecording:
             if cam.D is not None:
                 depth = _undistort(depth, cam, nearest=True)
             T_color_depth = self._tf.lookup(self._color_frame, self._depth_frame, d.stamp_ns)
-            from perception.camera import register_depth
+            from hearth.perception.camera import register_depth
             depth = register_depth(depth, cam.K, self.intrinsics, T_color_depth)
             if self._color_camera.D is not None:
                 # register_depth projected with the pinhole model: move it to where the
@@ -997,7 +997,7 @@ class BagWriter:
             self._action(k, max(ns, self._last_ns, 0), name, "", str(status), str(reason or ""))
 
     def event(self, ev) -> None:
-        """A mission event (executive.executive.Event) on /hearth/events."""
+        """A mission event (hearth.executive.executive.Event) on /hearth/events."""
         data = ev.to_json() if hasattr(ev, "to_json") else dict(ev)
         ns = int(round(float(data.get("t", 0.0)) * 1e9))
         rest = {k: v for k, v in data.items() if k not in ("e", "run", "tick", "t", "path")}

@@ -43,8 +43,8 @@ from typing import Optional
 import numpy as np
 
 from hearth.robot.errors import RobotError
-from worldmodel.nodes import Model, SmallObject, Visual
-from worldmodel.pose import Pose
+from hearth.worldmodel.nodes import Model, SmallObject, Visual
+from hearth.worldmodel.pose import Pose
 
 VERSION = 1
 FILE = "scenario.json"
@@ -167,7 +167,7 @@ def make_scenario(world, seed: int, config: ScenarioConfig = ScenarioConfig()) -
 def save_scenario(scenario: Scenario, directory) -> Path:
     """Write belief.xml, truth.xml and scenario.json into ``directory`` (created), with copies
     of the mesh and point-cloud files the maps refer to (``copy_world_files``)."""
-    from worldmodel.io import save_world
+    from hearth.worldmodel.io import save_world
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     copy_world_files([scenario.belief, scenario.truth], d)
@@ -186,8 +186,8 @@ def save_scenario(scenario: Scenario, directory) -> Path:
 
 def load_scenario(directory, clock=None) -> Scenario:
     """Read a scenario directory; RobotError (one line, with the file) when it is broken."""
-    from worldmodel.errors import WorldError
-    from worldmodel.io import load_world
+    from hearth.worldmodel.errors import WorldError
+    from hearth.worldmodel.io import load_world
     d = Path(directory)
     path = d / FILE
     if not path.is_file():
@@ -262,8 +262,8 @@ def copy_world_files(worlds, directory) -> None:
 
 def _file_refs(world):
     """(node id, object, attribute) for every file reference of a world
-    (worldmodel.validate.file_references)."""
-    from worldmodel.validate import file_references
+    (hearth.worldmodel.validate.file_references)."""
+    from hearth.worldmodel.validate import file_references
     return file_references(world.apartment)
 
 
@@ -293,7 +293,7 @@ CLUTTER_HEIGHT = {"clutter": 0.15, "occluder": 0.33}
 
 def _height(world, object_id: str) -> float:
     """Height (metres) of a small object's model above its base."""
-    from worldmodel.geometry import small_object_meshes
+    from hearth.worldmodel.geometry import small_object_meshes
     meshes = small_object_meshes(world, world.get(object_id), T_world_object=np.eye(4))
     z = [np.asarray(m.mesh.vertices)[:, 2].max() for m in meshes if len(m.mesh.vertices)]
     return float(max(z)) if z else 0.0
@@ -303,7 +303,7 @@ def _headroom(world, surfaces) -> dict:
     """(object id, surface id) -> free height above the surface (metres; inf when nothing of
     its object is above it): up to the next surface of the same object above it (less a
     board's thickness), else up to the object's top when the surface is inside it."""
-    from worldmodel.geometry import object_meshes
+    from hearth.worldmodel.geometry import object_meshes
     tops = {}
     out = {}
     for oid, s in surfaces:
@@ -364,7 +364,7 @@ def visible_pixels(world, object_id: str, open_doors: bool = True,
     """How well the robot's head camera can see a small object where it stands in ``world``
     (the truth): the most pixels of it, unhidden, in one view (640 x 480 Kinect image by
     default) over the poses a search can take near it (the parking positions of the furniture
-    it stands on, and the next-best-view candidates around it, ``perception.nbv``), the head
+    it stands on, and the next-best-view candidates around it, ``hearth.perception.nbv``), the head
     aimed at its middle within the head's tilt and pan limits, the furniture's doors open as
     the robot opens them (revolute ones a quarter turn) when ``open_doors``. Returns (pixels,
     the base pose (x, y, yaw) that sees them; None when none does).
@@ -373,11 +373,11 @@ def visible_pixels(world, object_id: str, open_doors: bool = True,
     room's meshes: its walls, furniture and small objects), so a few hundred candidate views
     cost about as much as one full rendering."""
     import open3d as o3d
-    from perception.camera import Intrinsics, project
-    from perception.nbv import NBVConfig, candidate_bases
+    from hearth.perception.camera import Intrinsics, project
+    from hearth.perception.nbv import NBVConfig, candidate_bases
     from hearth.robot.sim import HEAD, camera_pose, pan_tilt_to
-    from worldmodel.geometry import scene_meshes, small_object_meshes
-    from worldmodel.nodes import LargeArticulatedObject
+    from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
+    from hearth.worldmodel.nodes import LargeArticulatedObject
 
     K = intrinsics or Intrinsics.kinect()
     obj = world.get(object_id)

@@ -4,7 +4,7 @@ Frames (see docs/robot-adapter.md):
 
 - world: x, y on the floor, z up.
 - base: the robot's base on the floor, x forward, y left, z up; a base pose is (x, y, yaw).
-- camera: OpenCV axes (x right, y down, z forward), as in perception/camera.py.
+- camera: OpenCV axes (x right, y down, z forward), as in hearth/perception/camera.py.
 
 The head (``HeadMount``): a pan joint (about the base's z axis) at ``pan_xy`` in the base,
 a tilt joint (about the panned y axis; positive tilt looks down) at ``tilt_height`` above the
@@ -21,10 +21,10 @@ from typing import Optional
 
 import numpy as np
 
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 from hearth.robot.noise import KinectNoise, NoiseBands, draw_kinect_noise, start_kinect_noise
-from worldmodel.frames import as_matrix
-from worldmodel.pose import Pose
+from hearth.worldmodel.frames import as_matrix
+from hearth.worldmodel.pose import Pose
 
 #: Camera axes (OpenCV: x right, y down, z forward) expressed in a body frame with x forward,
 #: y left, z up.
@@ -157,9 +157,9 @@ class Frame:
 
 
 def world_scene(world, states: Optional[dict] = None):
-    """A perception.render.Scene of every mesh of ``world`` (in the given states)."""
-    from perception.render import Scene
-    from worldmodel.geometry import scene_meshes
+    """A hearth.perception.render.Scene of every mesh of ``world`` (in the given states)."""
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import scene_meshes
     return Scene(scene_meshes(world, states=states))
 
 

@@ -1,9 +1,9 @@
 """The simulated robot: a truth world, a drifting localisation, a pan/tilt RGB-D camera and
 an arm whose actions change the truth, on a (simulated) clock.
 
-- The *truth* is a ``worldmodel.World`` (same format as the belief map) that only this robot
+- The *truth* is a ``hearth.worldmodel.World`` (same format as the belief map) that only this robot
   changes; it is rendered in its current articulation state by open3d ray casting
-  (perception/render.py) with the Kinect-class noise of robot/noise.py. The ray-casting scene
+  (hearth/perception/render.py) with the Kinect-class noise of robot/noise.py. The ray-casting scene
   is rebuilt only when the truth's geometry changes (a door moved, an object picked up).
 - Localisation: the believed base pose is the true pose composed with a body-frame error,
   ``T_believed = T_true @ T_error``. Driving to a believed goal therefore ends at
@@ -30,7 +30,7 @@ from typing import Iterable, Optional
 
 import numpy as np
 
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
 from hearth.robot.battery import Battery, BatteryState
 from hearth.robot.clock import SimClock
@@ -38,9 +38,9 @@ from hearth.robot.errors import RobotError
 from hearth.robot.noise import KinectNoise
 from hearth.robot.sim import (HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged, camera_pose,
                               render_view)
-from worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
-from worldmodel.frames import room_at
-from worldmodel.pose import Pose, wrap_angle
+from hearth.worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
+from hearth.worldmodel.frames import room_at
+from hearth.worldmodel.pose import Pose, wrap_angle
 
 #: Where a held object is carried, in the base frame (in front of the robot, below the camera).
 T_BASE_CARRY = Pose(0.40, 0.0, 0.85).matrix()
@@ -54,7 +54,7 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
     ``localisation_error``: body-frame error, believed = true composed with it.
     ``stuck_knobs`` / ``locked``: knob ids that will not turn / part ids that will not open.
     Speeds in m/s and rad/s; ``reach`` (m) from the base centre to what the arm touches.
-    ``renderer``: what draws the camera's frames, "hearth" (perception/render.py) or
+    ``renderer``: what draws the camera's frames, "hearth" (hearth/perception/render.py) or
     "mujoco" (hearth/robot/mujoco_render.py); default ``$HEARTH_SIM_RENDERER``, else "hearth"
     (an environment variable so that a suite's worker processes inherit it).
     ``battery``: a ``robot.battery.Battery`` (default: full, the default model);
@@ -194,8 +194,8 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         return frame
 
     def _current_scene(self):
-        from perception.render import Scene
-        from worldmodel.geometry import scene_meshes, small_object_meshes
+        from hearth.perception.render import Scene
+        from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
         held_key = None
         if self.held is not None:
             held_key = (self.held.id, self._true.as_tuple())

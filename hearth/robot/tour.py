@@ -33,8 +33,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from hearth.robot.adapter import wait
-from worldmodel.frames import planar_T, transform_xy
-from worldmodel.pose import Pose, wrap_angle
+from hearth.worldmodel.frames import planar_T, transform_xy
+from hearth.worldmodel.pose import Pose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -86,8 +86,8 @@ class TourPlan:
 
 def footprints(world, room) -> list[np.ndarray]:
     """Convex floor polygons (world frame) of every large object of ``room``."""
-    from worldmodel.geometry import object_meshes
-    from worldmodel.homegen_geometry import convex_hull_xy
+    from hearth.worldmodel.geometry import object_meshes
+    from hearth.worldmodel.homegen_geometry import convex_hull_xy
     out = []
     for obj in room.objects:
         meshes = object_meshes(world, obj, children=False)
@@ -98,7 +98,7 @@ def footprints(world, room) -> list[np.ndarray]:
 
 
 def _free(p, hulls, r) -> bool:
-    from worldmodel.homegen_geometry import disc_clear
+    from hearth.worldmodel.homegen_geometry import disc_clear
     return all(disc_clear(p, h, r) for h in hulls)
 
 

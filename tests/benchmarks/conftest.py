@@ -6,7 +6,7 @@ import pytest
 
 
 def make_tiny_home(directory):
-    from worldmodel.homegen import HomeConfig, make_home
+    from hearth.worldmodel.homegen import HomeConfig, make_home
     return make_home(1, directory, HomeConfig(rooms=(1, 1), small_objects=(3, 4)))
 
 
@@ -18,7 +18,7 @@ def tiny_home(tmp_path_factory):
 def bench_json(capsys, *argv) -> dict:
     """What `hearth bench ARGV --json` prints, parsed."""
     import json
-    from executive.cli import main
+    from hearth.cli.main import main
     capsys.readouterr()
     assert main(["bench", *argv, "--json"]) == 0
     return json.loads(capsys.readouterr().out)

@@ -20,7 +20,7 @@ def test_objects_bench_reports_pooled_and_per_world_figures_on_a_generated_home(
     assert out["true_positives"] + out["false_negatives"] > 0     # objects were put in view
     assert _in(out["detection_f1"], 0, 1) and out["detection_f1"] == home["detection_f1"]
     assert set(out["per_kind_f1"]) <= {"top", "shelf", "inside"}
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     world = load_world(tiny_home)
     assert set(home["per_object_f1"]) <= {o.id for o in world.small_objects()}
     assert set(out["per_type_f1"]) <= {o.type for o in world.small_objects()}
@@ -90,9 +90,9 @@ def test_default_worlds_are_the_demo_and_generated_homes(capsys):
 
 
 def test_a_world_without_any_surface_is_one_clear_line(capsys, tmp_path):
-    from executive.cli import main
-    from worldmodel import load_world
-    from worldmodel.io import save_world
+    from hearth.cli.main import main
+    from hearth.worldmodel import load_world
+    from hearth.worldmodel.io import save_world
     from tests.benchmarks.conftest import make_tiny_home
     path = make_tiny_home(tmp_path)
     world = load_world(path)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from executive.testing import Case, Script
+from hearth.executive.testing import Case, Script
 from hearth import missions_dir
 
 MISSIONS = sorted(str(p) for p in Path(missions_dir()).glob("*.yaml")) + \

@@ -1,4 +1,4 @@
-"""Hearth's node types in C++ (executive/cpp/hearth_nodes.hpp, what `hearth export
+"""Hearth's node types in C++ (hearth/executive/cpp/hearth_nodes.hpp, what `hearth export
 --nodes-header` writes): a mission using every one of them, exported, compiled into a small
 BehaviorTree.CPP program and run there, ends as it ends in Hearth and says the same things.
 
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from executive.btcpp import export_mission, nodes_header
-from executive.executive import Executive
-from executive.testing import Script, Substitution
+from hearth.executive.btcpp import export_mission, nodes_header
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, Substitution
 from hearth.robot.clock import SimClock
 
 HERE = Path(__file__).parent / "cpp"

@@ -5,11 +5,11 @@ from pathlib import Path
 
 from lxml import etree
 
-from executive.btcpp import CUSTOM, export_mission
-from executive.cli import main
-from executive.missionfile import load_mission
+from hearth.executive.btcpp import CUSTOM, export_mission
+from hearth.cli.main import main
+from hearth.executive.missionfile import load_mission
 from hearth import missions_dir
-from skills.base import registry
+from hearth.skills.base import registry
 
 MISSIONS = Path(missions_dir())
 

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("behaviortreepy")
 
-from executive.btcpp import export_mission  # noqa: E402
+from hearth.executive.btcpp import export_mission  # noqa: E402
 from hearth.benchmarks import _btcpp  # noqa: E402
 from hearth.benchmarks.executive import Work, mission_yaml  # noqa: E402
 
@@ -56,7 +56,7 @@ def test_the_benchmark_tree_runs_the_same_leaves_in_btcpp_and_hearth(tmp_path):
     BT.CPP starts the Python leaves as often as Hearth starts its skills."""
     path = tmp_path / "bench.yaml"
     path.write_text(mission_yaml(0))
-    from executive.executive import Executive
+    from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
     ticks = 40
     ex = Executive(clock=SimClock(), runs_dir=str(tmp_path / "runs"),

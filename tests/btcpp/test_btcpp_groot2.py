@@ -13,10 +13,10 @@ btview_client = pytest.importorskip("btview.client")
 
 from lxml import etree  # noqa: E402
 
-from executive.cli import main  # noqa: E402
-from executive.executive import Executive  # noqa: E402
-from executive.groot2 import Groot2Publisher  # noqa: E402
-from executive.testing import Script, Substitution  # noqa: E402
+from hearth.cli.main import main  # noqa: E402
+from hearth.executive.executive import Executive  # noqa: E402
+from hearth.executive.groot2 import Groot2Publisher  # noqa: E402
+from hearth.executive.testing import Script, Substitution  # noqa: E402
 from hearth import missions_dir  # noqa: E402
 from hearth.robot.clock import SimClock  # noqa: E402
 
@@ -144,7 +144,7 @@ def test_a_groot2_client_sees_every_logged_status_change_in_order(tmp_path, miss
 
 
 def test_a_watch_restart_shows_halted_nodes_going_idle(tmp_path):
-    from executive.testing import load_case
+    from hearth.executive.testing import load_case
     case = load_case(Path(__file__).parents[1] / "executive" / "cases" /
                      "go_to_rest_presence_change.yaml")
     sub = Substitution(case.scripts, case.default)
@@ -208,7 +208,7 @@ def test_cli_run_with_a_port_in_use_is_one_line_exit_2(tmp_path, capsys):
 
 
 def test_serve_and_run_take_groot2_with_a_default_port():
-    from executive.cli import build_parser
+    from hearth.cli.main import build_parser
     parser = build_parser()
     serve = parser.parse_args(["serve", "--groot2"])
     assert (serve.groot2, serve.groot2_host) == (1667, "127.0.0.1")
@@ -218,7 +218,7 @@ def test_serve_and_run_take_groot2_with_a_default_port():
 
 
 def test_a_viewer_sees_the_mission_tree_before_its_run_starts_and_subtrees_by_name(tmp_path):
-    from executive.missionfile import load_mission
+    from hearth.executive.missionfile import load_mission
     mission = load_mission(MISSIONS / "fetch_object.yaml")
     ex = Executive(clock=SimClock(), make_skill=Substitution([], Script()), background=False,
                    runs_dir=None)

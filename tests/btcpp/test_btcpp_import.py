@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from executive.btcpp import REFUSED, export_mission, import_tree
-from executive.cli import main
-from executive.testing import Case, Script, Substitution, run_case
+from hearth.executive.btcpp import REFUSED, export_mission, import_tree
+from hearth.cli.main import main
+from hearth.executive.testing import Case, Script, Substitution, run_case
 from hearth import missions_dir
 
 from .conftest import branching_case, timeline
@@ -96,7 +96,7 @@ def test_hand_written_btcpp_xml_runs_with_stand_in_skills(tmp_path):
                          Script("*/again", outcomes=["failure", "success"], duration=0.2),
                          Script("Tell", outputs={"said": "I am at the side table"})])
     sub = Substitution(case.scripts, case.default)
-    from executive.executive import Executive
+    from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
     ex = Executive(clock=SimClock(), make_skill=sub, background=False,
                    runs_dir=str(tmp_path / "runs"))

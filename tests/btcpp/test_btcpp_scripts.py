@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 from lxml import etree
 
-from executive.btcpp import import_tree, skill_model
-from executive.executive import Executive
-from executive.testing import Script, Substitution
+from hearth.executive.btcpp import import_tree, skill_model
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, Substitution
 from hearth.robot.clock import SimClock
-from skills.base import Port, Skill, registry
+from hearth.skills.base import Port, Skill, registry
 
 TUTORIALS = Path(__file__).parent / "tutorials"
 

@@ -14,7 +14,7 @@ HEAVY = ("numpy", "scipy", "py_trees", "open3d", "cv2", "sklearn", "jsonschema",
 
 def modules_after(argv: list[str]) -> set[str]:
     code = ("import contextlib, io, json, sys\n"
-            "from executive.cli import main\n"
+            "from hearth.cli.main import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    try:\n"
             f"        status = main({argv!r})\n"
@@ -41,12 +41,12 @@ def test_validate_world_loads_neither_scipy_nor_the_mission_machinery():
 
 
 def test_worldmodel_still_re_exports_its_names():
-    import worldmodel
-    from worldmodel import Pose, World, load_world
-    assert World.__module__ == "worldmodel.world" and Pose.__module__ == "worldmodel.pose"
+    import hearth.worldmodel
+    from hearth.worldmodel import Pose, World, load_world
+    assert World.__module__ == "hearth.worldmodel.world" and Pose.__module__ == "hearth.worldmodel.pose"
     assert callable(load_world)
-    assert set(worldmodel.__all__) <= set(dir(worldmodel))
-    assert worldmodel.io.load_world is load_world
+    assert set(hearth.worldmodel.__all__) <= set(dir(worldmodel))
+    assert hearth.worldmodel.io.load_world is load_world
 
 
 def test_hearth_robot_still_re_exports_the_adapter_protocol():

@@ -1,16 +1,16 @@
-"""The five error families share one base (hearth.errors.HearthError) and print the same
+"""The five error families share one base (hearth.util.errors.HearthError) and print the same
 one-line messages they printed before it existed."""
 from __future__ import annotations
 
 import pytest
 
-from executive.cli import main
-from executive.errors import MissionError, MissionValidationError
-from hearth.errors import HearthError
+from hearth.cli.main import main
+from hearth.executive.errors import MissionError, MissionValidationError
+from hearth.util.errors import HearthError
 from hearth.robot.errors import RobotError
-from perception.errors import PerceptionError
-from skills.errors import SkillError
-from worldmodel.errors import UnknownNode, WorldError, WorldValidationError
+from hearth.perception.errors import PerceptionError
+from hearth.skills.errors import SkillError
+from hearth.worldmodel.errors import UnknownNode, WorldError, WorldValidationError
 
 
 @pytest.mark.parametrize("family", [WorldError, PerceptionError, MissionError, RobotError,
@@ -58,7 +58,7 @@ def test_validation_errors_print_one_line_per_problem():
 
 
 def test_the_cli_turns_a_skill_error_into_one_line_and_status_2(monkeypatch, capsys):
-    import executive.commands.validate as validate
+    import hearth.cli.commands.validate as validate
 
     def broken(path):
         raise SkillError("not a pose: 'x'", node="kitchen_table")
@@ -68,7 +68,7 @@ def test_the_cli_turns_a_skill_error_into_one_line_and_status_2(monkeypatch, cap
 
 
 def test_a_file_with_many_problems_prints_the_first_fifty_and_counts_the_rest():
-    from hearth.errors import MOST_PROBLEMS_PRINTED
+    from hearth.util.errors import MOST_PROBLEMS_PRINTED
 
     problems = [WorldError(f"problem {i}", file="w.xml", line=i + 1) for i in range(120)]
     lines = str(WorldValidationError(problems)).splitlines()

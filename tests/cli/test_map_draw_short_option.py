@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import hearth
-from executive.cli import main
+from hearth.cli.main import main
 
 
 def test_map_draw_writes_the_png_named_by_short_o(tmp_path, capsys):

@@ -1,5 +1,5 @@
 """Command-layer fixtures: a real server on 127.0.0.1 (ephemeral port) over an executive
-whose skills are scripted stand-ins (executive.testing), on the demo home's map."""
+whose skills are scripted stand-ins (hearth.executive.testing), on the demo home's map."""
 from __future__ import annotations
 
 import json
@@ -9,11 +9,11 @@ from pathlib import Path
 import httpx
 import pytest
 
-from executive.command.api import create_app
-from executive.command.server import ServerThread, make_service
-from executive.testing import Script, ScriptedSkill, Substitution, test_skills
+from hearth.executive.command.api import create_app
+from hearth.executive.command.server import ServerThread, make_service
+from hearth.executive.testing import Script, ScriptedSkill, Substitution, test_skills
 from hearth.robot.clock import WallClock
-from skills.base import Port
+from hearth.skills.base import Port
 
 MISSIONS = Path(__file__).parent / "missions"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 
 def _wait_end(srv, run_id):
@@ -310,7 +310,7 @@ def test_a_stream_following_one_run_is_woken_by_its_run_and_by_run_less_events_o
     # the all-events waiter by any.
     import asyncio
 
-    from executive.command.service import EventHub
+    from hearth.executive.command.service import EventHub
 
     async def main():
         hub = EventHub()

@@ -5,9 +5,9 @@ import importlib.util
 import textwrap
 from pathlib import Path
 
-from executive.autonomy import Approvals, gated_factory
-from executive.executive import Executive
-from executive.testing import Script, Substitution
+from hearth.executive.autonomy import Approvals, gated_factory
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, Substitution
 from hearth.robot.clock import SimClock
 
 HERE = Path(__file__).parent

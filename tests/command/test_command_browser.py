@@ -25,11 +25,11 @@ import pytest
 from py_trees import common
 from websockets.sync.client import connect
 
-from executive.command.api import create_app
-from executive.command.server import ServerThread, make_service
-from executive.testing import Script, ScriptedSkill, Substitution, test_skills
+from hearth.executive.command.api import create_app
+from hearth.executive.command.server import ServerThread, make_service
+from hearth.executive.testing import Script, ScriptedSkill, Substitution, test_skills
 from hearth.robot.clock import WallClock
-from skills.base import Port
+from hearth.skills.base import Port
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -214,7 +214,7 @@ class MonitorServer:
             Script(match="/each_test/hold", duration=3600.0),
         ]
         skills = test_skills()
-        skills.update({c.NAME: c for c in (Creep, TurnTestKnob)})
+        hearth.skills.update({c.NAME: c for c in (Creep, TurnTestKnob)})
         missions = [str(HERE / "missions"), str(HERE / "monitor_missions"),
                     str(big_mission(tmp_path / "big_test.yaml"))]
         self.service = make_service(world, None, missions, skills=skills,

@@ -1,8 +1,8 @@
 """`hearth serve`: localhost by default; any other address needs a token."""
 from __future__ import annotations
 
-from executive.cli import main
-from executive.commands.serve import check_bind
+from hearth.cli.main import main
+from hearth.cli.commands.serve import check_bind
 
 
 def test_serve_refuses_a_non_loopback_address_without_a_token(capsys, monkeypatch):

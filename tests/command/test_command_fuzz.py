@@ -1,4 +1,4 @@
-"""A bounded schema-driven fuzz of the API (executive/command/fuzz.py): no 5xx answers.
+"""A bounded schema-driven fuzz of the API (hearth/executive/command/fuzz.py): no 5xx answers.
 The larger run is in `hearth bench api` (fuzz_requests, fuzz_5xx)."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ HINTS = ["fetch_test", "wait_test", "oven_test", "rest_test", "where_test", "pre
 
 
 def test_fuzz_from_the_openapi_schema_finds_no_server_error(make_server):
-    from executive.command.fuzz import run_fuzz
+    from hearth.executive.command.fuzz import run_fuzz
     srv = make_server(granted=1)
     schema = srv.client.get("/openapi.json").json()
     report = run_fuzz(srv.client, schema, HINTS, examples=150)
@@ -24,14 +24,14 @@ def test_the_fuzz_and_the_api_benchmark_need_no_test_extras():
     import subprocess
     import sys
     code = ("import sys; sys.modules['hypothesis'] = None; sys.modules['httpx'] = None; "
-            "import executive.command.fuzz, executive.command.api, hearth.benchmarks.api")
+            "import hearth.executive.command.fuzz, hearth.executive.command.api, hearth.benchmarks.api")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
 
 
 def test_the_fuzz_sends_the_same_requests_for_the_same_seed(make_server):
     import random
-    from executive.command.fuzz import make_request
+    from hearth.executive.command.fuzz import make_request
     srv = make_server()
     schema = srv.client.get("/openapi.json").json()
     def draws(seed):

@@ -10,12 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from executive.command.api import cross_site, host_is_served, parse_host
-from executive.command.vocabulary import (MAX_TEMPLATE_TOKENS, compile_template,
+from hearth.executive.command.api import cross_site, host_is_served, parse_host
+from hearth.executive.command.vocabulary import (MAX_TEMPLATE_TOKENS, compile_template,
                                           load_catalogue, read_templates)
-from executive.errors import MissionError
-from executive.missionfile import load_mission
-from executive.testing import test_skills
+from hearth.executive.errors import MissionError
+from hearth.executive.missionfile import load_mission
+from hearth.executive.testing import test_skills
 
 WORST = "(x) " * 60 + "go"
 #: 22 words that the 60 groups can share out in every way and that still fail at the end.

@@ -11,10 +11,10 @@ import subprocess
 import httpx
 import pytest
 
-from executive.cli import main
-from executive.command.api import (MAX_BODY_BYTES, MAX_PARAMS_BYTES, MAX_VALUE_BYTES,
+from hearth.cli.main import main
+from hearth.executive.command.api import (MAX_BODY_BYTES, MAX_PARAMS_BYTES, MAX_VALUE_BYTES,
                                    host_is_served)
-from executive.commands.serve import check_tls
+from hearth.cli.commands.serve import check_tls
 
 
 def _raw(url: str, head: str, body: bytes = b"") -> tuple[int, dict, bytes]:
@@ -198,7 +198,7 @@ def test_a_client_leaving_a_busy_stream_logs_no_server_error(server, caplog):
 def test_connections_of_a_client_gone_without_closing_are_dropped_within_the_documented_time():
     """What the server accepts carries TCP keep-alive probes and a user timeout, so that an
     event stream whose client lost its network gives its place back (docs: Limits)."""
-    from executive.command.server import DEAD_PEER_S, bind_socket
+    from hearth.executive.command.server import DEAD_PEER_S, bind_socket
     listener = bind_socket("127.0.0.1", 0)
     with listener, socket.create_connection(listener.getsockname()):
         accepted, _ = listener.accept()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from executive.command.api import MAX_RECENT_EVENTS
+from hearth.executive.command.api import MAX_RECENT_EVENTS
 
 
 def _stream(srv, run_id):

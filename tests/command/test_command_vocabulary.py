@@ -8,12 +8,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from executive.autonomy import APPROVED, EXPIRED, PENDING, Approvals
-from executive.command.commands import interpret
-from executive.command.vocabulary import Vocabulary, load_catalogue, normalise, read_templates
-from executive.errors import MissionError
-from executive.missionfile import load_mission
-from worldmodel.pose import Pose
+from hearth.executive.autonomy import APPROVED, EXPIRED, PENDING, Approvals
+from hearth.executive.command.commands import interpret
+from hearth.executive.command.vocabulary import Vocabulary, load_catalogue, normalise, read_templates
+from hearth.executive.errors import MissionError
+from hearth.executive.missionfile import load_mission
+from hearth.worldmodel.pose import Pose
 
 HERE = Path(__file__).parent
 ROOT = HERE.parents[1]
@@ -136,7 +136,7 @@ def test_the_schema_refuses_a_malformed_utterances_list(tmp_path):
 
 
 def test_every_mission_in_missions_has_templates_that_compile():
-    from executive.missionfile import skill_registry
+    from hearth.executive.missionfile import skill_registry
     reg = skill_registry()
     entries, problems = load_catalogue([ROOT / "missions"], lambda f: load_mission(f, reg))
     assert problems == []
@@ -145,7 +145,7 @@ def test_every_mission_in_missions_has_templates_that_compile():
 
 
 def test_real_missions_understand_the_issue_examples(demo_world):
-    from executive.missionfile import skill_registry
+    from hearth.executive.missionfile import skill_registry
     reg = skill_registry()
     entries, _ = load_catalogue([ROOT / "missions"], lambda f: load_mission(f, reg))
     for text, mission, params in [("bring me the blue cup", "fetch_object", {"object": "blue_cup"}),
@@ -177,7 +177,7 @@ words = st.text(alphabet="abcdefghijklmnopqrstuvwxyz", min_size=1, max_size=8)
 @given(prefix=st.lists(words, min_size=1, max_size=4), article=st.booleans(),
        obj=st.sampled_from(["blue cup", "red cup", "pill box", "bowl", "glass jar"]))
 def test_a_template_matches_its_own_sentences(prefix, article, obj, tmp_path_factory):
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     demo_world = _WORLD.get("w") or _WORLD.setdefault("w", load_world(ROOT / "data/demo_home/world.xml"))
     d = tmp_path_factory.mktemp("t")
     template = " ".join(prefix) + " (the|my) {object:thing}"

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from executive.day import (BatteryPolicy, Entry, Schedule, ScheduleError, load_schedule)
-from executive.daysim import Happening, simulate_day
-from worldmodel.io import load_world
+from hearth.executive.day import (BatteryPolicy, Entry, Schedule, ScheduleError, load_schedule)
+from hearth.executive.daysim import Happening, simulate_day
+from hearth.worldmodel.io import load_world
 from hearth import demo_world_path
 
 
@@ -131,7 +131,7 @@ def test_a_second_call_joins_the_robot_already_going_to_the_user(world):
 
 
 def test_hearth_day_prints_the_days_figures(capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     from hearth import resource_dir
     schedule = resource_dir("data") / "demo_home" / "day.yaml"
     assert main(["day", "--schedule", str(schedule), "--hours", "2", "--battery", "0.31",
@@ -147,7 +147,7 @@ def test_hearth_day_prints_the_days_figures(capsys):
 
 def test_hearth_day_refuses_a_world_without_a_charger_in_one_line(tmp_path, capsys):
     import re
-    from executive.cli import main
+    from hearth.cli.main import main
     text = demo_world_path().read_text()
     path = tmp_path / "world.xml"
     path.write_text(re.sub(r"<charger .*?</charger>\s*", "", text, flags=re.S))
@@ -160,7 +160,7 @@ def test_hearth_day_refuses_a_world_without_a_charger_in_one_line(tmp_path, caps
 
 
 def test_hearth_validate_checks_a_schedule(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     from hearth import resource_dir
     assert main(["validate", str(resource_dir("data") / "demo_home" / "day.yaml")]) == 0
     path = tmp_path / "day.yaml"
@@ -186,5 +186,5 @@ def test_schedule_slots_split_at_any_time_are_the_same_slots(every, start, span,
 
 @given(st.integers(0, 86_399))
 def test_a_time_of_day_reads_back_as_written(seconds):
-    from executive.day import clock_text, parse_clock_time
+    from hearth.executive.day import clock_text, parse_clock_time
     assert parse_clock_time(clock_text(seconds)) == seconds

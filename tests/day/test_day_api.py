@@ -5,14 +5,14 @@ from __future__ import annotations
 import pytest
 from fastapi.testclient import TestClient
 
-from executive.command.api import _check_token, create_app
-from executive.command.day_api import day_router
-from executive.command.server import make_service
-from executive.day import Day, Schedule
+from hearth.executive.command.api import _check_token, create_app
+from hearth.executive.command.day_api import day_router
+from hearth.executive.command.server import make_service
+from hearth.executive.day import Day, Schedule
 from hearth import demo_world_path, missions_dir
 from hearth.robot.clock import SimClock
 from hearth.robot.simulated import SimulatedRobot
-from worldmodel.io import load_world
+from hearth.worldmodel.io import load_world
 
 
 @pytest.fixture

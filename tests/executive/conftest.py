@@ -3,8 +3,8 @@ import textwrap
 
 import pytest
 
-from executive.executive import Executive
-from executive.testing import Script, ScriptedSkill, Substitution, test_skills
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, ScriptedSkill, Substitution, test_skills
 from hearth.robot.clock import SimClock
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from executive.cli import build_parser, main
+from hearth.cli.main import build_parser, main
 
 
 def refused(argv, capsys) -> str:

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from executive.cli import main
+from hearth.cli.main import main
 from hearth import __version__, demo_world_path
 
 
@@ -22,7 +22,7 @@ def fetch(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("fetch")
     env_state = tmp / "state"
     before = time.strftime("%Y%m%d", time.gmtime())
-    done = subprocess.run([sys.executable, "-m", "executive", "run", "missions/fetch_object.yaml",
+    done = subprocess.run([sys.executable, "-m", "hearth", "run", "missions/fetch_object.yaml",
                            "--param", "object=blue cup", "--runs-dir", str(tmp / "runs")],
                           capture_output=True, text=True, timeout=600,
                           env={**__import__("os").environ, "HEARTH_STATE_DIR": str(env_state)})
@@ -49,7 +49,7 @@ def test_fetch_prints_under_60_short_lines_by_default(fetch):
 
 def test_each_skill_outcome_is_printed_once(fetch):
     done, log, _ = fetch
-    from executive.replay import read_log
+    from hearth.executive.replay import read_log
     _, events, _ = read_log(log)
     outcomes = [e for e in events if e["e"] == "status" and e["status"] in ("SUCCESS", "FAILURE")
                 and not e.get("halted") and e["path"].rsplit("/", 1)[-1] in
@@ -145,7 +145,7 @@ def test_version_is_the_package_version(capsys):
 @pytest.mark.parametrize("argv", [["map", "show", str(demo_world_path())],
                                   ["map", "find", str(demo_world_path()), "blue", "cup"]])
 def test_a_closed_pipe_ends_the_command_quietly(argv):
-    proc = subprocess.Popen([sys.executable, "-m", "executive", *argv],
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", *argv],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()                 # `| head` that has read enough before anything came
     err = proc.stderr.read().decode()
@@ -187,7 +187,7 @@ def test_serve_on_an_ipv6_address_prints_a_bracketed_url(tmp_path):
     except OSError:
         pytest.skip("no IPv6 loopback here")
     # faulthandler: should the server not stop, SIGABRT makes it print every thread's stack
-    proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--host", "::1",
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", "serve", "--host", "::1",
                              "--port", "0", "--no-save", "--runs-dir", str(tmp_path)],
                             stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONFAULTHANDLER": "1"},
@@ -223,7 +223,7 @@ def test_on_a_terminal_one_progress_line_rewrites_itself(tmp_path):
     import os
     import pty
     leader, follower = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "executive", "run", "missions/go_to_rest.yaml",
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", "run", "missions/go_to_rest.yaml",
                              "--no-save", "--runs-dir", str(tmp_path)],
                             stdout=follower, stderr=follower, close_fds=True)
     os.close(follower)
@@ -258,7 +258,7 @@ def test_serve_announces_its_address_only_once_it_stops_on_ctrl_c(tmp_path):
     with SIGINT ignored (as a child of a process that ignores it) stops on a SIGINT sent
     the moment the line appears."""
     import signal
-    proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--port", "0",
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", "serve", "--port", "0",
                              "--no-save", "--runs-dir", str(tmp_path)],
                             stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))

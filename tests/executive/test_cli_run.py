@@ -5,7 +5,7 @@ import re
 import pytest
 
 from hearth import robot
-from executive.cli import main
+from hearth.cli.main import main
 
 
 class FakeAction:

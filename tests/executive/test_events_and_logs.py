@@ -7,10 +7,10 @@ import threading
 
 from py_trees import common
 
-from executive.events import EventKind, RunState
-from executive.replay import read_log, replay
-from executive.runlog import RunLog, status_event
-from executive.testing import Act, Script as S, test_skills
+from hearth.executive.events import EventKind, RunState
+from hearth.executive.replay import read_log, replay
+from hearth.executive.runlog import RunLog, status_event
+from hearth.executive.testing import Act, Script as S, test_skills
 
 Status = common.Status
 
@@ -97,7 +97,7 @@ def test_a_slow_subscriber_stalls_neither_ticks_nor_callers(make_executive, miss
 
 def test_a_run_cancelled_while_queued_leaves_a_log_saying_so(make_executive, mission_file,
                                                               capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
     ex = make_executive([S("*/drive", duration=1.0)])
     first, queued = ex.submit(path), ex.submit(path)
@@ -130,7 +130,7 @@ def test_every_run_a_shutdown_cancels_has_a_log_with_its_end(make_executive, mis
 
 def test_demo_progress_prints_run_states_and_each_skills_final_word(make_executive,
                                                                     mission_file, capsys):
-    from executive.commands.demo import _Progress
+    from hearth.cli.commands.demo import _Progress
     path = mission_file("""
         name: x
         tree:

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from executive.cli import main
-from executive.replay import read_log
+from hearth.cli.main import main
+from hearth.executive.replay import read_log
 from hearth import demo_world_path
-from worldmodel import load_world
+from hearth.worldmodel import load_world
 
 
 def _search_orders(log: str) -> list[str]:
@@ -31,9 +31,9 @@ def _search_orders(log: str) -> list[str]:
 def cup_moved(tmp_path):
     """A scenario of the demo home where the blue cup is, in truth, on the side table
     (the map believes it on the kitchen table)."""
-    from executive.scenarios import place_on
+    from hearth.executive.scenarios import place_on
     from hearth.robot.scenario import Scenario, save_scenario
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     belief = load_world(demo_world_path())
     truth = belief.copy()
     assert place_on(truth, "blue_cup", "side_table", np.random.default_rng(0))
@@ -48,7 +48,7 @@ def test_a_second_process_searches_where_the_first_found_the_object(cup_moved, t
     logs = []
     for run in (1, 2):
         runs = tmp_path / f"runs{run}"
-        done = subprocess.run([sys.executable, "-m", "executive", "run",
+        done = subprocess.run([sys.executable, "-m", "hearth", "run",
                                "missions/fetch_object.yaml", "--scenario", str(cup_moved),
                                "--param", "object=blue cup", "--runs-dir", str(runs)],
                               capture_output=True, text=True, timeout=600,
@@ -113,8 +113,8 @@ def test_map_out_and_no_save_together_are_refused(capsys):
 
 
 def test_a_replay_leaves_its_map_as_it_was_unless_map_out_says(tmp_path):
-    from executive.cli import build_parser
-    from executive.cliutil import keeps_map
+    from hearth.cli.main import build_parser
+    from hearth.cli.util import keeps_map
     parse = build_parser().parse_args
     assert keeps_map(parse(["run", "m.yaml"]))
     assert keeps_map(parse(["step", "m.yaml"]))
@@ -139,7 +139,7 @@ def test_a_map_out_that_cannot_be_written_is_one_line(tmp_path, capsys):
 def test_hearth_serve_keeps_what_its_missions_learn(tmp_path):
     import httpx
     world = _searched_world(tmp_path)
-    proc = subprocess.Popen([sys.executable, "-m", "executive", "serve", "--port", "0",
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", "serve", "--port", "0",
                              "--world", str(world), "--runs-dir", str(tmp_path / "runs")],
                             stderr=subprocess.PIPE, text=True)
     try:

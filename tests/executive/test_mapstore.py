@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from executive.mapstore import MapKeeper, map_path
+from hearth.executive.mapstore import MapKeeper, map_path
 from hearth import demo_world_path
-from worldmodel import load_world
+from hearth.worldmodel import load_world
 
 
 @pytest.fixture

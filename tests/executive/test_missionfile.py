@@ -3,12 +3,12 @@ import re
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from executive.cli import main
-from executive.errors import MissionValidationError
-from executive.missionfile import (check_value, load_mission, parse_expression, parse_param_text,
+from hearth.cli.main import main
+from hearth.executive.errors import MissionValidationError
+from hearth.executive.missionfile import (check_value, load_mission, parse_expression, parse_param_text,
                                    validate_file)
-from executive.testing import test_skills
-from executive.errors import MissionError
+from hearth.executive.testing import test_skills
+from hearth.executive.errors import MissionError
 
 
 def errors(path):
@@ -418,7 +418,7 @@ def test_validating_is_linear_in_the_number_of_siblings(mission_file):
 
 
 def test_the_schemas_maxima_are_the_documented_limits():
-    from executive import missionfile as mf
+    from hearth.executive import missionfile as mf
     defs = mf.schema()["$defs"]
     assert defs["retry"]["properties"]["times"]["maximum"] == mf.MAX_RETRY_TIMES
     assert defs["repeat"]["properties"]["times"]["maximum"] == mf.MAX_REPEAT_TIMES

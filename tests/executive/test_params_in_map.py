@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import pytest
 
-from executive.cli import main
-from executive.errors import MissionError
-from executive.missionfile import load_mission
-from executive.testing import Script as S
+from hearth.cli.main import main
+from hearth.executive.errors import MissionError
+from hearth.executive.missionfile import load_mission
+from hearth.executive.testing import Script as S
 from hearth import missions_dir
-from worldmodel import load_world
+from hearth.worldmodel import load_world
 
 MISSIONS = missions_dir()
 
@@ -63,8 +63,8 @@ def api():
     request below is refused at submit)."""
     import httpx
 
-    from executive.command.api import create_app
-    from executive.command.server import ServerThread, make_service
+    from hearth.executive.command.api import create_app
+    from hearth.executive.command.server import ServerThread, make_service
     from hearth import demo_world_path
     from hearth.robot.clock import SimClock
     world = load_world(demo_world_path())
@@ -108,7 +108,7 @@ def test_declared_sentinels_ids_and_words_are_let_through(mission, value, demo_w
 
 
 def test_turn_off_oven_finds_the_appliance_with_knobs_in_any_home(demo_world):
-    from executive.scenarios import resolve_world
+    from hearth.executive.scenarios import resolve_world
     oven = load_mission(MISSIONS / "turn_off_oven.yaml")
     assert oven.parameters["oven"].default == ""
     assert oven.resolve_in_map({}, demo_world) == {"oven": "oven"}
@@ -121,8 +121,8 @@ def test_turn_off_oven_finds_the_appliance_with_knobs_in_any_home(demo_world):
 
 
 def test_the_command_layer_still_says_turn_off_the_oven(demo_world):
-    from executive.command.commands import interpret
-    from executive.command.vocabulary import Vocabulary, load_catalogue
+    from hearth.executive.command.commands import interpret
+    from hearth.executive.command.vocabulary import Vocabulary, load_catalogue
     catalogue, _ = load_catalogue([str(MISSIONS)], load_mission)
     vocab = Vocabulary(demo_world, catalogue)
     try:
@@ -191,7 +191,7 @@ def test_go_to_rest_away_fails_when_the_place_out_of_the_way_is_not_reached(make
 
 
 def test_bounds_and_kinds_survive_a_round_trip_through_behaviortree_cpp(tmp_path):
-    from executive.btcpp import export_mission, import_tree
+    from hearth.executive.btcpp import export_mission, import_tree
     xml = tmp_path / "m.xml"
     xml.write_text(export_mission(MISSIONS / "turn_off_oven.yaml"))
     oven = import_tree(xml)[1].parameters["oven"]

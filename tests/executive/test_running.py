@@ -1,7 +1,7 @@
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from executive.replay import read_log, replay
-from executive.testing import Script as S, load_case, run_case, test_skills
+from hearth.executive.replay import read_log, replay
+from hearth.executive.testing import Script as S, load_case, run_case, test_skills
 from py_trees.common import Status
 
 
@@ -244,8 +244,8 @@ def test_cancel_while_queued_during_startup_and_twice(make_executive, mission_fi
 
 
 def test_cancel_during_startup_is_not_lost(mission_file, tmp_path):
-    from executive.executive import Executive
-    from executive.testing import Act
+    from hearth.executive.executive import Executive
+    from hearth.executive.testing import Act
     from hearth.robot.clock import SimClock
     handles = []
 
@@ -372,7 +372,7 @@ def test_cancelled_run_replays_too(make_executive, mission_file):
 
 
 def test_test_mission_reports_never_ticked_nodes(mission_file, tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     case = tmp_path / "case.yaml"
     case.write_text("params: {presence: away}\nsubstitute:\n  - {match: NavigateTo, duration: 1}\n"
                     "expect: succeeded\n")
@@ -443,7 +443,7 @@ def test_random_trees_finish_or_cancel_with_every_node_terminated(make_executive
 
 
 def test_a_skill_that_raises_fails_the_mission_with_the_reason(make_executive, mission_file):
-    from executive.testing import Act
+    from hearth.executive.testing import Act
 
     class Broken(Act):
         def update(self):
@@ -458,7 +458,7 @@ def test_a_skill_that_raises_fails_the_mission_with_the_reason(make_executive, m
 
 
 def test_log_show_and_replay_commands(make_executive, mission_file, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     path = mission_file("name: x\ntree: {skill: Act, name: act}\n")
     ex = make_executive([S("*/act", duration=0.3)])
     h = ex.submit(path)
@@ -470,7 +470,7 @@ def test_log_show_and_replay_commands(make_executive, mission_file, capsys):
 
 def test_step_ticks_and_prints_tree_with_statuses(make_executive, mission_file):
     import io
-    from executive.commands.step import Stepper
+    from hearth.cli.commands.step import Stepper
     path = mission_file("""
         name: x
         tree:
@@ -552,7 +552,7 @@ def test_a_queued_mission_starts_with_the_latest_runtime_value(make_executive, m
 def test_set_parameter_checks_the_type_declared_by_running_and_queued_missions(
         make_executive, mission_file):
     import pytest
-    from executive.errors import MissionError
+    from hearth.executive.errors import MissionError
     path = mission_file("""
         name: x
         parameters:
@@ -568,7 +568,7 @@ def test_set_parameter_checks_the_type_declared_by_running_and_queued_missions(
 
 
 def test_a_terminate_that_raises_does_not_keep_others_from_halting(make_executive, mission_file):
-    from executive.testing import Act
+    from hearth.executive.testing import Act
 
     class BadStop(Act):
         def terminate(self, new_status):
@@ -603,7 +603,7 @@ def test_a_terminate_that_raises_does_not_keep_others_from_halting(make_executiv
 
 def test_missions_above_the_granted_autonomy_are_refused(make_executive, mission_file):
     import pytest
-    from executive.errors import MissionValidationError
+    from hearth.executive.errors import MissionValidationError
     ex = make_executive(autonomy=0, skills=None)
     with pytest.raises(MissionValidationError) as err:
         ex.submit("missions/go_to_rest.yaml")
@@ -664,8 +664,8 @@ def test_every_decorator_and_container_halts_deepest_first(make_executive, missi
 
 def test_wall_clock_runs_replay_at_their_logged_tick_times(tmp_path, mission_file):
     import random
-    from executive.executive import Executive
-    from executive.testing import Substitution
+    from hearth.executive.executive import Executive
+    from hearth.executive.testing import Substitution
 
     class ManualWallClock:
         simulated = False
@@ -704,7 +704,7 @@ def test_wall_clock_runs_replay_at_their_logged_tick_times(tmp_path, mission_fil
 
 
 def test_example_case_file_for_go_to_rest(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     case = "tests/executive/cases/go_to_rest_presence_change.yaml"
     assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", case,
                  "--runs-dir", str(tmp_path)]) == 0
@@ -716,7 +716,7 @@ def test_example_case_file_for_go_to_rest(tmp_path, capsys):
 
 
 def test_bad_substitution_file_is_one_line_with_file_and_line(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     case = tmp_path / "case.yaml"
     case.write_text("substitute:\n  - {match: NavigateTo, outcome: maybe}\n")
     assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 2
@@ -778,7 +778,7 @@ def test_a_user_cancel_during_a_preempt_wins(make_executive, mission_file):
 def _braking_skill(stops_on_robot_stop: bool, robot):
     """A stand-in drive that keeps reporting is_halting() after it is halted: for ever, or
     until ``robot.stop()`` is called."""
-    from executive.testing import Act
+    from hearth.executive.testing import Act
 
     class Braking(Act):
         HALT_TIMEOUT = 0.5
@@ -845,7 +845,7 @@ def test_a_skill_that_robot_stop_stops_confirms_the_cancel(make_executive, missi
 
 def test_a_failing_log_write_ends_the_run_instead_of_leaving_it_stuck(make_executive,
                                                                       mission_file):
-    from executive.runlog import RunLog
+    from hearth.executive.runlog import RunLog
     path = mission_file("name: x\ntree: {skill: Act, name: drive}\n")
     robot = FakeRobot()
     ex = make_executive([S("*/drive", duration=1.0)], robot=robot)
@@ -870,7 +870,7 @@ def test_lifecycles_share_one_machine_and_refuse_transitions_it_lacks():
     # a trigger from a state the table does not list raises, and the machine keeps no
     # reference to the runs (none is kept alive by it).
     from transitions import MachineError
-    from executive.scheduler import MACHINE, Lifecycle
+    from hearth.executive.scheduler import MACHINE, Lifecycle
 
     a, b = Lifecycle(), Lifecycle()
     assert (a.state, b.state) == ("queued", "queued")

@@ -1,4 +1,4 @@
-"""The executive's direct tick (executive/treetick.py) is py_trees' generator tick, call for
+"""The executive's direct tick (hearth/executive/treetick.py) is py_trees' generator tick, call for
 call: random trees of every node kind, ticked both ways side by side, visit the same nodes
 with the same statuses, make the same skill calls and end in the same state."""
 from __future__ import annotations
@@ -7,12 +7,12 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings, strategies as st
 from py_trees import common
 
-from executive import treetick
-from executive.missionfile import load_mission
-from executive.testing import test_skills
-from executive.tree import build_tree
+from hearth.executive import treetick
+from hearth.executive.missionfile import load_mission
+from hearth.executive.testing import test_skills
+from hearth.executive.tree import build_tree
 from hearth.robot.clock import SimClock
-from skills.base import Skill
+from hearth.skills.base import Skill
 
 Status = common.Status
 

@@ -79,7 +79,7 @@ def test_the_fast_node_check_agrees_with_jsonschema():
     import random
 
     import yaml
-    from executive.missionfile import KINDS, _validator
+    from hearth.executive.missionfile import KINDS, _validator
     rng = random.Random(7)
     seen = 0
     for _ in range(60):

@@ -11,9 +11,9 @@ def knob_model_dir(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def reader(knob_model_dir):
-    from skills.knob_models import TrainingConfig, load_or_train
+    from hearth.skills.knob_models import TrainingConfig, load_or_train
     from tests.conftest import DEMO_WORLD
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     r, info = load_or_train(load_world(DEMO_WORLD), TrainingConfig().tiny(), directory=knob_model_dir)
     assert info.source in ("trained", "memory")
     return r

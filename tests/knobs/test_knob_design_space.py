@@ -12,12 +12,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knobs import knob_priors
-from worldmodel.homegen_geometry import extrude, ply_bytes
-from worldmodel.nodes import KnobState, Model, Visual
-from worldmodel.pose import Pose
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knobs import knob_priors
+from hearth.worldmodel.homegen_geometry import extrude, ply_bytes
+from hearth.worldmodel.nodes import KnobState, Model, Visual
+from hearth.worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 DARK, STEEL, RED, WHITE = (0.15, 0.15, 0.16), (0.74, 0.75, 0.77), (0.85, 0.1, 0.1), (0.95, 0.95, 0.92)
@@ -38,9 +38,9 @@ def kitchen(tmp_path_factory):
     marker, off in the middle of its travel; knob 3 a tiny 4 mm knob; knob 4 a cylinder with
     a line, off mid-travel and named "standby". Written to a file, loaded back, its reader
     made (tiny training configuration)."""
-    from skills.knob_models import TrainingConfig, load_or_train
+    from hearth.skills.knob_models import TrainingConfig, load_or_train
     from tests.conftest import DEMO_WORLD
-    from worldmodel.io import load_world, to_xml
+    from hearth.worldmodel.io import load_world, to_xml
     d = tmp_path_factory.mktemp("design_space")
     w = load_world(DEMO_WORLD)
     k1, k2, k3, k4 = (w.get(f"oven_knob_{i}") for i in (1, 2, 3, 4))
@@ -155,9 +155,9 @@ def test_a_knurled_grip_is_ridged_round_and_a_cylinder_or_taper_is_not(tmp_path)
     """``near_round``: a knurled ring (ridges 7 % deep) with a dot is a body whose angle rests
     on its marker alone while its ridges fit elsewhere (its "off" needs a second view); a
     plain cylinder, a taper or a D-shaped grip is not."""
-    from perception.knobs import knob_shape, near_round
-    from worldmodel.homegen_geometry import fan_prism, frustum
-    from worldmodel.nodes import Knob
+    from hearth.perception.knobs import knob_shape, near_round
+    from hearth.worldmodel.homegen_geometry import fan_prism, frustum
+    from hearth.worldmodel.nodes import Knob
     n = 20
     a = np.linspace(0, 2 * math.pi, 2 * n, endpoint=False)
     rr = np.where(np.arange(2 * n) % 2 == 0, 0.02, 0.0186)

@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knobs import knob_priors
-from worldmodel.homegen_geometry import extrude, ply_bytes
-from worldmodel.nodes import KnobState, Model, Visual
-from worldmodel.pose import Pose
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knobs import knob_priors
+from hearth.worldmodel.homegen_geometry import extrude, ply_bytes
+from hearth.worldmodel.nodes import KnobState, Model, Visual
+from hearth.worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 BLACK, WHITE, RED = (0.08, 0.08, 0.09), (0.9, 0.9, 0.88), (0.85, 0.1, 0.1)
@@ -32,9 +32,9 @@ def designed(tmp_path_factory):
     """The demo home with its oven knobs redesigned: knob 1 a pointer given as a mesh on a
     fixed bezel, knob 2 a plain bar grip (symmetry 2), knob 3 a tiny 4 mm knob; written to a
     world file and loaded back, and its reader made (tiny training configuration)."""
-    from skills.knob_models import TrainingConfig, load_or_train
+    from hearth.skills.knob_models import TrainingConfig, load_or_train
     from tests.conftest import DEMO_WORLD
-    from worldmodel.io import load_world, to_xml
+    from hearth.worldmodel.io import load_world, to_xml
     d = tmp_path_factory.mktemp("designed")
     w = load_world(DEMO_WORLD)
     k1, k2, k3 = (w.get(f"oven_knob_{i}") for i in (1, 2, 3))

@@ -4,11 +4,11 @@ from __future__ import annotations
 import re
 
 from hearth import demo_world_path
-from worldmodel.homegen_geometry import extrude, ply_bytes
+from hearth.worldmodel.homegen_geometry import extrude, ply_bytes
 
 
 def test_the_documented_knob_designs_load_and_round_trip(tmp_path):
-    from worldmodel.io import load_world, to_xml
+    from hearth.worldmodel.io import load_world, to_xml
     doc = (demo_world_path().parents[2] / "docs" / "world-format.md").read_text()
     section = doc[doc.index("## Knobs"):doc.index("## What loading checks")]
     xml = re.search(r"```xml\n(.*?)```", section, re.S).group(1)

@@ -1,4 +1,4 @@
-"""The knob reader's compiled label sums (perception/knob_kernels.py) against the numpy sums
+"""The knob reader's compiled label sums (hearth/perception/knob_kernels.py) against the numpy sums
 they replaced (np.bincount over index and weight arrays, kept here as the reference): the
 label maps the same float64 values bit for bit, the normal equations the same to rounding."""
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from perception import knob_kernels
+from hearth.perception import knob_kernels
 
 
 def _bincount_gram(labels, lut, idx, wts, xc):
@@ -100,7 +100,7 @@ def test_label_maps_are_bincounts_sums_bit_for_bit(seed):
 def _numpy_labels(caster, origins, dirs, turns, fixed_turn, fine):
     """``_Caster.labels`` as numpy made it (per-turn label tables, broadcast rays)."""
     import math
-    from perception.knobs import FINE_AZIMUTHS, N_FACE, N_FACE_FINE
+    from hearth.perception.knobs import FINE_AZIMUTHS, N_FACE, N_FACE_FINE
     turns = np.atleast_1d(np.asarray(turns, dtype=float))
     B = len(turns)
     same_rays = np.ndim(dirs) == 2 and np.ndim(origins) <= 2
@@ -148,8 +148,8 @@ def test_the_exact_renderings_labels_are_numpys_bit_for_bit(home):
     """A skirt knob (home 1) and a pointer with a fixed base (home 4), seen from cameras
     around the axis, every turn and both face-class sets; one camera centre for all rays
     and one origin per ray."""
-    from perception.knobs import _Caster, knob_shape
-    from worldmodel.homegen import generate_home
+    from hearth.perception.knobs import _Caster, knob_shape
+    from hearth.worldmodel.homegen import generate_home
     w = generate_home(home)
     k = w.knobs()[0]
     caster = _Caster(knob_shape(k, w.apartment.library, w.base_dir))
@@ -176,8 +176,8 @@ def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
     whole here) and leaves out most of those that pass beside the knob, grazing ones
     included."""
     import open3d as o3d
-    from perception.knobs import _Caster, knob_shape
-    from worldmodel.homegen import generate_home
+    from hearth.perception.knobs import _Caster, knob_shape
+    from hearth.worldmodel.homegen import generate_home
     w = generate_home(home)
     k = w.knobs()[0]
     caster = _Caster(knob_shape(k, w.apartment.library, w.base_dir))
@@ -239,11 +239,11 @@ def test_the_compiled_settle_finds_numpys_shift(reader, monkeypatch):
     (rendered views of the demo oven's knobs, Kinect noise): the shift numpy's loop finds,
     within 1e-9 px (the sums are made in another order), and the readings' states and
     angles are the ones that shift gives."""
-    import perception.knobs as kn
+    import hearth.perception.knobs as kn
     from hearth.robot.noise import add_kinect_noise
-    from perception.knob_data import KnobDataConfig, KnobScenes, render_views
+    from hearth.perception.knob_data import KnobDataConfig, KnobScenes, render_views
     from tests.conftest import DEMO_WORLD
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     world = load_world(DEMO_WORLD)
     views = render_views(world, 12, 5, KnobDataConfig(at_states=True, missing_rate=0.0),
                          reader.config, noise=add_kinect_noise, scenes=KnobScenes(world))
@@ -270,7 +270,7 @@ def test_depth_fits_are_depth_scores(seed):
     """One window's measured depth against renderings' ray parameters (inf: the ray missed
     the knob and meets the panel), compiled, against ``depth_scores``: the same scores, the
     zeros (too few valid rays, a negative slope) included."""
-    from perception.knobs import depth_scores, measured_heights
+    from hearth.perception.knobs import depth_scores, measured_heights
     rng = np.random.default_rng(seed)
     N, B = 900, 6
     panel = 0.5 + rng.normal(0, 0.002, N)

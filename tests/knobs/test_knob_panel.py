@@ -1,16 +1,16 @@
 """The knob panel found in the depth image when the robot's pose is centimetres off
-(perception/knob_panel.py), and the knobs read where it is."""
+(hearth/perception/knob_panel.py), and the knobs read where it is."""
 from __future__ import annotations
 
 import numpy as np
 import py_trees
 import pytest
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knob_panel import locate_panel, panel_groups, shift_priors
-from perception.knobs import knob_priors
-from skills.knobs import ReadKnobs
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knob_panel import locate_panel, panel_groups, shift_priors
+from hearth.perception.knobs import knob_priors
+from hearth.skills.knobs import ReadKnobs
 from tests.knobs.test_knobs_skills import Frame, make
 
 K = Intrinsics.kinect()
@@ -37,7 +37,7 @@ def _generated_cooker(seed=12):
     every angle; thin fins give no match, D-shapes lead their rival by too little:
     docs/knobs.md, 2026-12-07.)"""
     import tempfile
-    from worldmodel.homegen import generate_home
+    from hearth.worldmodel.homegen import generate_home
     w = generate_home(seed, mesh_dir=tempfile.mkdtemp())
     owner = next(o.id for o in w.large_objects() if list(w.knobs(o.id)))
     return w, owner
@@ -124,8 +124,8 @@ def test_a_shift_beyond_the_readers_search_is_taken_only_when_the_reader_finds_t
     the panel's match puts them: the match is taken. A made-up match to bare panel 6 cm
     away (the pose right) finds none there: the knobs are read where the map puts them."""
     from dataclasses import replace as dc_replace
-    from perception import knob_panel
-    from perception.knob_panel import read_panel
+    from hearth.perception import knob_panel
+    from hearth.perception.knob_panel import read_panel
     priors = knob_priors(demo_world, "oven")
     error = 0.045 * priors[0].T_world_knob[:3, 0]
     r, T_true, T_believed, priors = _view(demo_world, "oven", error)
@@ -156,8 +156,8 @@ def test_a_panel_that_matches_as_well_one_pitch_along_gives_no_neighbour_s_state
     the panel's match cannot tell that shift from another (ambiguous), a knob that reads
     otherwise where the match puts it is "unknown", never its neighbour's state; read as
     before (no ambiguous match reported), some knob takes its neighbour's state."""
-    from perception import knob_panel
-    from perception.knob_panel import read_panel
+    from hearth.perception import knob_panel
+    from hearth.perception.knob_panel import read_panel
     priors = knob_priors(demo_world, "oven")
     along = priors[0].T_world_knob[:3, 0]
     pitch = min(abs(float(along @ (p.T_world_knob[:3, 3] - q.T_world_knob[:3, 3])))

@@ -16,11 +16,11 @@ import math
 import numpy as np
 import pytest
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knobs import knob_priors, marker_dot, round_body_levels
-from worldmodel.nodes import KnobState, Model, Visual
-from worldmodel.pose import Pose
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knobs import knob_priors, marker_dot, round_body_levels
+from hearth.worldmodel.nodes import KnobState, Model, Visual
+from hearth.worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 PANEL = (0.72, 0.73, 0.75)             # the demo oven's panel: the knob's body in its colour
@@ -38,7 +38,7 @@ def skirt_world(directory, dot_scale=1.0, pitch=None):
     back; ``pitch``: knob 2 moved to this many radii from knob 1 along the row."""
     from dataclasses import replace
     from tests.conftest import DEMO_WORLD
-    from worldmodel.io import load_world, to_xml
+    from hearth.worldmodel.io import load_world, to_xml
     w = load_world(DEMO_WORLD)
     if pitch is not None:
         k1, k2 = w.get("oven_knob_1"), w.get("oven_knob_2")
@@ -60,7 +60,7 @@ def skirt_world(directory, dot_scale=1.0, pitch=None):
 
 def _made(tmp_path_factory, name, **world_args):
     """A ``skirt_world`` (``world_args``), its reader (tiny training) and its scenes."""
-    from skills.knob_models import TrainingConfig, load_or_train
+    from hearth.skills.knob_models import TrainingConfig, load_or_train
     d = tmp_path_factory.mktemp(name)
     world = skirt_world(d, **world_args)
     reader, _ = load_or_train(world, TrainingConfig().tiny(), directory=d / "models")
@@ -89,7 +89,7 @@ def _frame(world, scenes, kid, angle, distance, off_axis_deg, up_deg, seed=3):
 
 
 def test_the_skirt_is_a_round_body_with_a_dot(tmp_path):
-    from perception.knobs import knob_shape
+    from hearth.perception.knobs import knob_shape
     w = skirt_world(tmp_path)
     k = w.get("oven_knob_1")
     s = knob_shape(k, w.apartment.library, w.base_dir)
@@ -99,8 +99,8 @@ def test_the_skirt_is_a_round_body_with_a_dot(tmp_path):
 
 
 def test_a_d_shaped_grip_is_not_a_round_body():
-    from worldmodel.homegen import generate_home
-    from perception.knobs import knob_shape
+    from hearth.worldmodel.homegen import generate_home
+    from hearth.perception.knobs import knob_shape
     w = generate_home(1)            # generator version 6: a D-shaped grip on a bezel
     k = w.knobs()[0]
     assert k.grip.visuals[0].name == "d-shape"
@@ -151,7 +151,7 @@ def test_a_second_speck_on_the_cap_leaves_a_dot_reading_unsure(skirt):
     the cap: a dark speck like the dot a quarter turn away (a crumb, a burn mark) makes a
     clear reading "unsure", never another state."""
     import cv2
-    from perception.camera import project
+    from hearth.perception.camera import project
     world, reader, scenes = skirt
     k = world.get("oven_knob_1")
     a = k.state_angle("3")

@@ -6,9 +6,9 @@ import json
 
 
 def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
-    import skills.knob_models as km
-    from executive.cli import main
-    from worldmodel import model_store
+    import hearth.skills.knob_models as km
+    from hearth.cli.main import main
+    from hearth.worldmodel import model_store
     monkeypatch.setattr(km, "load_or_train", lambda world, *a, **k: (reader, km.ModelInfo(
         model_store.path_of(km.MODEL_NAME, {}), "memory")))
     assert main(["bench", "knobs", "--json", "--scenarios", "40", "--seed", "3"]) == 0
@@ -36,10 +36,10 @@ def test_bench_knobs_prints_the_named_figures(reader, monkeypatch, capsys):
 
 def test_bench_knobs_pools_the_worlds_it_is_given_and_says_when_it_has_none(reader, monkeypatch,
                                                                           capsys):
-    import skills.knob_models as km
-    from executive.cli import main
+    import hearth.skills.knob_models as km
+    from hearth.cli.main import main
     from tests.conftest import DEMO_WORLD
-    from worldmodel import model_store
+    from hearth.worldmodel import model_store
     monkeypatch.setattr(km, "load_or_train", lambda world, *a, **k: (reader, km.ModelInfo(
         model_store.path_of(km.MODEL_NAME, {}), "memory")))
     assert main(["bench", "knobs", "--json", "--scenarios", "12", "--quick",
@@ -90,7 +90,7 @@ def test_gates_chosen_again_on_a_readers_own_readings_are_its_gates(reader):
     training used (``gates_from``): on the reader's own validation readings it gives the
     reader's gates to the digit, and on readings with every wrong one left out, state gates
     no higher."""
-    from perception.knob_training import TrainingConfig, gates_from
+    from hearth.perception.knob_training import TrainingConfig, gates_from
     val = reader.validation_
     assert {"depth", "colour"} <= set(val) and all("knob" in r for r in val["depth"])
     again = gates_from(reader, val, TrainingConfig().tiny())

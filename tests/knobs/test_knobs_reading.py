@@ -9,18 +9,18 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from sklearn.base import clone
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knobs import CalibratedThreshold, KnobPrior, KnobTemplates, knob_priors, snap_to_state
-from skills.knob_models import TrainingConfig, load_or_train
-from worldmodel import model_store
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knobs import CalibratedThreshold, KnobPrior, KnobTemplates, knob_priors, snap_to_state
+from hearth.skills.knob_models import TrainingConfig, load_or_train
+from hearth.worldmodel import model_store
 
 K = Intrinsics.kinect()
 
 
 @pytest.fixture(scope="module")
 def world():
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     from tests.conftest import DEMO_WORLD
     return load_world(DEMO_WORLD)
 
@@ -92,7 +92,7 @@ def test_a_knob_seen_edge_on_is_not_read(world, reader, scenes):
 
 
 def test_a_model_trained_with_another_configuration_is_stale(world, reader, model_dir):
-    from perception.errors import PerceptionError
+    from hearth.perception.errors import PerceptionError
     other = TrainingConfig().tiny()
     other = type(other)(**{**other.__dict__, "validation_views": 81})
     with pytest.raises(PerceptionError, match="stale: trained with other training.validation_views"):
@@ -105,8 +105,8 @@ def test_a_model_trained_with_another_configuration_is_stale(world, reader, mode
 
 def test_changing_a_trained_reader_field_makes_the_model_stale_and_a_read_time_one_does_not(
         world, reader, model_dir):
-    from perception.errors import PerceptionError
-    from perception.knobs import KnobConfig
+    from hearth.perception.errors import PerceptionError
+    from hearth.perception.knobs import KnobConfig
     model_store.forget()
     with pytest.raises(PerceptionError, match="stale: trained with other reader.px_per_radius"):
         load_or_train(world, TrainingConfig().tiny(), KnobConfig(px_per_radius=14.0),
@@ -125,11 +125,11 @@ def test_changing_a_trained_reader_field_makes_the_model_stale_and_a_read_time_o
 
 
 def test_knob_config_fields_are_trained_unless_declared_read_time():
-    from perception.knobs import KnobConfig
+    from hearth.perception.knobs import KnobConfig
     assert set(KnobConfig().trained_fields()) == {"px_per_radius", "window_radii", "alpha_step_deg",
                                                   "theta_step_deg", "max_theta_deg"}
     from dataclasses import dataclass
-    from perception.trained import read_time, trained_fields
+    from hearth.perception.trained import read_time, trained_fields
 
     @dataclass(frozen=True)
     class Later:
@@ -141,7 +141,7 @@ def test_knob_config_fields_are_trained_unless_declared_read_time():
 
 def test_estimators_have_the_scikit_learn_shape(world):
     from sklearn.exceptions import NotFittedError
-    from perception.knob_training import shapes_of
+    from hearth.perception.knob_training import shapes_of
     gate = CalibratedThreshold("fewest_errors")
     with pytest.raises(NotFittedError):
         gate.predict(np.zeros((3, 1)))
@@ -186,7 +186,7 @@ def test_an_angle_within_half_a_step_snaps_to_its_state(i, frac):
 
 
 def test_read_time_settings_do_not_make_the_model_stale(world, reader, model_dir):
-    from perception.knobs import KnobConfig
+    from hearth.perception.knobs import KnobConfig
     r, info = load_or_train(world, TrainingConfig().tiny(), KnobConfig(min_confidence=0.9),
                             directory=model_dir, retrain=False)
     assert info.source in ("memory", "disk")
@@ -194,14 +194,14 @@ def test_read_time_settings_do_not_make_the_model_stale(world, reader, model_dir
 
 
 def test_hearth_train_check_reports_a_missing_model(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     assert main(["train", "knobs", "--check", "--model-dir", str(tmp_path)]) == 1
     out = capsys.readouterr().out
     assert "knob models for demo_home: missing" in out and "knobs-" in out
 
 
 def test_the_canvas_turns_so_that_the_camera_is_up():
-    from perception.knobs import rotate_xy
+    from hearth.perception.knobs import rotate_xy
     pr = KnobPrior("k", np.eye(4), 0.02, 0.02, ("off",), (0.0,))
     for cam in ([0.4, 0.0, 0.8], [0.0, -0.5, 0.6], [-0.3, 0.3, 1.0]):
         T_wc = look_at(np.array(cam), np.array([0.0, 0.0, 0.02]))
@@ -241,9 +241,9 @@ def test_the_detector_threshold_is_calibrated_on_validation_views(world, reader,
     """The stored reader carries the gates chosen on validation views; calibrating again on
     those readings gives them back, and an explicit threshold overrides the calibrated one."""
     from dataclasses import replace
-    from perception.knob_data import render_views
-    from perception.knob_training import calibrate, validation_readings
-    from perception.knobs import KnobReader
+    from hearth.perception.knob_data import render_views
+    from hearth.perception.knob_training import calibrate, validation_readings
+    from hearth.perception.knobs import KnobReader
     cfg = TrainingConfig().tiny()
     assert reader.config.threshold is None and hasattr(reader.detect_gate, "threshold_")
     views = render_views(world, 60, 777, replace(cfg.data, missing_rate=0.3), reader.config, scenes=scenes)
@@ -265,8 +265,8 @@ def test_the_detector_threshold_is_calibrated_on_validation_views(world, reader,
 def test_validation_views_read_alike_on_several_processes(world, reader, scenes):
     """Training reads its validation views on several processes: the readings (and so the
     gates) are those of one process, in the views' order."""
-    from perception.knob_data import render_views
-    from perception.knob_training import _read_views
+    from hearth.perception.knob_data import render_views
+    from hearth.perception.knob_training import _read_views
     views = render_views(world, 40, 7, TrainingConfig().data, reader.config, scenes=scenes)
     one = _read_views(reader, views, jobs=1)
     two = _read_views(reader, views, jobs=2)
@@ -280,7 +280,7 @@ def test_half_turns_get_a_gate_of_their_own_so_the_state_gate_need_not_cover_the
     test negative) and the others wrong by little margin: the calibrated half-turn gate
     keeps the half turns out, so the state gate is set by the others and lets most right
     readings through; no wrong reading passes both gates."""
-    from perception.knob_training import calibrate
+    from hearth.perception.knob_training import calibrate
     rng = np.random.default_rng(0)
 
     def reading(right, margin, half_turn, level=0):
@@ -306,7 +306,7 @@ def test_dot_readings_get_a_rival_gate_so_their_dot_gate_need_not_cover_its_mist
     ``rival``, negative): the calibrated rival gate keeps them out, so the dot gate is set
     by the others and lets most right readings through; no wrong reading passes both, and
     the knobs without a marker reading keep gates of their own."""
-    from perception.knob_training import calibrate
+    from hearth.perception.knob_training import calibrate
     rng = np.random.default_rng(1)
 
     def reading(right, margin, rival, dot=True):
@@ -333,7 +333,7 @@ def test_readings_the_snap_check_refuses_do_not_set_the_gates_of_easier_views(re
     them whatever the gates) do not raise the state gate of the near and hard views, so the
     right readings there pass; at the very hard level they still count; and no wrong
     reading the snap check lets through passes the gates."""
-    from perception.knob_training import calibrate
+    from hearth.perception.knob_training import calibrate
     rng = np.random.default_rng(2)
     max_snap = reader.config.max_snap
 
@@ -364,7 +364,7 @@ def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, 
     level 1's pass; level 2's gates keep its wrong readings out. Pooled with every harder
     level (``pool_nearest_levels`` False, as before) level 2's wrong readings set every gate."""
     from dataclasses import replace
-    from perception.knob_training import calibrate
+    from hearth.perception.knob_training import calibrate
     rng = np.random.default_rng(1)
 
     def reading(right, margin, half_turn, level):
@@ -389,7 +389,7 @@ def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, 
 
 def test_the_state_next_to_a_reading_is_the_nearest_other_state_on_its_side():
     import math
-    from perception.knobs import _next_state
+    from hearth.perception.knobs import _next_state
 
     class Prior:
         symmetry = 1
@@ -409,7 +409,7 @@ def test_allowed_angles_answer_as_allowed_angle_does_one_by_one():
     travel's widened ends too."""
     import math
     from types import SimpleNamespace
-    from perception.knobs import allowed_angle, allowed_angles
+    from hearth.perception.knobs import allowed_angle, allowed_angles
     rng = np.random.default_rng(3)
     seen = set()
     for sym in (1, 2, 4):
@@ -432,7 +432,7 @@ def test_the_half_turn_candidate_is_the_allowed_angle_nearest_the_half_turn():
     states 0-223 degrees, the best coarse angle 61 with the knob at 222; the exact half turn,
     241, is not allowed), and none where no allowed angle comes that near."""
     import math
-    from perception.knobs import _with_half_turn
+    from hearth.perception.knobs import _with_half_turn
     alphas = np.radians(np.arange(-180, 180, 5.0))
     travel = (alphas >= math.radians(-1)) & (alphas <= math.radians(224))   # 0..223 deg, one way
     allowed = travel | (alphas <= math.radians(-137))          # -180..-137 = 180..223 deg
@@ -445,7 +445,7 @@ def test_the_half_turn_candidate_is_the_allowed_angle_nearest_the_half_turn():
 
 
 def test_a_reading_the_depth_shows_flat_or_far_off_is_no_knob_whatever_its_fit():
-    from perception.knobs import KnobConfig, not_there
+    from hearth.perception.knobs import KnobConfig, not_there
     cfg = KnobConfig()
     assert not_there(dict(score=1.9, stands=0.93, offset=0.4), cfg) is None
     assert not_there(dict(score=1.9), cfg) is None                  # colour alone: no relief to see

@@ -8,11 +8,11 @@ import numpy as np
 import py_trees
 import pytest
 
-from perception.camera import Intrinsics, look_at
-from perception.knob_data import KnobScenes
-from perception.knobs import knob_priors
-from skills.base import Bindings, Key, Literal
-from skills.knobs import ReadKnobs, TurnKnob
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.knob_data import KnobScenes
+from hearth.perception.knobs import knob_priors
+from hearth.skills.base import Bindings, Key, Literal
+from hearth.skills.knobs import ReadKnobs, TurnKnob
 
 S = py_trees.common.Status
 K = Intrinsics.kinect()

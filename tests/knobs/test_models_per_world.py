@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from perception.knob_training import world_signature
-from skills import knob_models as km
-from skills.knob_models import TrainingConfig, load_or_train
-from worldmodel import model_store
-from worldmodel.io import load_world, save_world
-from worldmodel.pose import Pose
+from hearth.perception.knob_training import world_signature
+from hearth.skills import knob_models as km
+from hearth.skills.knob_models import TrainingConfig, load_or_train
+from hearth.worldmodel import model_store
+from hearth.worldmodel.io import load_world, save_world
+from hearth.worldmodel.pose import Pose
 
 
 @pytest.fixture
@@ -106,10 +106,10 @@ def test_the_key_does_not_change_when_the_file_is_saved_again(demo, tmp_path):
 def test_a_knob_view_renders_as_one_scene_of_the_whole_home(demo):
     """Training renders the knobs in a small scene of their own in front of the rest of the
     home; the picture is the one a single scene of everything gives."""
-    from perception.camera import Intrinsics
-    from perception.knob_data import KnobDataConfig, KnobScenes, _camera, _crop
-    from perception.knobs import KnobConfig
-    from perception.render import Scene
+    from hearth.perception.camera import Intrinsics
+    from hearth.perception.knob_data import KnobDataConfig, KnobScenes, _camera, _crop
+    from hearth.perception.knobs import KnobConfig
+    from hearth.perception.render import Scene
     scenes = KnobScenes(demo)
     rng = np.random.default_rng(4)
     K = Intrinsics.kinect()
@@ -137,7 +137,7 @@ def test_a_knob_view_renders_as_one_scene_of_the_whole_home(demo):
 
 
 def test_hearth_train_all_on_a_home_without_knobs_says_none_are_needed(demo, tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     for o in demo.large_objects():
         if hasattr(o, "knobs"):
             o.knobs.clear()

@@ -1,5 +1,5 @@
 """An "off" reading that passes every check but the off factor, from two places apart, makes
-the knob off (perception.knobs.OffViews, ReadKnobs); from one place, or from one place twice,
+the knob off (hearth.perception.knobs.OffViews, ReadKnobs); from one place, or from one place twice,
 it stays unknown, and a knob that is on is never made off so."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import py_trees
 import pytest
 
-from perception.knobs import OffViews
-from skills.knobs import ReadKnobs, TurnKnob
+from hearth.perception.knobs import OffViews
+from hearth.skills.knobs import ReadKnobs, TurnKnob
 from tests.knobs.test_knobs_skills import OvenRobot, make
 
 S = py_trees.common.Status
@@ -44,7 +44,7 @@ def test_off_read_from_two_places_apart_is_off_and_from_one_place_stays_unknown(
     there = here.copy()
     there[:3, 3] += 0.3 * here[:3, 0]                 # 30 cm to the camera's right
     margins = []
-    from perception.knobs import knob_priors
+    from hearth.perception.knobs import knob_priors
     for T in (here, there):
         robot.T_wc = T
         f = robot.capture()
@@ -87,7 +87,7 @@ def test_off_read_from_two_places_apart_is_off_and_from_one_place_stays_unknown(
 
 
 def test_a_reading_leaning_to_another_state_forgets_the_off_seen_before(demo_world, reader):
-    from perception.knobs import KnobReading
+    from hearth.perception.knobs import KnobReading
     views = OffViews(apart_m=0.25)
     off_alone = KnobReading("k", True, evidence=dict(leaning="off", off_one_view=True))
     leaning_on = KnobReading("k", True, evidence=dict(leaning="3"))

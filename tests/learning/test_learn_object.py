@@ -1,5 +1,5 @@
-"""Learning a new object from views (skills/learning.py, perception/object_learning.py,
-worldmodel/learned.py): the robot drives round an object the map does not know, adds it to
+"""Learning a new object from views (hearth/skills/learning.py, hearth/perception/object_learning.py,
+hearth/worldmodel/learned.py): the robot drives round an object the map does not know, adds it to
 the map under the name a person gave, and after a restart fetches it by that name."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import shutil
 import numpy as np
 import pytest
 
-from worldmodel.nodes import Model, SmallObject, Visual
-from worldmodel.pose import Pose
+from hearth.worldmodel.nodes import Model, SmallObject, Visual
+from hearth.worldmodel.pose import Pose
 
 
 def organiser(oid: str = "pill_organiser") -> SmallObject:
@@ -32,8 +32,8 @@ def home(tmp_path):
 
 
 def run(mission, belief, truth, start, runs, **params):
-    from executive.executive import Executive
-    from executive.scenarios import MISSIONS
+    from hearth.executive.executive import Executive
+    from hearth.executive.scenarios import MISSIONS
     from hearth.robot.clock import SimClock
     from hearth.robot.simulated import SimulatedRobot
     clock = SimClock()
@@ -48,8 +48,8 @@ def run(mission, belief, truth, start, runs, **params):
 
 
 def test_an_object_learned_from_views_is_fetched_by_its_name_after_a_restart(home):
-    from worldmodel import load_world
-    from worldmodel.io import save_world
+    from hearth.worldmodel import load_world
+    from hearth.worldmodel.io import save_world
     belief = load_world(home)
     truth = belief.copy()
     truth.add_small_object(organiser(), "kitchen_table")
@@ -75,9 +75,9 @@ def test_an_object_learned_from_views_is_fetched_by_its_name_after_a_restart(hom
 
 
 def test_a_name_already_taken_is_refused_before_anything_is_written(home):
-    from worldmodel import load_world
-    from worldmodel.errors import WorldError
-    from worldmodel.learned import check_name
+    from hearth.worldmodel import load_world
+    from hearth.worldmodel.errors import WorldError
+    from hearth.worldmodel.learned import check_name
     world = load_world(home)
     with pytest.raises(WorldError, match="already has 'blue_cup'"):
         check_name(world, "blue cup")
@@ -89,7 +89,7 @@ def test_a_name_already_taken_is_refused_before_anything_is_written(home):
 
 
 def test_an_empty_surface_is_said_and_the_map_is_unchanged(home):
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     belief = load_world(home)
     before = sorted(o.id for o in belief.small_objects())
     start = belief.parking_positions("kitchen_table")[0][1]

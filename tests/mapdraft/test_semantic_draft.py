@@ -11,22 +11,22 @@ import open3d as o3d
 import pytest
 
 from hearth.benchmarks import mapping_draft as md
-from perception.semantic_map import (
+from hearth.perception.semantic_map import (
     Fixture, LargeObjectClassifier, ObjectDraft, articulate, draft_geometry, label,
     object_features, room_context,
 )
-from worldmodel.draft import draft_world, rename
-from worldmodel.errors import WorldError
-from worldmodel.homegen import HomeConfig, generate_home
-from worldmodel.io import checked_xml, parse_world, to_xml
-from worldmodel.world import World
+from hearth.worldmodel.draft import draft_world, rename
+from hearth.worldmodel.errors import WorldError
+from hearth.worldmodel.homegen import HomeConfig, generate_home
+from hearth.worldmodel.io import checked_xml, parse_world, to_xml
+from hearth.worldmodel.world import World
 
 SEED = 1
 
 
 def perfect_cloud(world, spacing: float = 0.01):
     """Points on every true surface, ``spacing`` apart, with normals and colours."""
-    from worldmodel.geometry import scene_meshes
+    from hearth.worldmodel.geometry import scene_meshes
     o3d.utility.random.seed(0)              # the same points every run
     P, N, C = [], [], []
     for lm in scene_meshes(world):
@@ -150,7 +150,7 @@ def test_rename_updates_the_node_and_every_reference(home):
 
 def test_hearth_map_draft_writes_a_world_its_picture_and_what_it_could_not_label(
         home, tmp_path, monkeypatch, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     _, pcd, *_ = home
     (tmp_path / "map" / "fused").mkdir(parents=True)
     o3d.io.write_point_cloud(str(tmp_path / "map" / "fused" / "map.ply"), pcd)

@@ -8,11 +8,11 @@ import cv2
 import numpy as np
 import pytest
 
-from executive.cli import main
+from hearth.cli.main import main
 from hearth.robot.recording import Recording, RecordingWriter
 from hearth.robot.tour import OdometryDrift, TourOptions, plan_tour, record_tour
-from perception.camera import Intrinsics
-from worldmodel.homegen import HomeConfig, generate_home
+from hearth.perception.camera import Intrinsics
+from hearth.worldmodel.homegen import HomeConfig, generate_home
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +38,7 @@ def built(tour, tmp_path_factory):
 
 def test_tour_stops_are_on_free_floor_of_every_room(home):
     from hearth.robot.tour import footprints
-    from worldmodel.homegen_geometry import disc_clear
+    from hearth.worldmodel.homegen_geometry import disc_clear
     plan = plan_tour(home)
     assert {s.room for s in plan.stops} == {r.id for r in home.rooms}
     for s in plan.stops:

@@ -1,11 +1,11 @@
-"""perception.mapping's registration on synthetic clouds (fast, no rendering)."""
+"""hearth.perception.mapping's registration on synthetic clouds (fast, no rendering)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from perception import mapping as pm
+from hearth.perception import mapping as pm
 
 
 def _wall(x: float, facing: float = -1.0, y=(-1.5, 1.5), z=(0.2, 2.0), step=0.04):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import py_trees
 
-from skills.base import Skill, registry
+from hearth.skills.base import Skill, registry
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import pytest
 
 from hearth import demo_world_path, missions_dir
-from worldmodel import load_world
+from hearth.worldmodel import load_world
 
 OBJECTS = sorted(o.id for o in load_world(demo_world_path()).small_objects() if o.graspable)
 
 
 @pytest.mark.parametrize("object_id", OBJECTS)
 def test_each_small_object_of_the_demo_home_is_fetched_where_the_map_says(object_id):
-    from executive.executive import Executive
+    from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
     from hearth.robot.simulated import SimulatedRobot
 
@@ -31,7 +31,7 @@ def test_each_small_object_of_the_demo_home_is_fetched_where_the_map_says(object
 
 
 def test_an_object_handed_over_is_fetched_again_from_where_it_was_put_down():
-    from executive.executive import Executive
+    from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
     from hearth.robot.simulated import SimulatedRobot
 

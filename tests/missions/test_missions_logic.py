@@ -1,5 +1,5 @@
 """The named missions' logic, with perception and the robot replaced by scripted stand-ins
-(executive.testing) and the map skills real: fast, and what a user would see (outcome,
+(hearth.executive.testing) and the map skills real: fast, and what a user would see (outcome,
 reason, what was said, what changed in the map)."""
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import py_trees
 import pytest
 
 from missions_helpers import MISSIONS, mission_skills
-from executive.executive import Executive
-from executive.testing import Script, Substitution
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, Substitution
 from hearth.robot.clock import SimClock
-from worldmodel import load_world
-from worldmodel.nodes import Knob
-from worldmodel.pose import Pose
+from hearth.worldmodel import load_world
+from hearth.worldmodel.nodes import Knob
+from hearth.worldmodel.pose import Pose
 
 S = py_trees.common.Status
 
@@ -77,7 +77,7 @@ def _read_knobs_class(real):
             self.set_output("states", states)
             self.set_output("unknown", unknown)
             return S.SUCCESS if states else S.FAILURE
-    # (A module outside skills/ keeps it out of skills.base.registry() in later tests.)
+    # (A module outside hearth/skills/ keeps it out of hearth.skills.base.registry() in later tests.)
     return FakeReadKnobs
 
 
@@ -253,7 +253,7 @@ def _knob_angle(world, knob_id, state):
 def test_turn_off_oven_turns_off_the_knob_that_is_on(world):
     on_state = [s.name for s in world.get("oven_knob_2").states if s.name != "off"][0]
     robot = FakeRobot(knobs={"oven_knob_2": _knob_angle(world, "oven_knob_2", on_state)})
-    if "TurnKnob" not in {k for k, v in mission_skills().items() if v.__module__ == "skills.knobs"}:
+    if "TurnKnob" not in {k for k, v in mission_skills().items() if v.__module__ == "hearth.skills.knobs"}:
         pytest.skip("TurnKnob not landed")
     result, _ = _turn_off_oven(world, robot)
     _assert_turned_off(result, world, robot, "oven_knob_2", "off")
@@ -463,7 +463,7 @@ def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_se
 
 def test_a_knob_whose_off_state_is_not_called_off_is_turned_to_its_own_off(world):
     # A thermostat-style knob: states 0..3, off is "0", turning the other way.
-    from worldmodel.nodes import KnobState
+    from hearth.worldmodel.nodes import KnobState
     k = world.get("oven_knob_1")
     k.states = [KnobState("0", 0.0), KnobState("1", 0.8), KnobState("2", 1.6), KnobState("3", 2.4)]
     k.off_state, k.state, k.angle = "0", "0", 0.0

@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from executive.scenarios import Case, run_case
+from hearth.executive.scenarios import Case, run_case
 
 
 def test_fetch_finds_the_moved_cup_grasps_it_and_says_where_it_was():
@@ -16,7 +16,7 @@ def test_fetch_finds_the_moved_cup_grasps_it_and_says_where_it_was():
     moved = [c for c in r.map_changes if c.startswith("blue_cup parent")]
     assert moved or r.positions_visited == 1
     if moved:   # the sentence names the place the map now has it at
-        from worldmodel import load_world
+        from hearth.worldmodel import load_world
         from hearth import demo_world_path
         new_parent = moved[0].rsplit("-> ", 1)[1]   # where it was found (the last: handed over)
         assert load_world(demo_world_path()).label(new_parent) in r.said[-1]

@@ -10,10 +10,10 @@ from hypothesis import given, settings, strategies as st
 
 from hearth.benchmarks._worlds import places
 from hearth.benchmarks.objects import box_object, cluttered_scene, observe, visible_fractions
-from perception.camera import Intrinsics, look_at
-from perception.errors import PerceptionError
-from perception.objects import color_agreement, detect_objects, model_library
-from worldmodel.pose import Pose
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.errors import PerceptionError
+from hearth.perception.objects import color_agreement, detect_objects, model_library
+from hearth.worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 #: The small objects on the demo home's kitchen table.
@@ -183,8 +183,8 @@ def test_a_model_mostly_hidden_behind_furniture_of_its_colour_is_not_accepted():
     hypotheses of 0.45-0.52 confidence with 9-22 % of the model in sight, the rest hidden by
     the cupboard. None may be accepted."""
     import math
-    from executive.scenarios import resolve_world
-    from perception.objects import DetectionConfig
+    from hearth.executive.scenarios import resolve_world
+    from hearth.perception.objects import DetectionConfig
     belief = resolve_world("home:5")
     truth = belief.copy()
     truth.move_object("blue_bottle", "bedside_1", Pose(0.13, 0.1, 0.551 - truth.T_world(
@@ -226,7 +226,7 @@ def test_a_model_mostly_hidden_behind_furniture_of_its_colour_is_not_accepted():
 
 
 def _cylinder(oid, radius, height, color, pose):
-    from worldmodel.nodes import Model, SmallObject, Visual
+    from hearth.worldmodel.nodes import Model, SmallObject, Visual
     vis = Visual("cylinder", Pose(0, 0, height / 2), radius=radius, length=height,
                  color=tuple(color), name="body")
     return SmallObject(oid, "clutter", pose, model=Model(visuals=[vis]))
@@ -257,7 +257,7 @@ def test_a_taller_lookalike_is_not_taken_for_the_cup(demo_world):
 def test_a_lookalike_without_the_lid_colour_is_not_taken_for_the_jar(demo_world):
     # The map's sugar jar has a blue lid; a yellow box of the jar's size whose top is yellow
     # too agrees in colour on most of its points, but on none of the lid's.
-    from worldmodel.nodes import Visual
+    from hearth.worldmodel.nodes import Visual
     belief = demo_world.copy()
     body = belief.get("sugar").model.visuals[0]
     body.size, body.pose = (0.08, 0.08, 0.10), Pose(0, 0, 0.05)

@@ -9,10 +9,10 @@ import pytest
 from hearth.benchmarks._worlds import places
 from hearth.benchmarks.nbv import occluded_scene
 from hearth.benchmarks.objects import box_object, observe, visible_fractions
-from perception.camera import Intrinsics, look_at
-from perception.errors import PerceptionError
-from worldmodel.pose import Pose
-from perception.nbv import (NBVConfig, footprints, from_map, occupancy_voxels,
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.errors import PerceptionError
+from hearth.worldmodel.pose import Pose
+from hearth.perception.nbv import (NBVConfig, footprints, from_map, occupancy_voxels,
                             plan_next_best_view, _box_distance)
 
 K = Intrinsics.kinect()
@@ -68,8 +68,8 @@ def test_an_observed_obstacle_removes_the_candidates_near_it(demo_world):
     views = plan_next_best_view(demo_world, from_map(demo_world, "blue_cup"), depth, K, T1)
     truth = demo_world.copy()
     # A crate on the floor south of the table, in view, where some candidates stood.
-    from worldmodel.nodes import Model, SmallObject, Visual
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.nodes import Model, SmallObject, Visual
+    from hearth.worldmodel.pose import Pose
     truth.add_small_object(SmallObject("crate", "box", Pose(0.25, -0.85, 0, 0, 0, 0),
                                        model=Model([Visual("box", Pose(0, 0, 0.3),
                                                            size=(0.3, 0.3, 0.6))])),

@@ -8,9 +8,9 @@ import py_trees
 import pytest
 
 from hearth.benchmarks.objects import box_object
-from skills.base import Bindings, Key, Literal
-from skills.objects import DetectObject, PlanNextBestView, VerifyObject
-from worldmodel.pose import Pose
+from hearth.skills.base import Bindings, Key, Literal
+from hearth.skills.objects import DetectObject, PlanNextBestView, VerifyObject
+from hearth.worldmodel.pose import Pose
 
 
 # py_trees' blackboard is global: each test here starts and ends with an empty one.

@@ -22,7 +22,7 @@ def test_every_dependency_has_a_floor_and_py_trees_has_for_each():
     reqs = {r.name.lower(): r for r in lowest_pins.requirements(ROOT / "pyproject.toml")}
     for r in reqs.values():
         assert any(s.operator in (">=", "==", "~=") for s in r.specifier), f"{r} has no floor"
-    # executive/nodes.py subclasses py_trees.decorators.ForEach, new in py_trees 2.4.0
+    # hearth/executive/nodes.py subclasses py_trees.decorators.ForEach, new in py_trees 2.4.0
     assert not reqs["py_trees"].specifier.contains("2.3.0")
     assert reqs["py_trees"].specifier.contains("2.4.0")
     assert "joblib" in reqs and "filterpy" not in reqs

@@ -78,7 +78,7 @@ def test_hearth_and_robot_framework_install_side_by_side(installed):
     cwd.mkdir(exist_ok=True)
     code = ("import robot, robot.version, hearth, hearth.robot, executive, worldmodel\n"
             "print(robot.__file__); print(robot.version.VERSION)\n"
-            "print(hearth.__file__); print(executive.__file__)\n"
+            "print(hearth.__file__); print(hearth.executive.__file__)\n"
             "print(hearth.missions_dir()); print(hearth.demo_world_path())\n")
     out = subprocess.run([str(python), "-c", code], capture_output=True, text=True, cwd=cwd, env=env)
     assert out.returncode == 0, out.stderr

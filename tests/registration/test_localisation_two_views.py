@@ -1,5 +1,5 @@
-"""Two views of one base pose must agree along what each pins down (perception.localisation
-``contradiction``; skills.registration RefineLocalisation ``earlier``/``views``)."""
+"""Two views of one base pose must agree along what each pins down (hearth.perception.localisation
+``contradiction``; hearth.skills.registration RefineLocalisation ``earlier``/``views``)."""
 from __future__ import annotations
 
 import math
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from hearth.benchmarks.registration import planar
-from perception.localisation import contradiction
-from skills.registration import RefineLocalisation
+from hearth.perception.localisation import contradiction
+from hearth.skills.registration import RefineLocalisation
 
 from tests.registration.test_registration_skills import FramedRobot, _in_front, make
 
@@ -66,7 +66,7 @@ def test_a_fully_pinned_view_measures_the_whole_difference(x, y, a, dx, dy, da):
 
 
 def _fix(world, robot):
-    from perception.localisation import refine_localisation
+    from hearth.perception.localisation import refine_localisation
     frame = robot.capture()
     return refine_localisation(world, frame.depth, frame.intrinsics, frame.T_world_camera,
                                robot.T_bel)
@@ -82,7 +82,7 @@ def test_a_trusted_fix_5_cm_off_that_an_earlier_view_contradicts_is_not_a_correc
     """The fix on the drawer unit is trusted by every figure of its own (as a wrong fix on a
     flat front was, 9.6 cm off); an earlier view of the same pose, which pins down the
     direction the fix is wrong in, contradicts it: the skill fails and leaves the pose."""
-    import perception.localisation as localisation
+    import hearth.perception.localisation as localisation
     real = localisation.refine_localisation
     T_true, robot = _drawer_unit_robot(demo_world)
     right = _fix(demo_world, robot)
@@ -142,10 +142,10 @@ def _long_front_scene():
     """A 4 m front (a worktop run) 1.5 m ahead, wider than the image: nothing along it but
     where the image cuts it. The believed camera is 9 cm along it from the true one."""
     import open3d as o3d
-    from perception.camera import Intrinsics, look_at
-    from perception.registration import render_reference
-    from perception.render import Scene
-    from worldmodel.geometry import LabelledMesh
+    from hearth.perception.camera import Intrinsics, look_at
+    from hearth.perception.registration import render_reference
+    from hearth.perception.render import Scene
+    from hearth.worldmodel.geometry import LabelledMesh
     box = o3d.geometry.TriangleMesh.create_box(4.0, 0.6, 0.9).translate((-2.0, 1.5, 0.0))
     box.compute_triangle_normals()
     meshes = [LabelledMesh("counter", "counter", box, (0.6, 0.6, 0.6))]
@@ -161,8 +161,8 @@ def test_a_front_cut_by_the_image_is_scored_on_the_points_both_poses_see():
     """On all points the wrong fix (the believed pose, 9 cm along the front) outscores the
     right correction, whose points at the image's edge fall off it; on the points on a
     reading at both, the two tie, so the ring finds the fix loose."""
-    from perception.localisation import LocalisationConfig, _ring_drop
-    from perception.registration import DepthAgreement
+    from hearth.perception.localisation import LocalisationConfig, _ring_drop
+    from hearth.perception.registration import DepthAgreement
     K, T_true, T_bel, depth, ref = _long_front_scene()
     agree = DepthAgreement(ref.points, depth, K, T_bel)
     wrong, right = np.eye(4), T_true @ np.linalg.inv(T_bel)

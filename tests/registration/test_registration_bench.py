@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-import perception.localisation as localisation
+import hearth.perception.localisation as localisation
 from hearth.benchmarks import registration as bench
 
 

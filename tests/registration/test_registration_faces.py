@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from hearth.benchmarks.registration import simulate_depth
-from perception.articulated import part_face, register_articulated, register_handles
-from perception.camera import Intrinsics, look_at
-from perception.handles import rotation_error_deg
-from worldmodel.homegen_geometry import box_mesh, merge, ply_bytes
-from worldmodel.nodes import Model, Visual
-from worldmodel.pose import Pose
+from hearth.perception.articulated import part_face, register_articulated, register_handles
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.handles import rotation_error_deg
+from hearth.worldmodel.homegen_geometry import box_mesh, merge, ply_bytes
+from hearth.worldmodel.nodes import Model, Visual
+from hearth.worldmodel.pose import Pose
 
 K = Intrinsics.kinect()
 DOOR, HANDLE = "cupboard_door_left", "cupboard_handle_left"

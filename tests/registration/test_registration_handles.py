@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from perception.errors import PerceptionError
-from perception.handles import HandleConfig, estimate_handle, rotation_error_deg
+from hearth.perception.errors import PerceptionError
+from hearth.perception.handles import HandleConfig, estimate_handle, rotation_error_deg
 
 R, LENGTH, STANDOFF = 0.01, 0.3, 0.05
 

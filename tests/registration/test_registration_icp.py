@@ -7,7 +7,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from perception.registration import (
+from hearth.perception.registration import (
     ICPConfig, JointAxis, RegistrationFailed, planar_params, register_6dof, register_joint,
     register_planar, transform,
 )
@@ -132,7 +132,7 @@ def test_too_little_overlap_fails_explicitly(clouds):
 
 from hypothesis import given, settings, strategies as st  # noqa: E402
 
-from perception.registration import (  # noqa: E402
+from hearth.perception.registration import (  # noqa: E402
     DepthAgreement, depth_agreement, normal_equations, planar_delta, planar_plane_jacobian,
     planar_point_jacobian, planar_point_step, solve,
 )
@@ -170,7 +170,7 @@ def test_the_damped_solve_leaves_a_direction_nothing_constrains_where_it_is():
 def test_one_depth_agreement_scores_candidate_corrections_and_placements():
     """DepthAgreement (candidate corrections of a registration) is depth_agreement (placements
     of model points, as the coarse joint search uses it) after moving the model."""
-    from perception.camera import Intrinsics
+    from hearth.perception.camera import Intrinsics
     K = Intrinsics.kinect(160, 120)
     depth = np.full((120, 160), 2.0, dtype=np.float32)      # a wall 2 m ahead
     pts = np.c_[np.random.default_rng(1).uniform(-0.5, 0.5, (300, 2)), np.full(300, 2.0)]

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from hearth.benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
-from perception.articulated import register_articulated, register_base, register_handles
-from perception.camera import Intrinsics, look_at
-from perception.errors import PerceptionError
-from perception.handles import rotation_error_deg
-from perception.localisation import refine_localisation
+from hearth.perception.articulated import register_articulated, register_base, register_handles
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.errors import PerceptionError
+from hearth.perception.handles import rotation_error_deg
+from hearth.perception.localisation import refine_localisation
 
 K = Intrinsics.kinect()
 
@@ -103,7 +103,7 @@ def test_handles_found_within_5_mm_and_1_degree(demo_world):
 
 
 def test_moved_object_is_registered_back(demo_world):
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     truth = demo_world.copy()
     p = demo_world.get("drawer_unit").pose
     truth.set_pose("drawer_unit", Pose(p.x + 0.03, p.y - 0.02, 0, 0, 0, p.yaw + math.radians(2)))
@@ -123,7 +123,7 @@ def test_object_out_of_view_fails_with_a_clear_message(demo_world):
 
 
 def test_localisation_corrected_from_12_cm_and_6_degrees(demo_world):
-    from perception.localisation import LocalisationConfig
+    from hearth.perception.localisation import LocalisationConfig
     To = demo_world.T_world("cupboard")
     p = To @ np.array([1.8, 0.4, 0, 1])
     yaw = math.atan2(To[1, 3] - p[1], To[0, 3] - p[0])
@@ -145,7 +145,7 @@ def test_localisation_corrected_from_12_cm_and_6_degrees(demo_world):
 def test_a_fix_that_slides_along_a_front_is_loose():
     """``_ring_drop``: the depth agreement 3 cm from the fix in 8 directions. Where it hardly
     drops along one of them (a long flat front slides along itself), the fix is loose."""
-    from perception.localisation import LocalisationConfig, _ring_drop
+    from hearth.perception.localisation import LocalisationConfig, _ring_drop
     centre = np.array([2.0, 1.0, 0.5])
 
     class agreement:

@@ -8,15 +8,15 @@ import math
 import numpy as np
 import py_trees
 
-from executive.executive import Executive
-from executive.testing import Script, Substitution
+from hearth.executive.executive import Executive
+from hearth.executive.testing import Script, Substitution
 from hearth import missions_dir
 from hearth.benchmarks.registration import Layout, second_viewpoint, simulate_depth
 from hearth.robot.clock import SimClock
-from perception.articulated import register_articulated
-from perception.camera import Intrinsics, look_at
-from skills.base import registry
-from worldmodel.pose import Pose
+from hearth.perception.articulated import register_articulated
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.skills.base import registry
+from hearth.worldmodel.pose import Pose
 
 S = py_trees.common.Status
 K = Intrinsics.kinect()
@@ -182,7 +182,7 @@ def test_a_door_whose_base_cannot_be_registered_is_read_from_its_face_not_the_ma
     its face on the observed one; with the hinge free to shift (``hinge_slack``) the angle
     comes from the face's direction, off by about the base's yaw alone."""
     from hearth.robot.sim import camera_pose, pan_tilt_to
-    from perception.articulated import ArticulatedConfig
+    from hearth.perception.articulated import ArticulatedConfig
     truth = _moved(demo_world, "cupboard", 0.0, 0.018, -0.5)
     for door in ("cupboard_door_left", "cupboard_door_right"):
         truth.set_joint_state(door, math.radians(75))

@@ -9,12 +9,12 @@ import py_trees
 import pytest
 
 from hearth.benchmarks.registration import T_BASE_CAMERA, planar, simulate_depth
-from perception.camera import Intrinsics
-from skills.base import Bindings, Key, Literal
-from skills.registration import (
+from hearth.perception.camera import Intrinsics
+from hearth.skills.base import Bindings, Key, Literal
+from hearth.skills.registration import (
     EstimateHandle, RefineLocalisation, RegisterArticulated, RegisterLargeObject,
 )
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 S = py_trees.common.Status
 K = Intrinsics.kinect()
@@ -81,7 +81,7 @@ def test_a_fix_that_is_not_pinned_down_is_applied_but_the_skill_fails(demo_world
     """A trusted fix that a pose 3 cm away explains nearly as well (``loose``: a long front
     sliding along itself) moves the believed pose, the best the view gives, but the skill
     fails, so that no mission says "corrected" on it and the missions try other landmarks."""
-    import perception.localisation as localisation
+    import hearth.perception.localisation as localisation
     real = localisation.refine_localisation
 
     def loose(*args, **kwargs):

@@ -1,5 +1,5 @@
 """Images as robots record them, read back: depth registered to the colour camera, and
-compressed colour and depth decoded (hearth.robot.rosbag, perception.camera)."""
+compressed colour and depth decoded (hearth.robot.rosbag, hearth.perception.camera)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hearth.robot.rosbag import decode_compressed
-from perception.camera import Intrinsics, depth_to_points, register_depth
+from hearth.perception.camera import Intrinsics, depth_to_points, register_depth
 
 
 def _plane(K: Intrinsics, z: float) -> np.ndarray:

@@ -11,7 +11,7 @@ from collections import Counter
 
 import pytest
 
-from executive.foxglove import TOPICS
+from hearth.executive.foxglove import TOPICS
 
 MISSION = "missions/turn_off_oven.yaml"
 SCHEMAS = {"/hearth/log": "foxglove.Log", "/hearth/tree": "hearth.TreeStatus",
@@ -23,7 +23,7 @@ SCHEMAS = {"/hearth/log": "foxglove.Log", "/hearth/tree": "hearth.TreeStatus",
 
 @pytest.fixture(scope="module")
 def scenario(tmp_path_factory):
-    from executive.cli import main
+    from hearth.cli.main import main
     d = tmp_path_factory.mktemp("fg")
     assert main(["scenario", "make", "--seed", "5", "--out", str(d / "sc")]) == 0
     return d / "sc"
@@ -32,7 +32,7 @@ def scenario(tmp_path_factory):
 def test_a_foxglove_client_receives_every_documented_channel_live(scenario, tmp_path):
     from websockets.sync.client import connect
 
-    cmd = [sys.executable, "-m", "executive", "run", MISSION, "--scenario", str(scenario),
+    cmd = [sys.executable, "-m", "hearth", "run", MISSION, "--scenario", str(scenario),
            "--world", str(scenario / "belief.xml"), "--runs-dir", str(tmp_path), "--quiet",
            "--foxglove", "0", "--foxglove-wait", "60"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
@@ -82,7 +82,7 @@ def test_a_foxglove_client_receives_every_documented_channel_live(scenario, tmp_
 def test_the_run_as_foxglove_mcap_reads_back_with_the_mcap_tools(scenario, tmp_path):
     from mcap.reader import make_reader
 
-    from executive.cli import main
+    from hearth.cli.main import main
     out = tmp_path / "run.mcap"
     assert main(["run", MISSION, "--scenario", str(scenario), "--world",
                  str(scenario / "belief.xml"), "--runs-dir", str(tmp_path), "--quiet",
@@ -109,7 +109,7 @@ def test_a_client_offering_only_foxglove_websocket_v1_gets_the_documented_answer
     import time
 
     websockets = pytest.importorskip("websockets")
-    from executive.foxglove import OLD_SUBPROTOCOL, REFUSED_HANDSHAKE, FoxgloveSink
+    from hearth.executive.foxglove import OLD_SUBPROTOCOL, REFUSED_HANDSHAKE, FoxgloveSink
 
     sink = FoxgloveSink(port=0)
     lines = []

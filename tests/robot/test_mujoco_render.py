@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from perception.camera import Intrinsics, look_at
+from hearth.perception.camera import Intrinsics, look_at
 
 mujoco_render = pytest.importorskip("hearth.robot.mujoco_render")
 _ok, _why = mujoco_render.available()
@@ -21,8 +21,8 @@ def oven_view():
     """The demo home's room with the oven (alone, to keep the scenes small), a 320x240 camera
     1 m in front of and 0.4 m above its first knob."""
     import dataclasses
-    from worldmodel import load_world
-    from worldmodel.io import parse_world, to_xml
+    from hearth.worldmodel import load_world
+    from hearth.worldmodel.io import parse_world, to_xml
     from tests.conftest import DEMO_WORLD
     home = load_world(DEMO_WORLD)
     room = home.room_of(home.knobs()[0].id)
@@ -120,8 +120,8 @@ def test_the_knob_benchs_mujoco_views_are_the_same_views_drawn_by_mujoco():
     """``--renderer mujoco`` of `hearth bench knobs`: the same poses, states and missing
     knobs as Hearth's views of a seed, on a world converted from LIBERO's stove."""
     from pathlib import Path
-    from perception.knob_data import KnobDataConfig, render_views
-    from worldmodel import load_world
+    from hearth.perception.knob_data import KnobDataConfig, render_views
+    from hearth.worldmodel import load_world
     world = load_world(Path(__file__).resolve().parents[1] / "assets" / "libero_flat_stove" / "world.xml")
     data = KnobDataConfig(at_states=True, missing_rate=0.3)
     hearth = render_views(world, 5, 7, data, scenes=mujoco_render.knob_scenes(world, "hearth"))

@@ -1,4 +1,4 @@
-"""The simulated camera's compiled per-pixel loops (perception/kernels.py) against the numpy
+"""The simulated camera's compiled per-pixel loops (hearth/perception/kernels.py) against the numpy
 passes they replaced, kept here as the reference: the same frames bit for bit (noise spread,
 noisy depth, shading, the adaptive cast's filled depth and its list of pixels to cast), on
 rendered kitchen views and on edge values."""
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from hearth.robot import noise as N
-from perception import kernels
-from perception.camera import Intrinsics
+from hearth.perception import kernels
+from hearth.perception.camera import Intrinsics
 
 K = Intrinsics.kinect()
 
@@ -206,7 +206,7 @@ def test_noise_loops_refuse_an_output_they_cannot_write_into():
 
 def test_shading_pass_is_the_numpy_passes_bit_for_bit(kitchen):
     scene, views = kitchen
-    from perception.render import _pixel_rays
+    from hearth.perception.render import _pixel_rays
     _, inv_length = _pixel_rays(K)
     for T in views[:3]:
         hits = scene.cast(K, T)
@@ -214,7 +214,7 @@ def test_shading_pass_is_the_numpy_passes_bit_for_bit(kitchen):
         dist = scene._tri_normals @ hits.c_world - scene._tri_offsets
         facing = np.where(dist < 0, -1.0, 1.0)[:, None] * scene._tri_normals
         facing[scene._no_hit] = 0
-        from perception.render import AMBIENT, LIGHT_WORLD
+        from hearth.perception.render import AMBIENT, LIGHT_WORLD
         lit = np.clip(facing @ LIGHT_WORLD, 0, 1)
         shade0 = (0.85 * (1 - AMBIENT) * lit + 0.85 * AMBIENT).astype(np.float32)
         shade0[scene._no_hit] = 0
@@ -235,7 +235,7 @@ def test_shading_pass_is_the_numpy_passes_bit_for_bit(kitchen):
 def test_filled_depth_and_pixels_to_cast_are_the_numpy_passes(shape, s):
     rng = np.random.default_rng(len(shape) + s + shape[0])
     H, W = shape
-    from perception.render import _grid
+    from hearth.perception.render import _grid
     pr, pc = len(_grid(H, s)) - 1, len(_grid(W, s)) - 1     # the last blocks reach the edge
     unset, no_hit = np.uint32(0xFFFFFFFE), np.uint32(50)
     blocks = rng.integers(0, 51, (pr, pc)).astype(np.uint32)
@@ -281,7 +281,7 @@ def test_wedge_boxes_and_narrowest_widths_are_the_numpy_passes():
     kernels.paint_boxes(r0, r1, c0, c1, got)
     np.testing.assert_array_equal(got, split_near_ref(r0, r1, c0, c1, nr, nc))
     assert 0 < got.mean() < 1
-    from perception.render import _DIRECTIONS
+    from hearth.perception.render import _DIRECTIONS
     cos, sin = np.cos(_DIRECTIONS), np.sin(_DIRECTIONS)
     u = rng.normal(300, 200, (400, 20))
     v = rng.normal(200, 150, (400, 20))

@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from executive.cli import main
+from hearth.cli.main import main
 from hearth.robot.errors import RobotError
 from hearth.robot.recording import Recording, RecordingWriter, ReplayRobot
 from hearth.robot.sim import Frame
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 
 K = Intrinsics.kinect(64, 48)
 
@@ -27,7 +27,7 @@ def _frame(i: int) -> Frame:
     rng = np.random.default_rng(i)
     T = np.eye(4)
     T[:3, 3] = (i, 0.0, 1.3)
-    from worldmodel.pose import Pose
+    from hearth.worldmodel.pose import Pose
     return Frame(color=rng.integers(0, 255, (48, 64, 3), dtype=np.uint8),
                  depth=rng.uniform(0.5, 3.0, (48, 64)).astype(np.float32), intrinsics=K,
                  T_world_camera=T, timestamp=float(i), base_pose=Pose.planar(i, 0.0, 0.0))
@@ -180,8 +180,8 @@ KILLED = textwrap.dedent("""
     import numpy as np
     from hearth.robot.recording import RecordingWriter
     from hearth.robot.sim import Frame
-    from perception.camera import Intrinsics
-    from worldmodel.pose import Pose
+    from hearth.perception.camera import Intrinsics
+    from hearth.worldmodel.pose import Pose
     K = Intrinsics.kinect(64, 48)
     f = Frame(color=np.zeros((48, 64, 3), np.uint8), depth=np.ones((48, 64), np.float32),
               intrinsics=K, T_world_camera=np.eye(4), base_pose=Pose.planar(0, 0, 0))

@@ -1,4 +1,4 @@
-"""The adaptive ray cast (perception/render.py ``Scene.cast``) against a ray per pixel: the
+"""The adaptive ray cast (hearth/perception/render.py ``Scene.cast``) against a ray per pixel: the
 same triangle and miss at every pixel, depth within float rounding, on the demo kitchen's
 views, a generated home's, a knob panel seen from afar and random boxes (small, thin,
 rotated, overlapping)."""
@@ -8,9 +8,9 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from perception.camera import Intrinsics
-from perception.render import Scene
-from worldmodel.geometry import LabelledMesh
+from hearth.perception.camera import Intrinsics
+from hearth.perception.render import Scene
+from hearth.worldmodel.geometry import LabelledMesh
 
 K = Intrinsics.kinect()
 
@@ -48,7 +48,7 @@ def test_adaptive_cast_equals_full_cast_on_the_demo_kitchen_views(scale):
 def test_adaptive_cast_equals_full_cast_on_a_generated_home(tmp_path):
     from hearth.benchmarks.robot import _kitchen_views
     from hearth.robot.sim import world_scene
-    from worldmodel.homegen import generate_home
+    from hearth.worldmodel.homegen import generate_home
     world = generate_home(1, mesh_dir=tmp_path)
     scene = world_scene(world)
     for T in _kitchen_views(world):
@@ -58,7 +58,7 @@ def test_adaptive_cast_equals_full_cast_on_a_generated_home(tmp_path):
 
 def test_knob_markers_a_few_pixels_wide_are_cast():
     from hearth.robot.sim import camera_pose, pan_tilt_to
-    from worldmodel.viewing import knob_view_pose
+    from hearth.worldmodel.viewing import knob_view_pose
     world, scene, _ = _kitchen("demo")
     oven = next(o.id for r in world.rooms for o in r.objects if world.knobs(o.id))
     centre = np.mean([world.T_world(k.id)[:3, 3] for k in world.knobs(oven)], axis=0)
@@ -117,7 +117,7 @@ def test_faces_in_one_plane_on_a_turned_cooker_cast_only_where_they_overlap():
     of the two a ray there hits is rounding, so the overlap is cast at every pixel, but only
     the overlap (its box in world axes covered the body's front below it: home 1's cooker
     cast two thirds of the view)."""
-    from perception.render import _AdaptiveCast
+    from hearth.perception.render import _AdaptiveCast
     turn = o3d.geometry.get_rotation_matrix_from_xyz((0.0, 0.0, np.pi / 4))
     scene = Scene([_box((6.0, 6.0, 0.1), np.eye(3), (0.0, 0.0, -0.05), "floor"),
                    _box((0.6, 0.6, 0.9), turn, (0.0, 0.0, 0.45), "body"),

@@ -6,7 +6,7 @@ import json
 
 
 def test_bench_robot_renders_the_demo_and_a_generated_home(capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     assert main(["bench", "robot", "--json", "--quick", "--homes", "1"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["worlds"] == ["demo", "home:0"]

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from executive.cli import main
+from hearth.cli.main import main
 
 
 def test_record_a_simulated_oven_mission_and_replay_it(tmp_path, capsys):

@@ -7,11 +7,11 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from perception.camera import Intrinsics
-from perception.render import Scene
+from hearth.perception.camera import Intrinsics
+from hearth.perception.render import Scene
 from hearth.robot.noise import KinectNoise, add_kinect_noise
 from hearth.robot.sim import camera_pose, pan_tilt_to, render_view
-from worldmodel.geometry import LabelledMesh
+from hearth.worldmodel.geometry import LabelledMesh
 
 K = Intrinsics.kinect()
 
@@ -115,7 +115,7 @@ def test_render_view_gives_the_frame_of_render_then_noise(demo_world):
 def test_the_same_frame_whatever_the_number_of_bands(demo_world, monkeypatch):
     """Rendering and noise run in row bands, one per core: a seed gives the same frame on
     any machine."""
-    from perception import bands
+    from hearth.perception import bands
     from hearth.robot.sim import world_scene
     w = demo_world
     base = w.parking_positions("oven")[0][1]

@@ -13,7 +13,7 @@ from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.robot.recording import Recording, RecordingRobot, ReplayRobot
 from hearth.robot.simulated import SimulatedRobot
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 
 def _record(world, directory):
@@ -39,7 +39,7 @@ def _record(world, directory):
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
-    from worldmodel.io import load_world
+    from hearth.worldmodel.io import load_world
     from pathlib import Path
     world = load_world(Path(__file__).resolve().parents[2] / "data/demo_home/world.xml")
     d = tmp_path_factory.mktemp("rec")

@@ -76,7 +76,7 @@ _NO_SURFACE = """<?xml version='1.0' encoding='UTF-8'?>
 
 
 def test_a_world_with_a_small_object_and_no_surface_gets_a_scenario_and_a_note(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     world = tmp_path / "w.xml"
     world.write_text(_NO_SURFACE.format(mesh=""))
     assert main(["scenario", "make", "--world", str(world), "--seed", "1",
@@ -88,7 +88,7 @@ def test_a_world_with_a_small_object_and_no_surface_gets_a_scenario_and_a_note(t
 
 
 def test_a_world_the_scenario_tool_cannot_use_is_one_line_naming_the_node(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     world = tmp_path / "empty.xml"
     world.write_text("<?xml version='1.0'?>\n<apartment id=\"flat\" version=\"1\">"
                      "<room id=\"hall\" name=\"hall\" bounds=\"0 0 4 3\"/></apartment>\n")
@@ -100,9 +100,9 @@ def test_a_world_the_scenario_tool_cannot_use_is_one_line_naming_the_node(tmp_pa
 
 
 def test_a_scenario_of_a_generated_home_validates_where_its_meshes_are(tmp_path, capsys):
-    from executive.cli import main
-    from worldmodel.homegen import make_home
-    from worldmodel.io import validate_file
+    from hearth.cli.main import main
+    from hearth.worldmodel.homegen import make_home
+    from hearth.worldmodel.io import validate_file
     home = make_home(2, tmp_path / "home")
     meshes = sorted(p.name for p in (tmp_path / "home" / "meshes").iterdir())
     assert meshes, "seed 2 has no mesh: pick a seed that has"
@@ -119,8 +119,8 @@ def test_a_scenario_of_a_generated_home_validates_where_its_meshes_are(tmp_path,
 def test_a_world_whose_meshes_leave_its_folder_is_refused_and_a_lost_mesh_is_named(tmp_path):
     """Mesh paths stay inside the world's folder (issue 19), so a scenario never has to
     reach outside it; a mesh that disappears before the scenario is saved is one line."""
-    from worldmodel.errors import WorldError
-    from worldmodel.io import load_world, validate_file
+    from hearth.worldmodel.errors import WorldError
+    from hearth.worldmodel.io import load_world, validate_file
     (tmp_path / "shared").mkdir()
     (tmp_path / "flat" / "parts").mkdir(parents=True)
     ply = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
@@ -147,7 +147,7 @@ def test_a_world_whose_meshes_leave_its_folder_is_refused_and_a_lost_mesh_is_nam
 
 def test_what_a_scenario_puts_on_shelves_fits_under_the_shelf_above(tmp_path):
     from hearth.robot.scenario import ScenarioConfig, _headroom, _height, _surfaces
-    from worldmodel.homegen import generate_home
+    from hearth.worldmodel.homegen import generate_home
     cfg = ScenarioConfig(moved_objects=(3, 3), clutter=(4, 4), occluders=(2, 2))
     shelves = 0
     for seed in range(6):

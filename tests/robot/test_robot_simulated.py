@@ -10,7 +10,7 @@ from hearth import robot
 from hearth.robot.adapter import RobotAdapter, wait
 from hearth.robot.clock import SimClock
 from hearth.robot.simulated import SimulatedRobot
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 
 @pytest.fixture

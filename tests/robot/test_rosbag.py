@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from executive.cli import main
+from hearth.cli.main import main
 from hearth.robot.errors import RobotError
 from hearth.robot.recording import Recording
 from hearth.robot.rosbag import BagRecording, TfBuffer, load_topic_map
 from hearth.robot.sim import R_BODY_CAMERA
-from perception.camera import Intrinsics
+from hearth.perception.camera import Intrinsics
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bagwriter import BagFile, planar, transform  # noqa: E402
@@ -251,7 +251,7 @@ def write_realsense_bag(rec: BagRecording, path: Path) -> None:
     in straight lines between)."""
     import cv2
     from bagwriter import RealSenseBag, distort
-    from perception.camera import register_depth
+    from hearth.perception.camera import register_depth
     from scipy.spatial.transform import Rotation, Slerp
 
     K = rec.intrinsics

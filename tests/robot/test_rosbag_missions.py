@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from executive.cli import main
-from executive.scenarios import Case, make_case_scenario
+from hearth.cli.main import main
+from hearth.executive.scenarios import Case, make_case_scenario
 from hearth.robot.scenario import save_scenario
 
 CASES = [Case("fetch_object", seed=0, warmup=0, target="blue_cup"), Case("turn_off_oven", seed=0),

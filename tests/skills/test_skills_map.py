@@ -6,11 +6,11 @@ import math
 import py_trees
 import pytest
 
-from skills.base import Bindings, Key, Literal
-from skills.manipulation import OpenArticulated
-from skills.map import ClosedParts, DescribeLocation, PlanSearch, RecordSearch, ResolveObject, UpdateObjectLocation
-from skills.navigation import NavigateTo, OtherParkings
-from worldmodel import Pose
+from hearth.skills.base import Bindings, Key, Literal
+from hearth.skills.manipulation import OpenArticulated
+from hearth.skills.map import ClosedParts, DescribeLocation, PlanSearch, RecordSearch, ResolveObject, UpdateObjectLocation
+from hearth.skills.navigation import NavigateTo, OtherParkings
+from hearth.worldmodel import Pose
 
 S = py_trees.common.Status
 
@@ -89,7 +89,7 @@ def test_words_that_fit_two_objects_about_equally_ask_which_one(tmp_path):
     """A fuller description of one mug does not make it the mug a person meant."""
     import shutil
     from tests.conftest import DEMO_WORLD
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     home = tmp_path / "home"
     shutil.copytree(DEMO_WORLD.parent, home)
     xml = (home / "world.xml").read_text()
@@ -102,7 +102,7 @@ def test_words_that_fit_two_objects_about_equally_ask_which_one(tmp_path):
     assert tick(s) == S.FAILURE
     assert s.feedback_message.startswith("which mug do you mean: the ")
     assert "red cup" in s.feedback_message and "blue cup" in s.feedback_message
-    from executive.command.commands import resolve_slot
+    from hearth.executive.command.commands import resolve_slot
     asked = resolve_slot(world, "mug", "thing", "object").problem
     assert asked.text_id == "T_CLARIFY_WHICH" and len(asked.candidates) == 2
 

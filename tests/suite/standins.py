@@ -18,5 +18,5 @@ def run(case, world=None):
     if what == "stubborn":
         signal.signal(signal.SIGALRM, signal.SIG_IGN)
         threading.Event().wait()
-    from executive.scenarios import run_case
+    from hearth.executive.scenarios import run_case
     return run_case(case, world=world)

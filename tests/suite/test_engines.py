@@ -7,8 +7,8 @@ from dataclasses import asdict
 import pytest
 
 import standins
-from executive import suite
-from executive.scenarios import Case, suite_cases
+from hearth.executive import suite
+from hearth.executive.scenarios import Case, suite_cases
 
 
 MESH_KNOBS = "home:4"     # a generated home whose oven knobs are mesh files
@@ -39,7 +39,7 @@ def test_a_world_that_arrives_without_a_mesh_is_an_engine_error_kept_out_of_the_
                                               fp, lost)
     res = ray.get(task)
     assert res["error"] == "engine" and "did not arrive whole" in res["reason"]
-    from executive.scenarios import summarise
+    from hearth.executive.scenarios import summarise
     from hearth.benchmarks.missions import incomplete
     summary = summarise([res])
     assert summary["engine_errors"][0]["world"] == MESH_KNOBS
@@ -128,7 +128,7 @@ def test_ray_engine_reports_a_crash_an_exit_and_a_hang_and_finishes_the_others(r
 def test_ray_engine_without_ray_says_in_one_line_what_to_install(monkeypatch, capsys):
     import sys
 
-    from executive.cli import main
+    from hearth.cli.main import main
     monkeypatch.setitem(sys.modules, "ray", None)      # as if it were not installed
     with pytest.raises(suite.SuiteError, match=r"pip install 'hearth\[ray\]'"):
         suite.make_engine("ray")

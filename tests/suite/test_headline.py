@@ -2,7 +2,7 @@
 the learned search order) are named apart, not added in."""
 from __future__ import annotations
 
-from executive import suite
+from hearth.executive import suite
 
 
 def _result(i: int, learned: bool) -> dict:

@@ -1,13 +1,13 @@
 """The suite counts a fetch case as achievable only where the robot can see the object:
-some pose a search can take shows enough pixels of it (executive.scenarios.observable)."""
+some pose a search can take shows enough pixels of it (hearth.executive.scenarios.observable)."""
 from __future__ import annotations
 
 import numpy as np
 
-from executive.scenarios import MIN_VISIBLE_PX, observable, place_observably, place_on
+from hearth.executive.scenarios import MIN_VISIBLE_PX, observable, place_observably, place_on
 from hearth.benchmarks.objects import box_object
 from hearth.robot.scenario import visible_pixels
-from worldmodel.pose import Pose
+from hearth.worldmodel.pose import Pose
 
 
 def _enclose(world, object_id: str) -> None:

@@ -9,7 +9,7 @@ import subprocess
 import sys
 import time
 
-from executive.cli import main
+from hearth.cli.main import main
 
 ARGS = ["suite", "--no-demo", "--homes", "1", "--missions", "refine_localisation",
         "--scenarios", "4", "--jobs", "1", "--engine", "local"]
@@ -24,7 +24,7 @@ def lines(path) -> list[dict]:
 def test_a_killed_suite_resumes_without_running_again_what_was_done(tmp_path, capsys):
     out = tmp_path / "suite"
     results = out / "results.jsonl"
-    proc = subprocess.Popen([sys.executable, "-m", "executive.cli", *ARGS, "--out", str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "hearth", *ARGS, "--out", str(out),
                              "--quiet"], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

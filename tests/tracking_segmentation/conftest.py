@@ -7,5 +7,5 @@ import pytest
 
 @pytest.fixture(scope="session")
 def small_forest():
-    from skills.segmentation_model import TrainingConfig, train
+    from hearth.skills.segmentation_model import TrainingConfig, train
     return train(TrainingConfig(frames=30, n_estimators=25, seed=77, homes=2, views_per_home=3))

@@ -9,8 +9,8 @@ import py_trees
 from hypothesis import given, settings, strategies as st
 
 from hearth.robot.sim import Frame
-from perception.camera import Intrinsics
-from perception.search_positions import (
+from hearth.perception.camera import Intrinsics
+from hearth.perception.search_positions import (
     OccupancyGrid, SearchConfig, propose_search_positions, table_tops,
 )
 
@@ -92,11 +92,11 @@ def test_occupancy_footprint_of_a_rotated_table_keeps_its_corners_free():
 
 class LookingRobot:
     def __init__(self, world, eye, target):
-        from perception.camera import look_at
-        from perception.render import Scene
-        from skills.segmentation_model import noisy
-        from worldmodel.geometry import scene_meshes
-        from worldmodel.pose import Pose
+        from hearth.perception.camera import look_at
+        from hearth.perception.render import Scene
+        from hearth.skills.segmentation_model import noisy
+        from hearth.worldmodel.geometry import scene_meshes
+        from hearth.worldmodel.pose import Pose
         self.K = Intrinsics.kinect()
         self.T_wc = look_at(eye, target)
         self.r = noisy(Scene(scene_meshes(world)).render(self.K, self.T_wc), np.random.default_rng(0))
@@ -111,8 +111,8 @@ class LookingRobot:
 
 
 def test_propose_search_positions_skill_finds_the_kitchen_table(demo_world, small_forest):
-    from skills.base import Bindings, Key
-    from skills.search import ProposeSearchPositions
+    from hearth.skills.base import Bindings, Key
+    from hearth.skills.search import ProposeSearchPositions
     py_trees.blackboard.Blackboard.clear()
     # the kitchen table (3.0, 2.2), 1.2 x 0.8 m, 0.75 m high, seen from its south-west
     robot = LookingRobot(demo_world, (1.6, 0.6, 1.35), (3.0, 2.2, 0.6))
@@ -148,7 +148,7 @@ def test_propose_search_positions_skill_finds_the_kitchen_table(demo_world, smal
 def test_a_turned_room_gives_the_same_positions_turned_with_it(rx, ry, ryaw):
     """Bounds and the occupancy grid are in the room frame; the positions come back in the
     world frame wherever the room stands."""
-    from worldmodel.frames import planar_T, transform_xy
+    from hearth.worldmodel.frames import planar_T, transform_xy
     local = table_points(1.0, 2.0, 1.2, 0.8, 0.75, 0.0)
     T = planar_T(rx, ry, ryaw)
     world = local @ T[:3, :3].T + T[:3, 3]

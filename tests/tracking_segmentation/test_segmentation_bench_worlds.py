@@ -13,7 +13,7 @@ def _in(value, lo, hi):
 
 def test_segmentation_bench_reports_pooled_and_per_world_figures_on_a_generated_home(
         capsys, monkeypatch, tmp_path, small_forest):
-    from skills import segmentation_model as sm
+    from hearth.skills import segmentation_model as sm
     monkeypatch.setattr(sm, "load_or_train", lambda *a, **k: small_forest)
     home = str(make_tiny_home(tmp_path))
     out = bench_json(capsys, "segmentation", "--quick", "--no-demo", "--world", home,

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from perception.camera import Intrinsics
-from perception.errors import PerceptionError
-from perception.segmentation import (
+from hearth.perception.camera import Intrinsics
+from hearth.perception.errors import PerceptionError
+from hearth.perception.segmentation import (
     LABELS, N_FEATURES, PatchClassifier, accuracy, extract_patches, potts_lbp, segment,
 )
 
@@ -18,7 +18,7 @@ K = Intrinsics.kinect()
 
 @pytest.fixture(scope="module")
 def room_view():
-    from skills.segmentation_model import render_random
+    from hearth.skills.segmentation_model import render_random
     return render_random(424245, K)   # floor, walls, table, chair, cabinet, objects
 
 
@@ -90,10 +90,10 @@ def test_patch_classifier_has_scikit_learn_estimator_shape():
 
 
 def test_ground_truth_classes_come_from_the_map(demo_world):
-    from perception.camera import look_at
-    from perception.render import Scene
-    from skills.segmentation_model import ground_truth
-    from worldmodel.geometry import scene_meshes
+    from hearth.perception.camera import look_at
+    from hearth.perception.render import Scene
+    from hearth.skills.segmentation_model import ground_truth
+    from hearth.worldmodel.geometry import scene_meshes
     T = look_at((3.0, 0.9, 1.4), (3.0, 2.6, 0.6))
     r = Scene(scene_meshes(demo_world)).render(K, T)
     gt = ground_truth(demo_world, r)
@@ -106,7 +106,7 @@ def test_ground_truth_classes_come_from_the_map(demo_world):
 
 
 def test_trained_pipeline_labels_held_out_rooms(small_forest):
-    from skills.segmentation_model import render_random
+    from hearth.skills.segmentation_model import render_random
     right, total = 0, 0
     for seed in (5151, 5152):
         _, r, gt, T = render_random(seed, K)
@@ -123,9 +123,9 @@ def test_trained_pipeline_labels_held_out_rooms(small_forest):
 def test_model_is_stored_with_its_configuration_and_retrained_when_stale(tmp_path, monkeypatch):
     """A trained over-segmentation field (cell_px) makes the stored forest stale; an MRF weight
     (read-time) does not."""
-    from perception.segmentation import SegmentationConfig
-    from skills import segmentation_model as sm
-    from worldmodel import model_store
+    from hearth.perception.segmentation import SegmentationConfig
+    from hearth.skills import segmentation_model as sm
+    from hearth.worldmodel import model_store
     tiny = sm.TrainingConfig(frames=2, n_estimators=3, seed=5, homes=1, views_per_home=1)
     calls = []
     real = sm.train

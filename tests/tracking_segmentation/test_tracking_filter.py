@@ -9,9 +9,9 @@ import py_trees
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from perception.camera import Intrinsics
-from perception.errors import PerceptionError
-from perception.tracking import (
+from hearth.perception.camera import Intrinsics
+from hearth.perception.errors import PerceptionError
+from hearth.perception.tracking import (
     ParticleTracker, TrackerConfig, hsv_cone, kld_bound, pose_matrix, pose_vector,
     reference_from_view, scene_cloud,
 )
@@ -61,8 +61,8 @@ def test_tracker_follows_a_cup_pushed_across_the_table():
 
 def test_particle_count_adapts_to_how_spread_the_belief_is():
     from hearth.benchmarks.tracking import PushScene, half_extents
-    from perception.camera import look_at
-    from worldmodel import load_world
+    from hearth.perception.camera import look_at
+    from hearth.worldmodel import load_world
     from hearth import demo_world_path
     world = load_world(demo_world_path())
     rng = np.random.default_rng(0)
@@ -106,7 +106,7 @@ class PushingRobot:
 
     def __init__(self, world):
         from hearth.benchmarks.tracking import PushScene
-        from perception.camera import look_at
+        from hearth.perception.camera import look_at
         self.K = Intrinsics.kinect(320, 240)
         self.T0 = world.T_world("blue_cup")
         self.T_wc = look_at(self.T0[:3, 3] + [0.2, -1.2, 0.6], self.T0[:3, 3])
@@ -126,8 +126,8 @@ class PushingRobot:
 
 
 def test_track_object_skill_follows_the_cup_and_moves_it_in_the_map(demo_world):
-    from skills.base import Bindings, Key, Literal
-    from skills.tracking import TrackObject
+    from hearth.skills.base import Bindings, Key, Literal
+    from hearth.skills.tracking import TrackObject
     py_trees.blackboard.Blackboard.clear()
     robot = PushingRobot(demo_world)
     skill = TrackObject(bindings=Bindings({"object": Literal("blue_cup"), "frames": Literal(12)},

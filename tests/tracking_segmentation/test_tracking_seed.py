@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from perception.camera import Intrinsics, look_at
-from perception.tracking import ParticleTracker, reference_from_view, scene_cloud, systematic_resample
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.perception.tracking import ParticleTracker, reference_from_view, scene_cloud, systematic_resample
 
 
 @settings(max_examples=100, deadline=None)
@@ -25,7 +25,7 @@ def test_systematic_resampling_draws_each_particle_in_proportion_to_its_weight(w
 def _scene():
     from hearth import demo_world_path
     from hearth.benchmarks.tracking import PushScene, half_extents
-    from worldmodel import load_world
+    from hearth.worldmodel import load_world
     world = load_world(demo_world_path())
     K = Intrinsics.kinect(320, 240)
     T_cup = world.T_world("blue_cup")

@@ -1,4 +1,4 @@
-"""worldmodel.frames: one room-membership test, planar transforms, joints and pose coercion,
+"""hearth.worldmodel.frames: one room-membership test, planar transforms, joints and pose coercion,
 honouring turned and offset rooms."""
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from worldmodel import frames
-from worldmodel.nodes import Joint, Room
-from worldmodel.pose import Pose
+from hearth.worldmodel import frames
+from hearth.worldmodel.nodes import Joint, Room
+from hearth.worldmodel.pose import Pose
 
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
 coords = st.floats(-20, 20, allow_nan=False)

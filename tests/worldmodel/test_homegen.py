@@ -9,14 +9,14 @@ import cv2
 import numpy as np
 import pytest
 
-from executive.cli import main
-from worldmodel import load_world, save_world, to_xml, validate_file
-from worldmodel.frames import room_contains, room_corners, to_room
-from worldmodel.geometry import object_meshes
-from worldmodel.homegen import (
+from hearth.cli.main import main
+from hearth.worldmodel import load_world, save_world, to_xml, validate_file
+from hearth.worldmodel.frames import room_contains, room_corners, to_room
+from hearth.worldmodel.geometry import object_meshes
+from hearth.worldmodel.homegen import (
     CLOSE_HUES, HomeConfig, HomeGenError, generate_home, make_home,
 )
-from worldmodel.nodes import LargeArticulatedObject
+from hearth.worldmodel.nodes import LargeArticulatedObject
 
 SEEDS = range(50)
 APPLIANCES = ("oven", "cooker", "hob")
@@ -289,7 +289,7 @@ def test_knob_designs_vary_and_describe_their_shape(worlds):
     modulo 180 degrees), a mesh grip on a fixed bezel; some packed 2-2.2 radii apart; some
     with a turning direction."""
     import math
-    from perception.knobs import knob_shape
+    from hearth.perception.knobs import knob_shape
     knobs = [(w, k) for w in worlds.values() for k in w.knobs()]
     assert any(not k.described for _, k in knobs)
     bars = [k for _, k in knobs if k.symmetry == 2]

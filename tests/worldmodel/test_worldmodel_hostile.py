@@ -15,26 +15,26 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 
-from worldmodel import (
+from hearth.worldmodel import (
     Apartment, LargeObject, Model, ParkingPosition, Pose, Room, SmallObject, Visual, WorldError,
     load_world, save_world,
 )
-from worldmodel.io import MAX_DEPTH, SCHEMA_PATH, clean_stale_temporaries, parse_world
-from worldmodel.nodes import (Handle, HistoryEntry, Joint, Knob, KnobState, LargeArticulatedObject,
+from hearth.worldmodel.io import MAX_DEPTH, SCHEMA_PATH, clean_stale_temporaries, parse_world
+from hearth.worldmodel.nodes import (Handle, HistoryEntry, Joint, Knob, KnobState, LargeArticulatedObject,
                               Part, SearchStat, Surface, Switch)
-from worldmodel.validate import MAX_COORD, MAX_ROOMS, MAX_TEXT_CHARS
+from hearth.worldmodel.validate import MAX_COORD, MAX_ROOMS, MAX_TEXT_CHARS
 
 DEMO = (Path(__file__).resolve().parents[2] / "data/demo_home/world.xml").read_text()
 
 
 def validate(path):
-    return subprocess.run([sys.executable, "-m", "executive", "validate", str(path)],
+    return subprocess.run([sys.executable, "-m", "hearth", "validate", str(path)],
                           capture_output=True, text=True)
 
 
 def validate_here(path, capsys):
     """`hearth validate PATH` in this process: (exit status, stderr)."""
-    from executive.cli import main
+    from hearth.cli.main import main
     status = main(["validate", str(path)])
     return status, capsys.readouterr().err
 
@@ -417,7 +417,7 @@ def _spoil(apartment, value, where):
 @given(apartments(), st.none() | st.tuples(bad_number, st.sampled_from(
     ["room pose", "switch", "history", "library"])))
 def test_save_then_load_gives_the_same_map_or_save_refuses(tmp_path_factory, apartment, spoil):
-    from worldmodel.world import World
+    from hearth.worldmodel.world import World
     path = tmp_path_factory.mktemp("rt") / "w.xml"
     if spoil is not None:
         _spoil(apartment, *spoil)

@@ -10,21 +10,21 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from worldmodel import (
+from hearth.worldmodel import (
     Apartment, LargeObject, Model, ParkingPosition, Pose, Room, SmallObject, Visual, WorldError,
     load_world, parse_world, save_world, to_xml, validate_file,
 )
-from worldmodel.demo_home import build
+from hearth.worldmodel.demo_home import build
 
 
 def hearth(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "executive", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "hearth", *args], capture_output=True,
                           text=True, cwd=cwd)
 
 
 def test_demo_home_file_matches_its_generator(demo_world_path):
     assert demo_world_path.read_bytes() == to_xml(build()), \
-        "data/demo_home/world.xml is stale: run python -m worldmodel.demo_home"
+        "data/demo_home/world.xml is stale: run python -m hearth.worldmodel.demo_home"
 
 
 def test_load_save_load_gives_an_equal_model(demo_world, tmp_path):

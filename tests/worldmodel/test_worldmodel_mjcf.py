@@ -1,4 +1,4 @@
-"""MJCF import (worldmodel/mjcf.py, `hearth home import-model`): a model's hinges become knobs
+"""MJCF import (hearth/worldmodel/mjcf.py, `hearth home import-model`): a model's hinges become knobs
 with their shape, range and an off state, or doors; slides drawers; handle geoms handles; the
 world written validates; a broken file is one clear error naming it. The worlds converted from
 public packages (tests/assets/) load and validate."""
@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from worldmodel.errors import WorldError  # noqa: E402
-from worldmodel.io import load_world  # noqa: E402
-from worldmodel.mjcf import import_model  # noqa: E402
+from hearth.worldmodel.errors import WorldError  # noqa: E402
+from hearth.worldmodel.io import load_world  # noqa: E402
+from hearth.worldmodel.mjcf import import_model  # noqa: E402
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 
@@ -113,7 +113,7 @@ def test_a_model_mujoco_refuses_is_one_error_naming_the_file(tmp_path):
 
 
 def test_the_cli_writes_a_world_and_says_which_knobs(tmp_path, capsys):
-    from executive.cli import main
+    from hearth.cli.main import main
     (tmp_path / "little_oven.xml").write_text(OVEN)
     assert main(["home", "import-model", str(tmp_path / "little_oven.xml"),
                  "--out", str(tmp_path / "w")]) == 0

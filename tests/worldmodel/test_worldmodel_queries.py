@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from perception.camera import Intrinsics, look_at
-from worldmodel import Pose, SmallObject, WorldError, load_world
-from worldmodel.errors import UnknownNode
-from worldmodel.geometry import node_mesh
-from worldmodel.urdf import import_urdf
+from hearth.perception.camera import Intrinsics, look_at
+from hearth.worldmodel import Pose, SmallObject, WorldError, load_world
+from hearth.worldmodel.errors import UnknownNode
+from hearth.worldmodel.geometry import node_mesh
+from hearth.worldmodel.urdf import import_urdf
 
 
 def test_find_blue_cup_by_words_not_the_red_one(demo_world):
@@ -35,7 +35,7 @@ def test_parent_chain_room_and_parking_default_first(demo_world):
 
 
 def test_cli_map_find_json_names_table_kitchen_and_parking():
-    r = subprocess.run([sys.executable, "-m", "executive", "map", "find",
+    r = subprocess.run([sys.executable, "-m", "hearth", "map", "find",
                         "data/demo_home/world.xml", "blue", "cup", "--json"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
@@ -174,7 +174,7 @@ def test_urdf_two_door_cabinet_imports_as_articulated_object(demo_world, tmp_pat
     assert obj.model.visuals[0].color == (0.9, 0.9, 0.9)
     # It joins a map, saves and loads like any other object, and opens.
     demo_world.apartment.rooms[0].objects.append(obj)
-    from worldmodel import save_world
+    from hearth.worldmodel import save_world
     save_world(demo_world, tmp_path / "w.xml")
     w = load_world(tmp_path / "w.xml")
     before = w.T_world("left_handle")[:3, 3]
@@ -215,7 +215,7 @@ def test_aim_point_is_the_top_of_a_table_or_the_middle_of_the_knobs(demo_world):
 
 
 def test_cli_map_find_asks_which_one_when_words_name_several():
-    r = subprocess.run([sys.executable, "-m", "executive", "map", "find",
+    r = subprocess.run([sys.executable, "-m", "hearth", "map", "find",
                         "data/demo_home/world.xml", "cup"], capture_output=True, text=True)
     assert r.returncode == 1
     assert r.stdout.startswith("which cup do you mean: the blue cup (blue_cup) on the kitchen table or ")
@@ -227,8 +227,8 @@ def test_knobs_on_top_are_looked_at_from_nearer_on_the_parking_side_clear_of_the
     import math
     import tempfile
     import numpy as np
-    from worldmodel.homegen import generate_home
-    from worldmodel.viewing import BASE_CLEARANCE, knob_view_pose
+    from hearth.worldmodel.homegen import generate_home
+    from hearth.worldmodel.viewing import BASE_CLEARANCE, knob_view_pose
     w = generate_home(16, mesh_dir=tempfile.mkdtemp())
     hob = next(o.id for o in w.large_objects()
                if any(w.T_world(k.id)[2, 2] > 0.9 for k in w.knobs(o.id)))
@@ -246,7 +246,7 @@ def test_knobs_on_top_are_looked_at_from_nearer_on_the_parking_side_clear_of_the
 
 
 def test_knob_view_pose_is_refused_outside_the_rooms_or_against_furniture(demo_world):
-    from worldmodel.viewing import knob_view_pose
+    from hearth.worldmodel.viewing import knob_view_pose
     near = knob_view_pose(demo_world, "oven", distance=1.0)
     assert near is not None
     assert knob_view_pose(demo_world, "oven", distance=30.0) is None      # outside every room

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from worldmodel import (
+from hearth.worldmodel import (
     LargeObject, Model, ParkingPosition, Pose, Visual, WorldError, load_world, save_world,
 )
-from worldmodel.urdf import import_urdf
+from hearth.worldmodel.urdf import import_urdf
 
 TEMPLATE = """<?xml version="1.0"?>
 <robot name="cab">
@@ -115,7 +115,7 @@ def _unit_box_ply(directory):
 
 
 def test_a_per_axis_scale_stretches_the_mesh_and_survives_save_and_load(demo_world, tmp_path):
-    from worldmodel.geometry import visual_mesh
+    from hearth.worldmodel.geometry import visual_mesh
     mesh_file = _unit_box_ply(tmp_path)
     stretched = Visual("mesh", file=mesh_file, scale=(1.0, 2.0, 3.0))
     m = visual_mesh(stretched, tmp_path)

@@ -1,5 +1,5 @@
 // Runs a mission exported by `hearth export` in BehaviorTree.CPP with Hearth's node types
-// (executive/cpp/hearth_nodes.hpp) and a stand-in Say skill that prints what it says.
+// (hearth/executive/cpp/hearth_nodes.hpp) and a stand-in Say skill that prints what it says.
 //   run_mission MISSION.xml [key=value ...]   (values set on the root blackboard first)
 // Prints "say: TEXT" per Say tick and "status: SUCCESS|FAILURE" at the end.
 #include "hearth_nodes.hpp"

@@ -1,5 +1,0 @@
-import sys
-
-from executive.cli import main
-
-sys.exit(main())

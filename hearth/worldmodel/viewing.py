@@ -1,0 +1,84 @@
+"""A base pose straight in front of a node's knob panel, facing it (or, for knobs on top, nearer
+than the parking positions, looking down on them): another view of knobs the parking positions
+(often to one side of the panel) left unread."""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from hearth.worldmodel.frames import room_at
+from hearth.worldmodel.pose import Pose
+
+#: Robot centre to the knobs' mean, along their panel's normal (metres). Nearer is not better:
+#: the camera stands 1.3 m up, so a nearer view looks down on a front panel more steeply (on
+#: generated homes, views from 0.4-0.6 m read no knob that 0.6-0.9 m parking positions missed;
+#: views from 0.8-1.1 m read some).
+KNOB_VIEW_DISTANCE = 1.0
+#: The base's disc must be this clear (metres) of every other large object's footprint.
+BASE_CLEARANCE = 0.3
+#: Knob axes steeper than this (cos of the angle to the vertical) face up: no front to stand in.
+_UPRIGHT = 0.9
+#: Knobs on top are looked at from this much nearer than ``distance`` (metres): from 1.0 m
+#: the camera 1.3 m up would look at a hob's knobs 0.4 m below it 68 degrees off their axis.
+TOP_VIEW_NEARER = 0.5
+
+
+def _clear_of(world, x: float, y: float, clearance: float, skip: str = "") -> bool:
+    """Whether a base at (x, y) stands inside a room and ``clearance`` clear of every large
+    object's footprint (its axis-aligned world bounds) but ``skip``'s."""
+    bounded = [r for r in world.rooms if r.bounds is not None]
+    if bounded and room_at(bounded, float(x), float(y), margin=-clearance) is None:
+        return False
+    for obj in world.large_objects():
+        if obj.id == skip:
+            continue
+        lo, hi = world.bounds_world(obj.id)
+        dx = max(lo[0] - x, 0.0, x - hi[0])
+        dy = max(lo[1] - y, 0.0, y - hi[1])
+        if math.hypot(dx, dy) < clearance:
+            return False
+    return True
+
+
+def knob_view_pose(world, node_id: str, distance: float = KNOB_VIEW_DISTANCE,
+                   clearance: float = BASE_CLEARANCE) -> Optional[Pose]:
+    """The world base pose (x, y, yaw) ``distance`` in front of the mean of ``node_id``'s
+    knobs along their mean axis (+z out of the panel), facing them; None when the node has no
+    knobs or the pose is outside every room or within ``clearance`` of another large
+    object's footprint (its axis-aligned world bounds).
+
+    Knobs on top (a hob's, axes within about 25 degrees of the vertical) have no panel to
+    stand in front of: the pose is on the side of the appliance's parking positions,
+    ``distance`` less ``TOP_VIEW_NEARER`` from the knobs (looking down on them more steeply
+    than the parking positions do), moved out as far as the base needs to be ``clearance``
+    clear of the appliance itself (at most to ``distance``)."""
+    knobs = world.knobs(node_id)
+    if not knobs:
+        return None
+    Ts = [world.T_world(k.id) for k in knobs]
+    centre = np.mean([T[:3, 3] for T in Ts], axis=0)
+    axis = np.mean([T[:3, 2] for T in Ts], axis=0)
+    n = float(np.linalg.norm(axis))
+    if n < 1e-9:
+        return None
+    own = world.large_object_of(node_id).id
+    if abs(axis[2] / n) > _UPRIGHT:
+        if axis[2] < 0:
+            return None                                     # knobs facing down
+        away = np.mean([[p.x - centre[0], p.y - centre[1]] for _, p in world.parking_positions(node_id)]
+                       or [[0.0, 0.0]], axis=0)
+        if np.linalg.norm(away) < 1e-6:
+            return None
+        h = away / np.linalg.norm(away)
+        for d in np.arange(max(distance - TOP_VIEW_NEARER, 0.2), distance + 1e-9, 0.05):
+            x, y = centre[:2] + d * h
+            if _clear_of(world, x, y, clearance):           # the appliance itself included
+                return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
+        return None
+    h = axis[:2] / np.linalg.norm(axis[:2])
+    x, y = centre[:2] + distance * h
+    if not _clear_of(world, x, y, clearance, skip=own):
+        return None
+    return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
