@@ -307,7 +307,7 @@ class Day:
         self.robot = robot
         self.schedule = schedule or Schedule(())
         self.battery = self.schedule.battery
-        self.missions = {n: hearth.executive.load(m) for n, m in missions.items()}
+        self.missions = {n: executive.load(m) for n, m in missions.items()}
         self.on_event = on_event
         self.stats = Stats()
         self.away = False
@@ -329,7 +329,7 @@ class Day:
         self.check_schedule()
         self._log = open(log_path, "a", encoding="utf-8") if log_path is not None else None
         self.log_path = str(log_path) if log_path is not None else None
-        self._unsubscribe = hearth.executive.subscribe(self._on_run_event)
+        self._unsubscribe = executive.subscribe(self._on_run_event)
 
     def check_schedule(self) -> None:
         """Every entry names a mission of this day with parameters it accepts in this map

@@ -192,11 +192,11 @@ class FoxgloveSink:
     def attach(self, executive) -> None:
         """Follow ``executive``: its events, its robot's captures and poses, its map."""
         self._ex = executive
-        self.clock = self.clock or hearth.executive.clock
-        self.world = self.world if self.world is not None else hearth.executive.world
-        if hearth.executive.robot is not None and not isinstance(hearth.executive.robot, FoxgloveRobot):
-            hearth.executive.robot = FoxgloveRobot(hearth.executive.robot, self)
-        hearth.executive.subscribe(self.on_event)
+        self.clock = self.clock or executive.clock
+        self.world = self.world if self.world is not None else executive.world
+        if executive.robot is not None and not isinstance(executive.robot, FoxgloveRobot):
+            executive.robot = FoxgloveRobot(executive.robot, self)
+        executive.subscribe(self.on_event)
         self.publish_map()
 
     def wait_for_viewer(self, timeout: float) -> bool:

@@ -88,7 +88,7 @@ class Groot2Publisher:
         self._transitions: list[tuple[int, int, int]] = []
         self.requests = 0
         self._closed = threading.Event()
-        self._unsubscribe = hearth.executive.subscribe(self._on_event)
+        self._unsubscribe = executive.subscribe(self._on_event)
         self._thread = threading.Thread(target=self._serve, name="groot2", daemon=True)
         self._thread.start()
 

@@ -214,7 +214,7 @@ class MonitorServer:
             Script(match="/each_test/hold", duration=3600.0),
         ]
         skills = test_skills()
-        hearth.skills.update({c.NAME: c for c in (Creep, TurnTestKnob)})
+        skills.update({c.NAME: c for c in (Creep, TurnTestKnob)})
         missions = [str(HERE / "missions"), str(HERE / "monitor_missions"),
                     str(big_mission(tmp_path / "big_test.yaml"))]
         self.service = make_service(world, None, missions, skills=skills,

@@ -202,14 +202,14 @@ class CommandService:
             # Before the vocabulary's subscription: a change is streamed before the new
             # vocabulary revision it causes.
             self._unsubs.append(world.subscribe(self._on_map))
-        catalogue, self.catalogue_problems = load_catalogue(mission_paths, hearth.executive.load)
+        catalogue, self.catalogue_problems = load_catalogue(mission_paths, executive.load)
         self.vocabulary = Vocabulary(world, catalogue, on_change=self._vocabulary_changed)
         self._lock = threading.RLock()
         self._runs: OrderedDict[str, RunRecord] = OrderedDict()
         self._keep_runs = keep_runs
         self._idem: OrderedDict[str, tuple[str, str]] = OrderedDict()   # key -> (fingerprint, run)
         self._live: dict[str, tuple[dict[str, str], dict[str, str]]] = {}
-        self._unsubs += [hearth.executive.subscribe(self._on_event),
+        self._unsubs += [executive.subscribe(self._on_event),
                          self.approvals.subscribe(self._on_approval)]
         self.started = time.time()
 
