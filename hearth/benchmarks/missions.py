@@ -43,7 +43,7 @@ import time
 
 
 def add_arguments(parser) -> None:
-    from hearth.cli.util import suite_missions
+    from hearth.executive.argtypes import suite_missions
     parser.add_argument("--missions", type=suite_missions,
                         default=("fetch_object", "turn_off_oven", "refine_localisation"),
                         help="comma-separated missions (default: the three named ones)")

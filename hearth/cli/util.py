@@ -80,18 +80,6 @@ def number_in(lo: float, hi: float, what: str = "a number", lo_open: bool = Fals
     return parse
 
 
-def suite_missions(text: str) -> tuple[str, ...]:
-    """An argparse type: comma-separated missions the scenario suite can make cases for."""
-    from hearth.executive.scenarios import SUITE_MISSIONS
-    names = tuple(m.strip() for m in text.split(",") if m.strip())
-    bad = [m for m in names if m not in SUITE_MISSIONS]
-    if bad or not names:
-        raise argparse.ArgumentTypeError(
-            f"no scenarios for {', '.join(map(repr, bad)) or 'no mission'}; the suite has "
-            f"scenarios for {', '.join(SUITE_MISSIONS)}")
-    return names
-
-
 def integer_in(lo: int, hi: int, what: str = "an integer") -> Callable[[str], int]:
     """An argparse type: an integer in [lo, hi]."""
     def parse(text: str) -> int:

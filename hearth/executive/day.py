@@ -38,6 +38,17 @@ from hearth.executive.events import TERMINAL, EventKind, RunState
 
 #: Submission priorities: routine (schedule) < user requests < reminders < recharge < emergency.
 ROUTINE, REQUEST, REMINDER, RECHARGE, EMERGENCY = 0, 10, 20, 50, 100
+#: The missions a day runs (the shipped ones of these names).
+DAY_MISSIONS = ("recharge", "go_to_user", "deliver_reminder", "emergency_patrol",
+                "fetch_object", "go_to_rest")
+
+
+def mission_paths(names=DAY_MISSIONS) -> dict[str, str]:
+    from hearth import missions_dir
+    base = Path(missions_dir())
+    return {n: str(base / f"{n}.yaml") for n in names if (base / f"{n}.yaml").exists()}
+
+
 DAY_S = 86_400.0
 
 
@@ -234,7 +245,6 @@ def schedule_problems(path: str | Path) -> list[ScheduleError]:
     """The problems of a schedule file, checked against the shipped missions (their
     parameters' names and types; what they name in a map is checked when a day starts on
     it). Empty: fine."""
-    from hearth.executive.daysim import mission_paths
     from hearth.executive.missionfile import load_mission, skill_registry
     paths = mission_paths()
     try:

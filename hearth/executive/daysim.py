@@ -12,17 +12,12 @@ integrated from the clock.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable, Optional
 
-from hearth.executive.day import DAY_S, Day, Schedule
+from hearth.executive.day import DAY_S, Day, Schedule, mission_paths
 
 #: The longest clock jump (s) with nothing running.
 IDLE_STEP = 300.0
-
-#: The missions a day runs, by name (missions/).
-DAY_MISSIONS = ("recharge", "go_to_user", "deliver_reminder", "emergency_patrol",
-                "fetch_object", "go_to_rest")
 
 
 @dataclass(frozen=True)
@@ -35,12 +30,6 @@ class Happening:
     mission: str = ""
     params: dict = field(default_factory=dict)
     room: str = ""
-
-
-def mission_paths(names=DAY_MISSIONS) -> dict[str, str]:
-    from hearth import missions_dir
-    base = Path(missions_dir())
-    return {n: str(base / f"{n}.yaml") for n in names if (base / f"{n}.yaml").exists()}
 
 
 def simulate_day(world: Any, schedule: Schedule, hours: float = 24.0,

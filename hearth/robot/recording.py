@@ -27,7 +27,7 @@ import json
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Optional
 
@@ -36,16 +36,18 @@ import numpy as np
 
 from hearth.perception.camera import Intrinsics
 from hearth.robot.adapter import Action, FailedAction, TimedAction, as_base_pose
+from hearth.robot.captures import (DEPTH_SCALE, MAX_TIME, BadField, Capture, _number,  # noqa: F401
+                                   _planar, _pose_dict, _transform, check_intrinsics,
+                                   depth_to_mm, frame_entry)
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
 from hearth.util.files import BadJSON, load_json, read_limited
-from hearth.robot.frames import (MAX_FRAME_PIXELS, MAX_IMAGE_SIDE, FrameFileError,
+from hearth.robot.frames import (FrameFileError,
                                  check_color_png, check_depth_png, decode_color, decode_depth,
                                  inside)
 from hearth.robot.sim import HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogged
 from hearth.worldmodel.io import atomic_write
 from hearth.worldmodel.pose import Pose, wrap_angle
-from hearth.worldmodel.validate import MAX_COORD
 
 FORMAT = "hearth-recording"
 VERSION = 2
@@ -53,12 +55,9 @@ VERSIONS = (1, 2)
 MANIFEST = "manifest.json"
 CAPTURES = "captures.jsonl"
 ACTIONS = "actions.jsonl"
-DEPTH_SCALE = 0.001          # metres per unit of the 16-bit depth PNG
 #: depth_scale's bounds, metres per unit: 0.01 mm (a 0.65 m range) to 1 cm (655 m). Beyond
 #: them the depth is no depth: 1e300 overflows float32 to inf, 1e-60 rounds every reading to 0.
 DEPTH_SCALE_RANGE = (1e-5, 1e-2)
-#: A time on the recording's clock, seconds (ROS stamps are ~1.7e9).
-MAX_TIME = 1e11
 #: Limits of the recording's own files (its frames: hearth.robot.frames): the header, and
 #: each JSON-lines file (a capture line is ~700 bytes: 128 MiB holds 180,000 captures).
 MAX_MANIFEST_BYTES = 64 << 20
@@ -69,36 +68,6 @@ FRAMES_PER_FOLDER = 250      # frames/0000/, frames/0001/, ...
 
 
 # -- writing ---------------------------------------------------------------------------------
-
-def _pose_dict(p) -> Optional[dict]:
-    if p is None:
-        return None
-    p = as_base_pose(p)
-    return dict(x=p.x, y=p.y, yaw=p.yaw)
-
-
-def _matrix(T) -> Optional[list]:
-    return None if T is None else np.asarray(T, dtype=float).round(9).tolist()
-
-
-def frame_entry(frame, goal=None) -> dict:
-    """The fields of a capture a recording keeps (poses, head, provenance), JSON-ready."""
-    truth = None
-    if getattr(frame, "T_world_camera_true", None) is not None:
-        truth = dict(base_pose=_pose_dict(getattr(frame, "base_pose_true", None)),
-                     T_world_camera=_matrix(frame.T_world_camera_true))
-    return dict(timestamp=float(getattr(frame, "timestamp", 0.0)),
-                base_pose=_pose_dict(getattr(frame, "base_pose", None)),
-                T_world_camera=_matrix(frame.T_world_camera),
-                pan=float(getattr(frame, "pan", 0.0)), tilt=float(getattr(frame, "tilt", 0.0)),
-                parking=getattr(frame, "parking", None), goal=_pose_dict(goal), truth=truth)
-
-
-def depth_to_mm(depth) -> np.ndarray:
-    """float metres (0 or NaN: no reading) -> uint16 millimetres (0: no reading)."""
-    mm = np.nan_to_num(np.asarray(depth, dtype=np.float64) / DEPTH_SCALE, nan=0.0)
-    return np.clip(np.rint(mm), 0, 65535).astype(np.uint16)
-
 
 class RecordingWriter:
     """Writes captures into ``directory`` (created; an existing recording there is replaced).
@@ -185,112 +154,19 @@ class RecordingWriter:
 
 # -- reading ---------------------------------------------------------------------------------
 
-@dataclass
-class Capture:
-    """One recorded capture (poses as Pose / 4x4 arrays; truth None when unknown). ``index``
-    is its position in the recording."""
-    index: int
-    timestamp: float
-    color: str
-    depth: str
-    base_pose: Optional[Pose]
-    T_world_camera: np.ndarray
-    pan: float
-    tilt: float
-    parking: Optional[str]
-    goal: Optional[Pose]
-    base_pose_true: Optional[Pose]
-    T_world_camera_true: Optional[np.ndarray]
-
-
-class _Bad(ValueError):
-    """A field of a recording that is missing or wrong (the message says which)."""
-
-
-def _number(x, what: str, positive: bool = False, bound: float = MAX_COORD) -> float:
-    """``x`` as a finite float of magnitude at most ``bound`` (and > 0 with ``positive``)."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise _Bad(f"{what} must be a number")
-    try:
-        v = float(x)
-    except OverflowError:
-        v = math.inf
-    if not math.isfinite(v):
-        raise _Bad(f"{what} is not finite ({str(x)[:40]})")
-    if positive and v <= 0:
-        raise _Bad(f"{what} must be positive (is {x!r})")
-    if abs(v) > bound:
-        raise _Bad(f"{what} is beyond +-{bound:g} (is {v:g})")
-    return v
-
-
-def _planar(d, what: str) -> Optional[Pose]:
-    if d is None:
-        return None
-    if not isinstance(d, dict):
-        raise _Bad(f"{what} must be an object with x, y, yaw")
-    # positions in metres within the world format's bounds; yaw in radians, any turn count
-    # a person could mean (a 1e300 yaw loses every digit of its angle)
-    return Pose.planar(*(_number(d.get(k), f"{what}.{k}") for k in ("x", "y", "yaw")))
-
-
-_EYE3, _BOTTOM = np.eye(3), np.array([0.0, 0.0, 0.0, 1.0])
-
-
-def _transform(m, what: str) -> np.ndarray:
-    try:
-        T = np.asarray(m, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise _Bad(f"{what} must be a 4x4 matrix of numbers") from None
-    if T.shape != (4, 4):
-        raise _Bad(f"{what} must be a 4x4 matrix")
-    if not np.isfinite(T).all():
-        raise _Bad(f"{what} has numbers that are not finite")
-    if np.abs(T[:3, 3]).max() > MAX_COORD:
-        raise _Bad(f"{what}: the position is beyond +-{MAX_COORD:g} m")
-    R = T[:3, :3]
-    # (np.allclose, twice per capture, was most of the time to open 20,000 captures; a
-    # rotation's entries are within +-1, and checking that first keeps 1e308 entries from
-    # overflowing the product with a RuntimeWarning on stderr)
-    if not (float(np.abs(R).max()) <= 1.0 + 1e-4
-            and float(np.abs(R @ R.T - _EYE3).max()) <= 1e-4
-            and float(np.abs(T[3] - _BOTTOM).max()) <= 1e-4 and np.linalg.det(R) > 0):
-        raise _Bad(f"{what} is not a rigid transform")
-    return T
-
-
-def check_intrinsics(d, what: str = "intrinsics") -> Intrinsics:
-    """Intrinsics from a mapping, refused unless fx, fy > 0 and finite, cx, cy finite and the
-    image size a positive whole number of pixels (at most MAX_IMAGE_SIDE)."""
-    if not isinstance(d, dict):
-        raise _Bad(f"{what} must be an object with fx, fy, cx, cy, width, height")
-    fx, fy = (_number(d.get(k), f"{what}.{k}", positive=True, bound=1e7) for k in ("fx", "fy"))
-    cx, cy = (_number(d.get(k), f"{what}.{k}", bound=1e7) for k in ("cx", "cy"))
-    size = []
-    for k in ("width", "height"):
-        v = _number(d.get(k), f"{what}.{k}", positive=True, bound=math.inf)
-        if v != int(v) or v > MAX_IMAGE_SIDE:
-            raise _Bad(f"{what}.{k} must be a whole number of pixels up to {MAX_IMAGE_SIDE}")
-        size.append(int(v))
-    if size[0] * size[1] > MAX_FRAME_PIXELS:
-        raise _Bad(f"{what}: {size[0]}x{size[1]} is more than the {MAX_FRAME_PIXELS} pixels "
-                   "a frame may have")
-    return Intrinsics(fx, fy, cx, cy, size[0], size[1])
-
-
 def _capture(c, i: int) -> Capture:
     if not isinstance(c, dict):
-        raise _Bad("a capture must be a JSON object")
+        raise BadField("a capture must be a JSON object")
     for k in ("color", "depth"):
         if not isinstance(c.get(k), str):
-            raise _Bad(f"{k} must be the path of a frame file")
+            raise BadField(f"{k} must be the path of a frame file")
     truth = c.get("truth") or {}
     if not isinstance(truth, dict):
-        raise _Bad("truth must be an object or null")
+        raise BadField("truth must be an object or null")
     Tt = truth.get("T_world_camera")
     parking = c.get("parking")
     if parking is not None and not isinstance(parking, str):
-        raise _Bad("parking must be a string or null")
+        raise BadField("parking must be a string or null")
     return Capture(index=i, timestamp=_number(c.get("timestamp", 0.0), "timestamp",
                                               bound=MAX_TIME),
                    color=c["color"], depth=c["depth"], base_pose=_planar(c.get("base_pose"), "base_pose"),
@@ -368,16 +244,16 @@ class Recording:
                                        positive=True, bound=math.inf)
             lo, hi = DEPTH_SCALE_RANGE
             if not lo <= self.depth_scale <= hi:
-                raise _Bad(f"depth_scale {self.depth_scale:g} is not between {lo:g} and {hi:g} "
+                raise BadField(f"depth_scale {self.depth_scale:g} is not between {lo:g} and {hi:g} "
                            "metres per unit (0.001: millimetres)")
             self.intrinsics = (check_intrinsics(data["intrinsics"])
                                if data.get("intrinsics") is not None else None)
             info = data.get("info") or {}
             if not isinstance(info, dict):
-                raise _Bad("info must be an object")
+                raise BadField("info must be an object")
             self.info = dict(info)
             self.start_pose = _planar(data.get("start_pose"), "start_pose")
-        except _Bad as err:
+        except BadField as err:
             raise RobotError(f"corrupt manifest: {err}", file=str(self.path)) from None
         if self.version == 1:
             self.captures, self.actions = self._version1(data)
@@ -389,7 +265,7 @@ class Recording:
                                      file=str(self.dir / CAPTURES), line=n)
                 try:
                     self.captures.append(_capture(c, len(self.captures)))
-                except _Bad as err:
+                except BadField as err:
                     raise RobotError(f"capture {len(self.captures)}: {err}",
                                      file=str(self.dir / CAPTURES), line=n) from None
             self.actions = self._actions_v2(_json_lines(self.dir / ACTIONS))
@@ -411,7 +287,7 @@ class Recording:
         for c in captures:
             try:
                 out.append(_capture(c, len(out)))
-            except _Bad as err:
+            except BadField as err:
                 raise RobotError(f"corrupt manifest: capture {len(out)}: {err}",
                                  file=str(self.path)) from None
         if not all(isinstance(a, dict) for a in actions):

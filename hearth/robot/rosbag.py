@@ -38,7 +38,8 @@ import numpy as np
 from hearth.robot.adapter import as_base_pose
 from hearth.robot.errors import RobotError
 from hearth.util.files import BadJSON, load_json, read_limited
-from hearth.robot.recording import (Capture, _Bad, check_intrinsics, depth_to_mm, frame_entry)
+from hearth.robot.captures import (BadField, Capture, check_intrinsics, depth_to_mm,
+                                   frame_entry)
 from hearth.worldmodel.validate import MAX_COORD
 from hearth.robot.sim import Frame
 from hearth.worldmodel.pose import Pose
@@ -258,11 +259,11 @@ class TfBuffer:
     def add(self, parent: str, child: str, stamp_ns: int, t, q, static: bool) -> None:
         t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
         if not (np.isfinite(t).all() and np.isfinite(q).all()) or np.linalg.norm(q) < 1e-6:
-            raise _Bad(f"the transform {parent} -> {child} at {stamp_ns * 1e-9:.3f} s has "
+            raise BadField(f"the transform {parent} -> {child} at {stamp_ns * 1e-9:.3f} s has "
                        "numbers that are not finite (or a zero quaternion)")
         known = self.parent.get(child)
         if known is not None and known != parent:
-            raise _Bad(f"frame {child} has two parents in tf ({known} and {parent})")
+            raise BadField(f"frame {child} has two parents in tf ({known} and {parent})")
         self.parent[child] = parent
         if static:
             self.static[child] = _T(t, q / np.linalg.norm(q))
@@ -435,7 +436,7 @@ class BagRecording:
                              file=where) from None
         try:
             self._read()
-        except _Bad as err:
+        except BadField as err:
             self.close()
             raise RobotError(str(err), file=where) from None
         except RobotError:
@@ -463,13 +464,13 @@ class BagRecording:
     def _pick(self, name: str, given: Optional[str], defaults: tuple, present: dict) -> str:
         if given is not None:
             if given not in present:
-                raise _Bad(f"no {name} topic {given} in the bag (it has: "
+                raise BadField(f"no {name} topic {given} in the bag (it has: "
                            f"{', '.join(sorted(present)) or 'no topics'})")
             return given
         for t in defaults:
             if t in present:
                 return t
-        raise _Bad(f"no {name} topic: none of {', '.join(defaults)} is in the bag (it has: "
+        raise BadField(f"no {name} topic: none of {', '.join(defaults)} is in the bag (it has: "
                    f"{', '.join(sorted(present)) or 'no topics'}); name it with --topics "
                    f"{name}=TOPIC")
 
@@ -482,17 +483,17 @@ class BagRecording:
         depth_info_t = m.depth_info or next((t for t in DEPTH_INFO_TOPICS if t in present
                                              and t != info_t), None)
         if m.depth_info is not None and m.depth_info not in present:
-            raise _Bad(f"no depth_info topic {m.depth_info} in the bag")
+            raise BadField(f"no depth_info topic {m.depth_info} in the bag")
         for topic, want in ((depth_t, IMAGE_TYPES), (color_t, IMAGE_TYPES),
                             (info_t, ("sensor_msgs/msg/CameraInfo",)),
                             (depth_info_t, ("sensor_msgs/msg/CameraInfo",)),
                             (m.tf, ("tf2_msgs/msg/TFMessage",)),
                             (m.tf_static, ("tf2_msgs/msg/TFMessage",))):
             if topic in present and present[topic] not in want:
-                raise _Bad(f"topic {topic} is {present[topic]}; Hearth reads "
+                raise BadField(f"topic {topic} is {present[topic]}; Hearth reads "
                            f"{' or '.join(want)} there")
         if m.tf not in present and m.tf_static not in present:
-            raise _Bad(f"no tf: neither {m.tf} nor {m.tf_static} is in the bag")
+            raise BadField(f"no tf: neither {m.tf} nor {m.tf_static} is in the bag")
         self._conn = {t: [c for c in r.connections if c.topic == t] for t in (depth_t, color_t)}
         self._topic = dict(depth=depth_t, color=color_t)
         wanted = {depth_t, color_t, info_t, depth_info_t, m.tf, m.tf_static, *EXTRAS.values()}
@@ -506,7 +507,7 @@ class BagRecording:
             try:
                 msg = r.deserialize(raw, conn.msgtype)
             except Exception as err:  # noqa: BLE001
-                raise _Bad(f"topic {topic}: a message at {log_ns * 1e-9:.3f} s does not "
+                raise BadField(f"topic {topic}: a message at {log_ns * 1e-9:.3f} s does not "
                            f"decode as {conn.msgtype} ({_reason(err)})") from None
             if topic in (m.tf, m.tf_static):
                 for ts in msg.transforms:
@@ -528,11 +529,11 @@ class BagRecording:
             elif topic in topic_of:
                 extras[topic_of[topic]].append(msg)
         if info is None:
-            raise _Bad(f"topic {info_t} has no CameraInfo message")
+            raise BadField(f"topic {info_t} has no CameraInfo message")
         if not depth:
-            raise _Bad(f"topic {depth_t} has no image")
+            raise BadField(f"topic {depth_t} has no image")
         if not color:
-            raise _Bad(f"topic {color_t} has no image")
+            raise BadField(f"topic {color_t} has no image")
         self.intrinsics = info.K
         self._color_camera = info
         self._depth_camera = depth_info
@@ -547,7 +548,7 @@ class BagRecording:
                 try:
                     a = decode_compressed(msg, what)
                 except ValueError as err:
-                    raise _Bad(f"topic {topic}: the image at {log_ns * 1e-9:.3f} s: {err}") \
+                    raise BadField(f"topic {topic}: the image at {log_ns * 1e-9:.3f} s: {err}") \
                         from None
                 h, w = a.shape[:2]
             else:
@@ -556,12 +557,12 @@ class BagRecording:
                           str(msg.format), compressed=True)
         enc = str(msg.encoding)
         if enc not in encodings:
-            raise _Bad(f"topic {topic}: {what} encoding {enc!r} is not supported (Hearth reads "
+            raise BadField(f"topic {topic}: {what} encoding {enc!r} is not supported (Hearth reads "
                        f"{what} in {' or '.join(e for e in encodings if e != 'mono16')})")
         bpp = {"16UC1": 2, "mono16": 2, "32FC1": 4, "rgb8": 3, "bgr8": 3}[enc]
         w, h, step = int(msg.width), int(msg.height), int(msg.step)
         if w <= 0 or h <= 0 or step < w * bpp or len(msg.data) != step * h:
-            raise _Bad(f"topic {topic}: an image at {log_ns * 1e-9:.3f} s has {len(msg.data)} "
+            raise BadField(f"topic {topic}: an image at {log_ns * 1e-9:.3f} s has {len(msg.data)} "
                        f"bytes for {w}x{h} {enc} with step {step}")
         return _Image(log_ns, _stamp(msg.header), str(msg.header.frame_id), w, h, enc)
 
@@ -572,15 +573,15 @@ class BagRecording:
                                       cy=float(k[5]), width=int(msg.width), height=int(msg.height)),
                                  what=f"topic {topic}: camera info")
         except (IndexError, ValueError, OverflowError):
-            raise _Bad(f"topic {topic}: camera info has no usable K matrix") from None
+            raise BadField(f"topic {topic}: camera info has no usable K matrix") from None
         d = np.asarray(msg.d, dtype=float)
         model = str(msg.distortion_model)
         if d.size and not np.isfinite(d).all():
-            raise _Bad(f"topic {topic}: distortion coefficients are not finite")
+            raise BadField(f"topic {topic}: distortion coefficients are not finite")
         if not d.size or np.abs(d).max() <= 1e-9:
             return _Camera(K, None, model)
         if model not in DISTORTION_MODELS or d.size not in (4, 5, 8, 12, 14):
-            raise _Bad(f"topic {topic}: distortion model {model!r} with {d.size} coefficients "
+            raise BadField(f"topic {topic}: distortion model {model!r} with {d.size} coefficients "
                        "is not one OpenCV undistorts (plumb_bob, rational_polynomial)")
         return _Camera(K, d, model)
 
@@ -594,38 +595,38 @@ class BagRecording:
             (d0.width, d0.height) == (c0.width, c0.height)
         if not self._registered:
             if self._depth_camera is None:
-                raise _Bad(f"depth {self._topic['depth']} (frame {d0.frame_id}, {d0.width}x"
+                raise BadField(f"depth {self._topic['depth']} (frame {d0.frame_id}, {d0.width}x"
                            f"{d0.height}) is not registered to colour {self._topic['color']} "
                            f"(frame {c0.frame_id}, {c0.width}x{c0.height}) and the bag has no "
                            f"depth camera_info ({', '.join(DEPTH_INFO_TOPICS)}) to register it "
                            "with; name it with --topics depth_info=TOPIC")
             if not tf.connected(c0.frame_id, d0.frame_id):
-                raise _Bad(f"no tf between the colour frame {c0.frame_id} and the depth frame "
+                raise BadField(f"no tf between the colour frame {c0.frame_id} and the depth frame "
                            f"{d0.frame_id}: depth cannot be registered to colour")
             Kd = self._depth_camera.K
             if (d0.width, d0.height) != (Kd.width, Kd.height):
-                raise _Bad(f"topic {self._topic['depth']}: images are {d0.width}x{d0.height}, "
+                raise BadField(f"topic {self._topic['depth']}: images are {d0.width}x{d0.height}, "
                            f"the depth camera info says {Kd.width}x{Kd.height}")
         checks = ((c0, self._topic["color"]),) if not self._registered else \
             ((d0, self._topic["depth"]), (c0, self._topic["color"]))
         for img, topic in checks:
             if (img.width, img.height) != (K.width, K.height):
-                raise _Bad(f"topic {topic}: images are {img.width}x{img.height}, the camera "
+                raise BadField(f"topic {topic}: images are {img.width}x{img.height}, the camera "
                            f"info says {K.width}x{K.height}")
         for imgs, topic, i0 in ((depth, self._topic["depth"], d0),
                                 (color, self._topic["color"], c0)):
             for img in imgs:
                 if (img.frame_id, img.width, img.height) != (i0.frame_id, i0.width, i0.height):
-                    raise _Bad(f"topic {topic}: an image at {img.log_ns * 1e-9:.3f} s changes "
+                    raise BadField(f"topic {topic}: an image at {img.log_ns * 1e-9:.3f} s changes "
                                f"frame or size ({img.frame_id}, {img.width}x{img.height})")
         camera = m.camera_frame or c0.frame_id
         self._color_frame, self._depth_frame = c0.frame_id, d0.frame_id
         for frame in (m.map_frame, m.base_frame, camera):
             if frame not in tf.frames():
-                raise _Bad(f"no frame {frame} in tf (tf has: {', '.join(sorted(tf.frames()))})")
+                raise BadField(f"no frame {frame} in tf (tf has: {', '.join(sorted(tf.frames()))})")
         for frame in (m.base_frame, camera):
             if not tf.connected(m.map_frame, frame):
-                raise _Bad(f"no tf between {m.map_frame} and {frame}: they are in separate "
+                raise BadField(f"no tf between {m.map_frame} and {frame}: they are in separate "
                            "trees")
         color_stamps = [c.stamp_ns for c in color]
         order = sorted(range(len(color)), key=lambda i: color_stamps[i])
@@ -654,7 +655,7 @@ class BagRecording:
             if not (np.isfinite(T_map_camera).all() and np.isfinite(T_map_base).all()
                     and np.abs(T_map_camera[:3, 3]).max() <= MAX_COORD
                     and np.abs(T_map_base[:3, 3]).max() <= MAX_COORD):
-                raise _Bad(f"tf: the pose of {camera} or {m.base_frame} at "
+                raise BadField(f"tf: the pose of {camera} or {m.base_frame} at "
                            f"{d.stamp_ns * 1e-9:.3f} s is not finite or beyond +-{MAX_COORD:g} m")
             base = as_base_pose(T_map_base)
             T_base_camera = np.linalg.inv(T_map_base) @ T_map_camera
@@ -680,10 +681,10 @@ class BagRecording:
             self._images.append((d, color[order[k]]))
         if not self.captures:
             if unpaired and not untimed:
-                raise _Bad(f"no colour image on {self._topic['color']} within "
+                raise BadField(f"no colour image on {self._topic['color']} within "
                            f"{m.sync_tolerance * 1000:.0f} ms of any depth image on "
                            f"{self._topic['depth']}")
-            raise _Bad(f"no tf between {m.map_frame} and {camera} at any image stamp (the "
+            raise BadField(f"no tf between {m.map_frame} and {camera} at any image stamp (the "
                        f"transform {missing_edge} does not cover the images' times)")
         self.skipped = dict(unpaired=unpaired, outside_tf=untimed)
         self.actions = _actions(extras["actions"])

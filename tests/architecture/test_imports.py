@@ -37,6 +37,8 @@ def module_name(path: Path) -> str:
 
 
 def package_of(module: str) -> str:
+    if module == "hearth.__main__":          # ``python -m hearth``: the command line
+        return "hearth.cli"
     parts = module.split(".")
     return ".".join(parts[:2]) if len(parts) > 1 and ".".join(parts[:2]) in FLOOR else "hearth"
 

@@ -140,7 +140,7 @@ def _line(e: dict) -> str:
 def _check_requests(requests, world) -> None:
     """Every --request names a shipped mission with parameters it takes in this map
     (MissionError, one line, before the day starts)."""
-    from hearth.executive.daysim import mission_paths
+    from hearth.executive.day import mission_paths
     from hearth.executive.errors import MissionError
     from hearth.executive.missionfile import load_mission, skill_registry
     paths = mission_paths()
@@ -159,7 +159,8 @@ def _check_requests(requests, world) -> None:
 
 def _run(args) -> int:
     from hearth.executive.day import load_schedule
-    from hearth.executive.daysim import mission_paths, simulate_day
+    from hearth.executive.day import mission_paths
+    from hearth.executive.daysim import simulate_day
     from hearth.worldmodel.errors import WorldError
     from hearth.worldmodel.io import load_world
 

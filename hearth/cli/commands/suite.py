@@ -12,7 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from hearth.cli.util import integer_in, seed, suite_missions
+from hearth.cli.util import integer_in, seed
+from hearth.executive.argtypes import suite_missions
 
 
 def register(sub) -> None:
