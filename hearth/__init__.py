@@ -1,10 +1,7 @@
-"""Hearth's own namespace: the packages we added to the specified layout (``hearth.robot``,
-``hearth.benchmarks``), the version, and where the shipped data lives.
-
-``robot`` and ``benchmarks`` are too generic to install as top-level packages (``robot`` is
-Robot Framework's import name), so they live here. The specified top-level packages
-(``executive``, ``skills``, ``perception``, ``worldmodel``) keep their names. Importing this
-package is cheap: nothing heavy is imported here.
+"""Hearth's one import name: the layers (``hearth.executive``, ``hearth.skills``,
+``hearth.perception``, ``hearth.worldmodel``), the robot adapters, mapping, benchmarks and the
+command line live beneath it (docs/packaging.md, docs/architecture.md). This module holds the
+version and where the shipped data lives. Importing it is cheap: nothing heavy is imported here.
 """
 from __future__ import annotations
 
@@ -18,9 +15,9 @@ _HERE = Path(__file__).resolve().parent
 def resource_dir(name: str) -> Path:
     """The shipped folder ``name`` ("missions" or "data").
 
-    A wheel carries them inside this package (``hearth/missions``, ``hearth/data``, see
-    pyproject.toml); in a source checkout or an editable install they are the top-level
-    folders of the repository.
+    ``hearth/missions`` and ``hearth/data`` are symbolic links to the repository's top-level
+    folders in a checkout, and real folders inside an installed wheel; the top-level folder
+    is the fallback when the link is missing (a copy that dropped links).
     """
     inside = _HERE / name
     if inside.is_dir():

@@ -45,7 +45,7 @@ def test_worldmodel_still_re_exports_its_names():
     from hearth.worldmodel import Pose, World, load_world
     assert World.__module__ == "hearth.worldmodel.world" and Pose.__module__ == "hearth.worldmodel.pose"
     assert callable(load_world)
-    assert set(hearth.worldmodel.__all__) <= set(dir(worldmodel))
+    assert set(hearth.worldmodel.__all__) <= set(dir(hearth.worldmodel))
     assert hearth.worldmodel.io.load_world is load_world
 
 

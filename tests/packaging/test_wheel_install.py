@@ -43,10 +43,11 @@ def installed(tmp_path_factory):
     """(python, hearth script, environment) of a fresh venv with the wheel and robotframework."""
     tmp = tmp_path_factory.mktemp("wheel")
     got = pip("download", "--no-deps", "--only-binary", ":all:", "--retries", "1", "--timeout", "30",
-              "-d", str(tmp / "dl"), "robotframework")      # fail fast when offline
+              "-d", str(tmp / "dl"), "robotframework", "perception")   # fail fast when offline
     if got.returncode != 0:
         last = (got.stderr.strip().splitlines() or ["no output"])[-1]
-        pytest.skip(f"the package index cannot be reached for robotframework: {last}")
+        pytest.skip(f"the package index cannot be reached for robotframework and perception: "
+                    f"{last}")
     built = pip("wheel", "--no-deps", "-q", "-w", str(tmp / "dist"), str(source_copy(tmp / "src")))
     assert built.returncode == 0, built.stderr
     wheel = next((tmp / "dist").glob("hearth-*.whl"))
@@ -60,7 +61,9 @@ def installed(tmp_path_factory):
     # (a path in a .pth file is appended, and .pth files inside it are not run: the editable
     # install of this checkout stays out).
     (purelib / "hearth-test-deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    for what in ([str(wheel)], [str(next((tmp / "dl").glob("robotframework-*.whl")))]):
+    # perception: the perceptual-hashing library, whose import name Hearth used to install too
+    for what in ([str(wheel)], [str(next((tmp / "dl").glob("robotframework-*.whl")))],
+                 [str(next((tmp / "dl").glob("perception-*.whl")))]):
         done = pip("--python", str(python), "install", "--no-deps", "-q", *what)
         assert done.returncode == 0, done.stderr
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
@@ -76,7 +79,7 @@ def run(installed, *args) -> subprocess.CompletedProcess:
 def test_hearth_and_robot_framework_install_side_by_side(installed):
     python, _, env, cwd = installed
     cwd.mkdir(exist_ok=True)
-    code = ("import robot, robot.version, hearth, hearth.robot, executive, worldmodel\n"
+    code = ("import robot, robot.version, hearth, hearth.robot, hearth.executive, hearth.worldmodel\n"
             "print(robot.__file__); print(robot.version.VERSION)\n"
             "print(hearth.__file__); print(hearth.executive.__file__)\n"
             "print(hearth.missions_dir()); print(hearth.demo_world_path())\n")
@@ -88,6 +91,33 @@ def test_hearth_and_robot_framework_install_side_by_side(installed):
     for path in (hearth_file, executive_file, missions, world):
         assert path.startswith(venv) and "site-packages" in path, path    # not the checkout
     assert Path(missions, "go_to_rest.yaml").is_file() and Path(world).is_file()
+
+
+def test_hearth_installs_one_top_level_import_name(installed):
+    python, _, env, cwd = installed
+    cwd.mkdir(exist_ok=True)
+    top = subprocess.run([str(python), "-c", "import importlib.metadata as m; "
+                          "print(m.distribution('hearth').read_text('top_level.txt') or '')"],
+                         capture_output=True, text=True, env=env, cwd=cwd)
+    files = subprocess.run([str(python), "-c", "import importlib.metadata as m; print(sorted({"
+                            "f.parts[0] for f in m.distribution('hearth').files if f.parts[0] != '..'}))"],
+                           capture_output=True, text=True, env=env, cwd=cwd, check=True).stdout
+    assert eval(files) == ["hearth", f"hearth-{hearth_version()}.dist-info"], files
+    assert top.stdout.split() in ([], ["hearth"]), top.stdout
+    for name in ("executive", "skills", "worldmodel"):
+        gone = subprocess.run([str(python), "-c", f"import {name}"], capture_output=True,
+                              text=True, env=env, cwd=cwd)
+        assert "ModuleNotFoundError" in gone.stderr, (name, gone.stderr)
+    # `perception` is now the perceptual-hashing library's, installed beside Hearth
+    theirs = subprocess.run([str(python), "-c", "import importlib.util as u; "
+                             "print(u.find_spec('perception').origin)"],
+                            capture_output=True, text=True, env=env, cwd=cwd, check=True)
+    assert "hearth" not in theirs.stdout, theirs.stdout
+
+
+def hearth_version() -> str:
+    from hearth import __version__
+    return __version__
 
 
 def test_the_installed_cli_shows_help_validates_and_runs_from_another_directory(installed):
