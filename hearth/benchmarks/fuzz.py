@@ -1269,12 +1269,12 @@ class _Worker:
             raise RuntimeError("fuzz worker did not start")
 
     def restart(self) -> None:
-        from hearth.executive.suite import stop_worker
+        from hearth.executive.suite_local import stop_worker
         stop_worker(self.proc, self.conn, kill=True)
         self.start()
 
     def close(self) -> None:
-        from hearth.executive.suite import stop_worker
+        from hearth.executive.suite_local import stop_worker
         stop_worker(self.proc, self.conn)
 
 
