@@ -48,9 +48,10 @@ from lxml import etree
 
 from hearth.executive.errors import MissionError, MissionValidationError
 from hearth.executive.missionfile import KINDS as _KINDS_ALL
-from hearth.executive.missionfile import (IDENT, BBKey, Lit, LineDict, LineList, Mission, NodeSpec,
-                                   Param, compile_mission, load_mission, load_yaml,
-                                   load_yaml_text, plain, skill_registry)
+from hearth.executive.missionfile import (BBKey, Lit, Mission, NodeSpec, Param, compile_mission,
+                                          load_mission, plain, skill_registry)
+from hearth.executive.missionfile_format import IDENT
+from hearth.executive.missionfile_yaml import LineDict, LineList, load_yaml, load_yaml_text
 
 _KEY = re.compile(r"^\{(" + IDENT + r")\}$")
 _PARAM = re.compile(r"^\$(" + IDENT + r")$")
