@@ -77,7 +77,7 @@ HAND_WRITTEN = """\
   </BehaviorTree>
   <BehaviorTree ID="Report">
     <Sequence>
-      <Tell name="tell" text="I am at the {place}" place="{place}" said="{what}"/>
+      <Say name="tell" text="I am at the {place}" place="{place}" said="{what}"/>
       <Say name="echo" text="{what}"/>
     </Sequence>
   </BehaviorTree>
@@ -94,7 +94,7 @@ def test_hand_written_btcpp_xml_runs_with_stand_in_skills(tmp_path):
     out.write_text(text)
     case = MissionCase(scripts=[Script("*/first_try", outcomes=["failure"]),
                                 Script("*/again", outcomes=["failure", "success"], duration=0.2),
-                                Script("Tell", outputs={"said": "I am at the side table"})])
+                                Script("Say", outputs={"said": "I am at the side table"})])
     sub = Substitution(case.scripts, case.default)
     from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
@@ -198,7 +198,7 @@ BAD_CASES = {
         '      <input_port name="volume" type="double"/>\n'
         '    </Action>\n  </TreeNodesModel>\n</root>\n', 6,
         "the model of Say declares port 'volume', which skill Say lacks (ports: text, values, "
-        "said)"),
+        "object, place, part, count, places, detail, say, said)"),
     "key read but never written": (bad('<Say text="{nothing}"/>\n'), 3,
                                    "reads key {nothing} that nothing writes"),
     "literal of the wrong type": (bad('<RetryUntilSuccessful num_attempts="two">\n'
