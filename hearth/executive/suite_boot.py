@@ -6,8 +6,8 @@ submitter zips Hearth's packages into the object store and each task starts here
 imports only the standard library (it travels by value, ``register_pickle_by_value``), unpacks
 the zip once per worker into ``$TMPDIR/hearth-code-<fingerprint>``, puts it first on
 ``sys.path`` (dropping Hearth modules a worker imported from elsewhere), and only then
-unpickles the call (its case, runner, model need), so that every Hearth class in it comes from
-the shipped code. Written by hand: Ray has no public API for this.
+unpickles the call (the function, its case, runner, model need), so that every Hearth class
+in it comes from the shipped code. Written by hand: Ray has no public API for this.
 """
 from __future__ import annotations
 
