@@ -45,7 +45,7 @@ per loader and in total.
 ``tests/fuzz/test_fuzz_loaders.py`` runs the same generators in-process on a few hundred cases.
 
 This module runs the benchmark (worker processes, the report, ``run``); its neighbours:
-fuzz_case.py (``Case``, ``Verdict``, the loaders and failure classes), fuzz_checks.py (one case
+fuzz_case.py (``FuzzCase``, ``Verdict``, the loaders and failure classes), fuzz_checks.py (one case
 in-process and the independent checks), fuzz_generate.py (base files, mutators, generated
 cases), fuzz_fixed.py (the hand-made cases) and fuzz_http.py (the HTTP block).
 """
@@ -60,8 +60,8 @@ import time
 from multiprocessing.connection import wait
 from typing import Any, Iterable
 
-from hearth.benchmarks.fuzz_case import Case, FAILURES, LOADERS, _OUTCOME_KEY, Verdict
-from hearth.benchmarks.fuzz_checks import _describe, _registry, run_case
+from hearth.benchmarks.fuzz_case import FuzzCase, FAILURES, LOADERS, _OUTCOME_KEY, Verdict
+from hearth.benchmarks.fuzz_checks import _describe, _registry, run_fuzz_case
 from hearth.benchmarks.fuzz_fixed import fixed_cases
 from hearth.benchmarks.fuzz_generate import generated_cases
 from hearth.benchmarks.fuzz_http import check_http
@@ -103,7 +103,7 @@ def _worker(conn, timeout: float) -> None:   # pragma: no cover - runs in a chil
         if case is None:
             return
         try:
-            verdict = run_case(case, timeout)
+            verdict = run_fuzz_case(case, timeout)
         except BaseException as err:  # noqa: BLE001 - report, keep serving
             verdict = Verdict("traceback", "in the fuzz harness: " + _describe(err))
         conn.send(verdict)
@@ -132,15 +132,15 @@ class _Worker:
         stop_worker(self.proc, self.conn)
 
 
-def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
-              ) -> list[tuple[Case, Verdict]]:
+def run_cases(cases: Iterable[FuzzCase], jobs: int = 1, timeout: float = 30.0
+              ) -> list[tuple[FuzzCase, Verdict]]:
     """(case, verdict) for every case, run in ``jobs`` worker processes; a case's files are
     dropped once it has run."""
     ctx = multiprocessing.get_context("spawn")
     workers = [_Worker(ctx, timeout) for _ in range(max(1, jobs))]
     todo = iter(cases)
-    results: list[tuple[Case, Verdict]] = []
-    busy: dict[int, tuple[Case, float]] = {}
+    results: list[tuple[FuzzCase, Verdict]] = []
+    busy: dict[int, tuple[FuzzCase, float]] = {}
     more = True
 
     def done(wi: int, verdict: Verdict) -> None:
@@ -181,7 +181,7 @@ def run_cases(cases: Iterable[Case], jobs: int = 1, timeout: float = 30.0
 # ---------------------------------------------------------------------------------------------
 # Report
 
-def summarise(results: list[tuple[Case, Verdict]]) -> dict:
+def summarise(results: list[tuple[FuzzCase, Verdict]]) -> dict:
     counts = {"cases": len(results), "accepted": 0, "refused": 0, **{k: 0 for k in FAILURES}}
     ms = []
     for _, v in results:
@@ -196,7 +196,7 @@ def summarise(results: list[tuple[Case, Verdict]]) -> dict:
     return counts
 
 
-def failures(results: list[tuple[Case, Verdict]], limit: int = 12) -> list[dict]:
+def failures(results: list[tuple[FuzzCase, Verdict]], limit: int = 12) -> list[dict]:
     out = []
     for c, v in results:
         if v.outcome not in ("accepted", "refused") or v.outside:
@@ -205,7 +205,7 @@ def failures(results: list[tuple[Case, Verdict]], limit: int = 12) -> list[dict]
     return out[:limit]
 
 
-def by_class(results: list[tuple[Case, Verdict]]) -> dict:
+def by_class(results: list[tuple[FuzzCase, Verdict]]) -> dict:
     """The fixed cases by class: cases, and those that did not end as expected."""
     out: dict[str, dict[str, int]] = {}
     for c, v in results:

@@ -1,5 +1,5 @@
 """A fuzz case and its verdict (hearth/benchmarks/fuzz.py): the loaders, the classes of hostile
-input, the failures counted, ``Case``, ``Verdict`` and ``materialise`` (a case as files in a
+input, the failures counted, ``FuzzCase``, ``Verdict`` and ``materialise`` (a case as files in a
 folder)."""
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ MAX_LINE = 500
 # Cases
 
 @dataclass
-class Case:
+class FuzzCase:
     """A folder of files and what to load from it.
 
     ``files`` maps a relative path to bytes, or to ``("symlink", target)``, ``("dir",)``,
@@ -52,7 +52,7 @@ class Verdict:
     ms: float = 0.0
 
 
-def materialise(case: Case, root: Path) -> Path:
+def materialise(case: FuzzCase, root: Path) -> Path:
     """Write the case's files under ``root``; return the entry's path."""
     for rel, content in case.files.items():
         p = root / rel

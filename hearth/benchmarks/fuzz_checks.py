@@ -1,5 +1,5 @@
 """Running one fuzz case in-process and checking what its loader accepted independently of the
-loader (``run_case``; ``check_world``, ``check_mission``, ``check_recording``,
+loader (``run_fuzz_case``; ``check_world``, ``check_mission``, ``check_recording``,
 ``check_bag``): the worker of hearth/benchmarks/fuzz.py runs these, and so do the tests."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import Any, Optional
 
-from hearth.benchmarks.fuzz_case import Case, materialise, MAX_LINE, Verdict, WORLD_MAX_COORD
+from hearth.benchmarks.fuzz_case import FuzzCase, materialise, MAX_LINE, Verdict, WORLD_MAX_COORD
 from hearth.benchmarks.fuzz_generate import WORST_UTTERANCE
 
 
@@ -23,7 +23,7 @@ class _Hang(BaseException):
     """Raised by the alarm; a BaseException so that no loader's ``except Exception`` eats it."""
 
 
-def run_case(case: Case, timeout: float = 30.0) -> Verdict:
+def run_fuzz_case(case: FuzzCase, timeout: float = 30.0) -> Verdict:
     """Materialise ``case`` in a temporary folder and check it, with an alarm for hangs."""
     check = {"world": check_world, "mission": check_mission, "recording": check_recording,
              "bag": check_bag}[case.loader]

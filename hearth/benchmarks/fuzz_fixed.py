@@ -6,7 +6,7 @@ import copy
 import json
 import re
 
-from hearth.benchmarks.fuzz_case import Case
+from hearth.benchmarks.fuzz_case import FuzzCase
 from hearth.benchmarks.fuzz_checks import _has_ros
 from hearth.benchmarks.fuzz_generate import (
     _demo_world, HOSTILE_MESHES, _missions, _recording_files, WORLD_NEIGHBOURS,
@@ -16,15 +16,15 @@ from hearth.benchmarks.fuzz_generate import (
 # ---------------------------------------------------------------------------------------------
 # Fixed cases (issue 19's hand-made ones)
 
-def fixed_cases() -> list[Case]:
+def fixed_cases() -> list[FuzzCase]:
     import re
     world = _demo_world().decode()
     missions = _missions()
-    out: list[Case] = []
+    out: list[FuzzCase] = []
 
     def w(name, text, expect="refused", klass=""):
-        out.append(Case("world", name, {**WORLD_NEIGHBOURS, "world.xml": text.encode()},
-                        "world.xml", expect, klass))
+        out.append(FuzzCase("world", name, {**WORLD_NEIGHBOURS, "world.xml": text.encode()},
+                            "world.xml", expect, klass))
 
     def first(pattern, repl, text=world):
         new, n = re.subn(pattern, repl, text, count=1)
@@ -63,7 +63,7 @@ def fixed_cases() -> list[Case]:
 
     def m(name, text, expect="refused", extra=None, klass=""):
         files = {**missions, "case.yaml": text.encode(), **(extra or {})}
-        out.append(Case("mission", name, files, "case.yaml", expect, klass))
+        out.append(FuzzCase("mission", name, files, "case.yaml", expect, klass))
 
     bomb = ("a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n"
             + "".join(f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n"
@@ -114,7 +114,7 @@ def fixed_cases() -> list[Case]:
         for k, v in list(f.items()):
             if v is None:
                 del f[k]
-        out.append(Case("recording", name, f, "rec", expect))
+        out.append(FuzzCase("recording", name, f, "rec", expect))
 
     def with_(path, value):
         d = copy.deepcopy(man)
@@ -145,11 +145,11 @@ def fixed_cases() -> list[Case]:
     return out
 
 
-def _issue_44_cases(world: str, first, w, m) -> list[Case]:
+def _issue_44_cases(world: str, first, w, m) -> list[FuzzCase]:
     """Issue 44's hand-made cases, each tagged with its class (CLASSES)."""
     import cv2
     import numpy as np
-    out: list[Case] = []
+    out: list[FuzzCase] = []
 
     def mesh(path):
         return first(r'(<model>)', rf'\1<mesh file="{path}" color="0.5 0.5 0.5"/>')
@@ -193,7 +193,7 @@ def _issue_44_cases(world: str, first, w, m) -> list[Case]:
             man = json.loads(f["rec/manifest.json"])
             edit(man)
             f["rec/manifest.json"] = json.dumps(man).encode()
-        out.append(Case("recording", name, f, "rec", expect, klass))
+        out.append(FuzzCase("recording", name, f, "rec", expect, klass))
 
     caps = rec["rec/captures.jsonl"].decode().splitlines()
     big = "9" * 5000
@@ -225,7 +225,7 @@ def _issue_44_cases(world: str, first, w, m) -> list[Case]:
 
     if _has_ros():
         def b(name, klass, files, entry="bag.mcap"):
-            out.append(Case("bag", name, files, entry, "refused", klass))
+            out.append(FuzzCase("bag", name, files, entry, "refused", klass))
         b("mcap_fifo", "fifo", {"bag.mcap": ("fifo",)})
         b("mcap_dev_zero", "fifo", {"bag.mcap": ("symlink", "/dev/zero")})
         for kind, content in (("fifo", ("fifo",)), ("dev_zero", ("symlink", "/dev/zero")),

@@ -8,7 +8,7 @@ import json
 import random
 from typing import Any, Iterator, Optional
 
-from hearth.benchmarks.fuzz_case import Case
+from hearth.benchmarks.fuzz_case import FuzzCase
 
 
 # ---------------------------------------------------------------------------------------------
@@ -449,7 +449,7 @@ def mutate_recording(rng: random.Random, base: dict[str, Any]) -> tuple[str, dic
 # ---------------------------------------------------------------------------------------------
 # Generated cases
 
-def generated_cases(loader: str, n: int, seed: int) -> Iterator[Case]:
+def generated_cases(loader: str, n: int, seed: int) -> Iterator[FuzzCase]:
     """``n`` mutated cases for ``loader``, the same ones for the same seed (made one at a time:
     some are megabytes)."""
     rng = random.Random(f"{loader}:{seed}")
@@ -457,14 +457,14 @@ def generated_cases(loader: str, n: int, seed: int) -> Iterator[Case]:
         base = _demo_world()
         for _ in range(n):
             what, data = mutate_world(rng, base)
-            yield Case("world", what, {**WORLD_NEIGHBOURS, "world.xml": data}, "world.xml")
+            yield FuzzCase("world", what, {**WORLD_NEIGHBOURS, "world.xml": data}, "world.xml")
     elif loader == "mission":
         base = _missions()
         for _ in range(n):
             what, files, entry = mutate_mission(rng, base)
-            yield Case("mission", what, files, entry)
+            yield FuzzCase("mission", what, files, entry)
     elif loader == "recording":
         bases = (_recording_files(), _recording_files(version=2))
         for i in range(n):
             what, files = mutate_recording(rng, bases[i % 2])
-            yield Case("recording", what, files, "rec")
+            yield FuzzCase("recording", what, files, "rec")

@@ -3,7 +3,7 @@
 A few hundred cases here, in-process; `hearth bench fuzz` runs thousands in worker processes.
 Every case must end refused (one located line per problem) or accepted and then usable: saved
 and loaded back equal, meshed, built into a tree. Any traceback, hang (the alarm in
-``run_case``), out-of-bounds number or path outside the case's folder fails the test.
+``run_fuzz_case``), out-of-bounds number or path outside the case's folder fails the test.
 Under HYPOTHESIS_PROFILE=ci (tests/conftest.py) the same cases run every time.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ _WORLD = fuzz_generate._demo_world()
 _MISSIONS = fuzz_generate._missions()
 
 
-def _ok(case: fuzz_case.Case, verdict: fuzz_case.Verdict) -> bool:
+def _ok(case: fuzz_case.FuzzCase, verdict: fuzz_case.Verdict) -> bool:
     return verdict.outcome in ("accepted", "refused") and not verdict.outside
 
 
@@ -28,9 +28,9 @@ def _ok(case: fuzz_case.Case, verdict: fuzz_case.Verdict) -> bool:
 @given(st.randoms(use_true_random=False))
 def test_mutated_world_files_are_refused_in_one_line_or_load_save_and_load_again(rng):
     what, data = fuzz_generate.mutate_world(rng, _WORLD)
-    case = fuzz_case.Case("world", what, {**fuzz_generate.WORLD_NEIGHBOURS, "world.xml": data},
-                          "world.xml")
-    verdict = fuzz_checks.run_case(case, timeout=20)
+    case = fuzz_case.FuzzCase("world", what, {**fuzz_generate.WORLD_NEIGHBOURS, "world.xml": data},
+                              "world.xml")
+    verdict = fuzz_checks.run_fuzz_case(case, timeout=20)
     assert _ok(case, verdict), f"{what}: {verdict}"
 
 
@@ -38,8 +38,8 @@ def test_mutated_world_files_are_refused_in_one_line_or_load_save_and_load_again
 @given(st.randoms(use_true_random=False))
 def test_mutated_missions_are_refused_in_one_line_or_build_a_tree(rng):
     what, files, entry = fuzz_generate.mutate_mission(rng, _MISSIONS)
-    case = fuzz_case.Case("mission", what, files, entry)
-    verdict = fuzz_checks.run_case(case, timeout=20)
+    case = fuzz_case.FuzzCase("mission", what, files, entry)
+    verdict = fuzz_checks.run_fuzz_case(case, timeout=20)
     assert _ok(case, verdict), f"{entry}: {what}: {verdict}"
 
 
@@ -48,7 +48,7 @@ FIXED = [c for c in fuzz_fixed.fixed_cases() if c.loader in ("world", "mission")
 
 @pytest.mark.parametrize("case", FIXED, ids=[f"{c.loader}-{c.name}" for c in FIXED])
 def test_issue_19s_hand_made_files(case):
-    verdict = fuzz_checks.run_case(case, timeout=60)
+    verdict = fuzz_checks.run_fuzz_case(case, timeout=60)
     assert (verdict.outcome, verdict.outside) == (case.expect, 0), verdict.detail
 
 
@@ -58,7 +58,7 @@ ISSUE_44 = [c for c in fuzz_fixed.fixed_cases() if c.loader in ("recording", "ba
 
 @pytest.mark.parametrize("case", ISSUE_44, ids=[f"{c.loader}-{c.name}" for c in ISSUE_44])
 def test_issue_44s_hand_made_recordings_and_bags(case):
-    verdict = fuzz_checks.run_case(case, timeout=60)
+    verdict = fuzz_checks.run_fuzz_case(case, timeout=60)
     assert (verdict.outcome, verdict.outside) == (case.expect, 0), verdict.detail
 
 
