@@ -25,8 +25,11 @@ A substitution file (``hearth test-mission MISSION --substitute FILE``) is YAML:
     tick_hz: 10
     max_seconds: 600
 
-:func:`run_case` runs it on a simulated clock and reports the result and the nodes that were
-never ticked. This module also holds the test-only skills used by tests/executive.
+:func:`load_mission_case` reads such a file into a :class:`MissionCase`;
+:func:`run_mission_case` runs it on a simulated clock and reports the result and the nodes that
+were never ticked (a :class:`MissionCaseReport`). (The scenario suite's cases are another
+thing: ``hearth.executive.scenarios.Case`` and ``run_case``, a mission on a simulated home.)
+This module also holds the test-only skills used by tests/executive.
 """
 from __future__ import annotations
 
@@ -38,7 +41,9 @@ from typing import Any, ClassVar
 from py_trees import common
 
 from hearth.executive.errors import MissionError
-from hearth.executive.missionfile import LineDict, LineList, NodeSpec, load_yaml, plain
+from hearth.executive.missionfile import NodeSpec
+from hearth.executive.missionfile_types import plain
+from hearth.executive.missionfile_yaml import LineDict, LineList, load_yaml
 from hearth.executive.tree import SkillFactory, default_factory
 from hearth.skills.base import Bindings, Port, Skill
 
@@ -166,7 +171,7 @@ def substitution_factory(scripts: list[Script], default: Script | None = None) -
 # Substitution files and test-mission
 # ---------------------------------------------------------------------------------------
 @dataclass
-class Case:
+class MissionCase:
     """A scripted test case for one mission (see the module docstring)."""
     scripts: list[Script]
     default: Script | None = field(default_factory=Script)
@@ -184,7 +189,7 @@ _SCRIPT_KEYS = {"match", "outcome", "outcomes", "duration", "outputs", "halt_dur
                 "feedback"}
 
 
-def load_case(path: str | Path) -> Case:
+def load_mission_case(path: str | Path) -> MissionCase:
     """Read a substitution file; MissionError with file:line for anything wrong."""
     path = str(path)
     data = load_yaml(path)
@@ -230,16 +235,17 @@ def load_case(path: str | Path) -> Case:
     expect = data.get("expect")
     if expect is not None and expect not in ("succeeded", "failed", "cancelled"):
         raise bad("expect: succeeded, failed or cancelled", data.key_lines.get("expect", 1))
-    return Case(scripts=scripts,
-                default=None if default == "real" else Script(outcomes=[default]),
-                params=plain(data.get("params") or {}), set_parameters=sorted(changes, key=lambda c: c[0]),
-                cancel_at=data.get("cancel_at"), expect=expect,
-                tick_hz=float(data.get("tick_hz", 10.0)),
-                max_seconds=float(data.get("max_seconds", 600.0)))
+    return MissionCase(scripts=scripts,
+                       default=None if default == "real" else Script(outcomes=[default]),
+                       params=plain(data.get("params") or {}),
+                       set_parameters=sorted(changes, key=lambda c: c[0]),
+                       cancel_at=data.get("cancel_at"), expect=expect,
+                       tick_hz=float(data.get("tick_hz", 10.0)),
+                       max_seconds=float(data.get("max_seconds", 600.0)))
 
 
 @dataclass
-class CaseReport:
+class MissionCaseReport:
     outcome: str
     reason: str
     ticks: int
@@ -255,8 +261,9 @@ class CaseReport:
         return self.expected is None or self.expected == self.outcome
 
 
-def run_case(mission_path: str | Path, case: Case, skills: dict[str, type] | None = None,
-             world: Any = None, robot: Any = None, runs_dir: str | None = None) -> CaseReport:
+def run_mission_case(mission_path: str | Path, case: MissionCase,
+                     skills: dict[str, type] | None = None, world: Any = None, robot: Any = None,
+                     runs_dir: str | None = None) -> MissionCaseReport:
     """Run ``case`` on a simulated clock and report outcome and coverage."""
     from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
@@ -286,12 +293,14 @@ def run_case(mission_path: str | Path, case: Case, skills: dict[str, type] | Non
         ex.run_until_idle(10_000)
     all_paths = [n.path for n in handle.mission.nodes()]
     result = handle.result
-    return CaseReport(outcome=result.outcome, reason=result.reason, ticks=result.ticks,
-                      duration=result.duration,
-                      never_ticked=[p for p in all_paths if p not in ticked], nodes=all_paths,
-                      unscripted=sorted(n.path for n in handle.mission.nodes()
-                                        if n.kind == "skill" and n.path not in sub.matched),
-                      expected=case.expect, log_path=result.log_path)
+    return MissionCaseReport(outcome=result.outcome, reason=result.reason, ticks=result.ticks,
+                             duration=result.duration,
+                             never_ticked=[p for p in all_paths if p not in ticked],
+                             nodes=all_paths,
+                             unscripted=sorted(n.path for n in handle.mission.nodes()
+                                               if n.kind == "skill"
+                                               and n.path not in sub.matched),
+                             expected=case.expect, log_path=result.log_path)
 
 
 # ---------------------------------------------------------------------------------------

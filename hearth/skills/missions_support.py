@@ -9,8 +9,6 @@ Each one reads the map or formats words; none holds an algorithm:
 - ``KnobsOn`` / ``ExpectKnobsOff``: which of an appliance's knobs the map says are on;
   the check after turning them off, failing with the knobs still on.
 - ``Remember``: append an item to a list key (places searched, notes on what went wrong).
-- ``Tell`` / ``GiveUp``: say a sentence built from map labels; ``GiveUp`` then fails with it,
-  so the mission's reason is a sentence a person can act on.
 - ``DescribeCorrection``: a localisation correction in words.
 """
 from __future__ import annotations
@@ -27,85 +25,6 @@ from hearth.skills.values import as_pose
 from hearth.worldmodel.nodes import Knob
 
 S = py_trees.common.Status
-
-
-def _label(world, value: Any) -> str:
-    """Words for a node id, a search place dict, a door {part, handle} or anything else."""
-    if isinstance(value, dict):
-        value = value.get("part") or value.get("place") or value.get("id") or value
-    if isinstance(value, str) and world is not None and value in world:
-        if isinstance(world.get(value), Knob):   # knobs have no name: "oven knob 2"
-            return value.replace("_", " ")
-        return world.label(value)
-    if isinstance(value, dict):
-        return "the position at {:.1f}, {:.1f}".format(float(value.get("x", 0.0)),
-                                                        float(value.get("y", 0.0)))
-    return "" if value is None else str(value)
-
-
-def _join(words: list[str]) -> str:
-    words = [w for w in words if w]
-    if len(words) <= 1:
-        return "".join(words)
-    return ", ".join(words[:-1]) + " and " + words[-1]
-
-
-class Tell(Skill):
-    """Say a sentence built from a template and map labels (through ``robot.say``).
-
-    Template fields: ``{object}``, ``{place}``, ``{part}`` (labels of node ids, search places
-    or doors), ``{count}`` (a number, or a list's length), ``{places}`` (a list's labels
-    joined: "the kitchen table, the side table and the cupboard"), ``{detail}`` (text, or a
-    list joined with "; "), ``{s}`` ("s" unless count is 1: "{count} knob{s}")."""
-
-    NAME = "Tell"
-    DESCRIPTION = "say a sentence built from map labels"
-    INPUTS = (Port("text", "string"),
-              Port("object", "any", required=False, default=None),
-              Port("place", "any", required=False, default=None),
-              Port("part", "any", required=False, default=None),
-              Port("count", "any", required=False, default=None),
-              Port("places", "list", required=False, default=None),
-              Port("detail", "any", required=False, default=None),
-              Port("say", "boolean", required=False, default=True))
-    OUTPUTS = (Port("said", "string", required=False),)
-    RESULT = S.SUCCESS
-
-    def sentence(self) -> str:
-        count = self.input("count")
-        if isinstance(count, (list, tuple)):
-            count = len(count)
-        detail = self.input("detail")
-        if isinstance(detail, (list, tuple)):
-            detail = "; ".join(str(d) for d in detail if d)
-        places = self.input("places") or []
-        fields = dict(object=_label(self.world, self.input("object")),
-                      place=_label(self.world, self.input("place")),
-                      part=_label(self.world, self.input("part")),
-                      count=0 if count is None else count,
-                      s="" if count == 1 else "s",
-                      places=_join(["the " + _label(self.world, p) for p in places]),
-                      detail=detail or "")
-        text = str(self.input("text")).format(**fields)
-        # A template whose {detail} came out empty leaves a dangling ": " or "; ".
-        return text.strip().rstrip(" :;,")
-
-    def update(self) -> S:
-        text = self.sentence()
-        if self.input("say") and self.robot is not None and hasattr(self.robot, "say"):
-            self.robot.say(text)
-        self.set_output("said", text)
-        self.feedback_message = text
-        return self.RESULT
-
-
-class GiveUp(Tell):
-    """Tell the user why the mission cannot go on, then fail with that sentence (the mission's
-    reason): "no blue cup at the 3 places searched"."""
-
-    NAME = "GiveUp"
-    DESCRIPTION = "say why the mission cannot go on, and fail with it"
-    RESULT = S.FAILURE
 
 
 class LocateUser(Skill):
@@ -291,7 +210,7 @@ class DescribeCorrection(Skill):
         return S.SUCCESS
 
 
-__all__ = ["Tell", "GiveUp", "LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
+__all__ = ["LocateUser", "PlaceOfPose", "KnobsOn", "ExpectKnobsOff",
            "Remember", "SetValue", "Wait", "DescribeCorrection", "LookAt", "ProposedPlaces", "PlaceId", "LookAtLandmark"]
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hearth.executive.testing import Case, Script
+from hearth.executive.testing import MissionCase, Script
 from hearth import missions_dir
 
 MISSIONS = sorted(str(p) for p in Path(missions_dir()).glob("*.yaml")) + \
@@ -19,7 +19,7 @@ PARAMS = {"fetch_object": {"object": "blue cup"}, "search_object": {"object": "b
           "learn_object": {"name": "pill organiser"}}
 
 
-def branching_case(mission: str) -> Case:
+def branching_case(mission: str) -> MissionCase:
     """First attempts fail, later ones succeed; outputs that steer the loops."""
     scripts = [
         Script("ResolveObject", outputs={"object_id": "blue_cup", "room": "kitchen",
@@ -37,7 +37,7 @@ def branching_case(mission: str) -> Case:
                outputs={"correction": {"dx": 0.01, "dy": 0.0, "dyaw": 0.0}, "quality": 0.9}),
         Script("Grasp", outcomes=["failure", "success"]),
     ]
-    return Case(scripts=scripts, params=PARAMS.get(Path(mission).stem, {}))
+    return MissionCase(scripts=scripts, params=PARAMS.get(Path(mission).stem, {}))
 
 
 def timeline(log_path: str) -> list[tuple]:

@@ -144,8 +144,8 @@ def test_a_groot2_client_sees_every_logged_status_change_in_order(tmp_path, miss
 
 
 def test_a_watch_restart_shows_halted_nodes_going_idle(tmp_path):
-    from hearth.executive.testing import load_case
-    case = load_case(Path(__file__).parents[1] / "executive" / "cases" /
+    from hearth.executive.testing import load_mission_case
+    case = load_mission_case(Path(__file__).parents[1] / "executive" / "cases" /
                      "go_to_rest_presence_change.yaml")
     sub = Substitution(case.scripts, case.default)
     ex = Executive(clock=SimClock(), make_skill=sub, background=False,

@@ -9,7 +9,7 @@ import pytest
 
 from hearth.executive.btcpp import REFUSED, export_mission, import_tree
 from hearth.cli.main import main
-from hearth.executive.testing import Case, Script, Substitution, run_case
+from hearth.executive.testing import MissionCase, Script, Substitution, run_mission_case
 from hearth import missions_dir
 
 from .conftest import branching_case, timeline
@@ -38,8 +38,8 @@ def test_imported_mission_behaves_the_same(tmp_path, shipped_mission):
     scripted stand-ins (the imported mission keeps every node's path)."""
     _, back = imported(tmp_path, shipped_mission)
     case = branching_case(shipped_mission)
-    a = run_case(shipped_mission, case, runs_dir=str(tmp_path / "a"))
-    b = run_case(back, case, runs_dir=str(tmp_path / "b"))
+    a = run_mission_case(shipped_mission, case, runs_dir=str(tmp_path / "a"))
+    b = run_mission_case(back, case, runs_dir=str(tmp_path / "b"))
     assert (b.outcome, b.reason, b.ticks) == (a.outcome, a.reason, a.ticks)
     assert b.nodes == a.nodes and b.never_ticked == a.never_ticked
     ta, tb = timeline(a.log_path), timeline(b.log_path)
@@ -77,7 +77,7 @@ HAND_WRITTEN = """\
   </BehaviorTree>
   <BehaviorTree ID="Report">
     <Sequence>
-      <Tell name="tell" text="I am at the {place}" place="{place}" said="{what}"/>
+      <Say name="tell" text="I am at the {place}" place="{place}" said="{what}"/>
       <Say name="echo" text="{what}"/>
     </Sequence>
   </BehaviorTree>
@@ -92,9 +92,9 @@ def test_hand_written_btcpp_xml_runs_with_stand_in_skills(tmp_path):
     assert mission.name == "Fetch"
     out = tmp_path / "fetch.yaml"
     out.write_text(text)
-    case = Case(scripts=[Script("*/first_try", outcomes=["failure"]),
-                         Script("*/again", outcomes=["failure", "success"], duration=0.2),
-                         Script("Tell", outputs={"said": "I am at the side table"})])
+    case = MissionCase(scripts=[Script("*/first_try", outcomes=["failure"]),
+                                Script("*/again", outcomes=["failure", "success"], duration=0.2),
+                                Script("Say", outputs={"said": "I am at the side table"})])
     sub = Substitution(case.scripts, case.default)
     from hearth.executive.executive import Executive
     from hearth.robot.clock import SimClock
@@ -198,7 +198,7 @@ BAD_CASES = {
         '      <input_port name="volume" type="double"/>\n'
         '    </Action>\n  </TreeNodesModel>\n</root>\n', 6,
         "the model of Say declares port 'volume', which skill Say lacks (ports: text, values, "
-        "said)"),
+        "object, place, part, count, places, detail, say, said)"),
     "key read but never written": (bad('<Say text="{nothing}"/>\n'), 3,
                                    "reads key {nothing} that nothing writes"),
     "literal of the wrong type": (bad('<RetryUntilSuccessful num_attempts="two">\n'
@@ -301,10 +301,10 @@ def test_state_machines_and_guards_round_trip(tmp_path):
     assert "<StateMachine" in xml and '<State name="look" transitions="success:grasp;failure:move">' in xml
     assert '<Guard while="{object} != nothing">' in xml
     assert export_mission(back) == xml
-    case = Case(scripts=[Script("DetectObject", outcomes=["failure", "success"]),
-                         Script("NavigateTo", duration=0.2)])
-    a = run_case(str(src), case, runs_dir=str(tmp_path / "a"))
-    b = run_case(back, case, runs_dir=str(tmp_path / "b"))
+    case = MissionCase(scripts=[Script("DetectObject", outcomes=["failure", "success"]),
+                                Script("NavigateTo", duration=0.2)])
+    a = run_mission_case(str(src), case, runs_dir=str(tmp_path / "a"))
+    b = run_mission_case(back, case, runs_dir=str(tmp_path / "b"))
     assert a.outcome == "succeeded" and timeline(b.log_path) == timeline(a.log_path)
 
 
@@ -328,9 +328,9 @@ def test_initial_blackboard_and_a_key_named_like_a_parameter_round_trip(tmp_path
     xml, back = imported(tmp_path, str(src))
     assert '<Say text="{room_key}"/>' in xml and 'text="{room}"' in xml
     assert export_mission(back) == xml
-    case = Case(scripts=[])
-    a = run_case(str(src), case, runs_dir=str(tmp_path / "a"))
-    b = run_case(back, case, runs_dir=str(tmp_path / "b"))
+    case = MissionCase(scripts=[])
+    a = run_mission_case(str(src), case, runs_dir=str(tmp_path / "a"))
+    b = run_mission_case(back, case, runs_dir=str(tmp_path / "b"))
     assert a.outcome == b.outcome == "succeeded"
     seen = [e for e in timeline(b.log_path) if e[1] == "status"]
     assert seen == [e for e in timeline(a.log_path) if e[1] == "status"]

@@ -5,8 +5,8 @@ from hypothesis import given, settings, strategies as st
 
 from hearth.cli.main import main
 from hearth.executive.errors import MissionValidationError
-from hearth.executive.missionfile import (check_value, load_mission, parse_expression, parse_param_text,
-                                   validate_file)
+from hearth.executive.missionfile import check_value, load_mission, parse_expression, validate_file
+from hearth.executive.missionfile_types import parse_param_text
 from hearth.executive.testing import test_skills
 from hearth.executive.errors import MissionError
 
@@ -418,12 +418,13 @@ def test_validating_is_linear_in_the_number_of_siblings(mission_file):
 
 
 def test_the_schemas_maxima_are_the_documented_limits():
-    from hearth.executive import missionfile as mf
-    defs = mf.schema()["$defs"]
-    assert defs["retry"]["properties"]["times"]["maximum"] == mf.MAX_RETRY_TIMES
-    assert defs["repeat"]["properties"]["times"]["maximum"] == mf.MAX_REPEAT_TIMES
-    assert defs["timeout"]["properties"]["seconds"]["maximum"] == mf.MAX_TIMEOUT_SECONDS
-    assert defs["parallel"]["properties"]["threshold"]["maximum"] == mf.MAX_TREE_NODES
+    from hearth.executive import missionfile_format as fmt
+    from hearth.executive.missionfile import schema
+    defs = schema()["$defs"]
+    assert defs["retry"]["properties"]["times"]["maximum"] == fmt.MAX_RETRY_TIMES
+    assert defs["repeat"]["properties"]["times"]["maximum"] == fmt.MAX_REPEAT_TIMES
+    assert defs["timeout"]["properties"]["seconds"]["maximum"] == fmt.MAX_TIMEOUT_SECONDS
+    assert defs["parallel"]["properties"]["threshold"]["maximum"] == fmt.MAX_TREE_NODES
 
 
 def test_a_malformed_enum_in_an_included_subtree_is_one_line(mission_file):

@@ -1,7 +1,7 @@
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from hearth.executive.replay import read_log, replay
-from hearth.executive.testing import Script as S, load_case, run_case, test_skills
+from hearth.executive.testing import Script as S, load_mission_case, run_mission_case, test_skills
 from py_trees.common import Status
 
 
@@ -379,7 +379,7 @@ def test_test_mission_reports_never_ticked_nodes(mission_file, tmp_path, capsys)
     assert main(["test-mission", "missions/go_to_rest.yaml", "--substitute", str(case)]) == 0
     out = capsys.readouterr().out
     assert "never ticked: /follow_presence/choose_rest_place/user_home/near_user/drive_near_user" in out
-    report = run_case("missions/go_to_rest.yaml", load_case(case))
+    report = run_mission_case("missions/go_to_rest.yaml", load_mission_case(case))
     # away: the near-user branch (5 nodes), its fall-back (3) and the away give-up never run
     assert report.outcome == "succeeded" and len(report.never_ticked) == 8
 

@@ -19,10 +19,10 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    from hearth.executive.testing import load_case, run_case
+    from hearth.executive.testing import load_mission_case, run_mission_case
 
-    case = load_case(args.substitute)
-    report = run_case(args.mission, case, runs_dir=args.runs_dir)
+    case = load_mission_case(args.substitute)
+    report = run_mission_case(args.mission, case, runs_dir=args.runs_dir)
     print(f"outcome: {report.outcome} ({report.reason}) after {report.ticks} ticks, "
           f"{report.duration:.2f} s simulated")
     covered = len(report.nodes) - len(report.never_ticked)
