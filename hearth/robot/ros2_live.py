@@ -50,6 +50,29 @@ from hearth.worldmodel.pose import Pose
 LOST = "lost the link to the robot"
 
 
+def _close_at_exit(robot: "Ros2Robot") -> None:
+    """Close ``robot`` when the interpreter exits, even if its user forgot: zenoh-python runs
+    callbacks on Python threads that end only when their subscriber goes, and the interpreter
+    joins such threads *before* ``atexit`` handlers run, so a forgotten session would hang the
+    exit. ``threading._register_atexit`` (what concurrent.futures uses) runs before that join;
+    ``atexit`` is the fallback."""
+    import weakref
+    ref = weakref.ref(robot)
+
+    def close() -> None:
+        r = ref()
+        if r is not None:
+            r.close()
+    register = getattr(threading, "_register_atexit", None)
+    try:
+        if register is None:
+            raise RuntimeError
+        register(close)
+    except RuntimeError:                               # no such hook, or already shutting down
+        import atexit
+        atexit.register(close)
+
+
 class _LiveTf(TfBuffer):
     """tf as it streams in: thread-safe, keeping ``keep_s`` seconds of each moving frame."""
 
@@ -308,7 +331,9 @@ class Ros2Robot:
         self._nav_hash = type_hash(NAV2_ACTION[0] + "_SendGoal")
         self._lv = self.session.liveliness().declare_subscriber(
             f"{ADMIN_SPACE}/{node.domain}/**", self._on_token, history=True)
+        self._closed = False
         self._wait_connected(connect_timeout)
+        _close_at_exit(self)
 
     # -- connection and link ----------------------------------------------------------------
     def _on_token(self, sample) -> None:
@@ -666,6 +691,9 @@ class Ros2Robot:
             g.cancel()
 
     def close(self) -> None:
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
         try:
             self._lv.undeclare()
         except Exception:                              # noqa: BLE001

@@ -212,11 +212,12 @@ class SimRobotServer:
     the other side sees the link go)."""
 
     def __init__(self, robot, session, topics: Any = None, camera_rate: float = 5.0,
-                 tf_rate: float = 20.0, node_name: str = "hearth_sim_robot"):
+                 tf_rate: float = 20.0, node_name: str = "hearth_sim_robot",
+                 domain: Optional[int] = None):
         self.robot = robot
         self.clock = robot.clock
         self.m = m = load_topic_map(topics) if not isinstance(topics, TopicMap) else topics
-        self.node = node = Node(session, node_name)
+        self.node = node = Node(session, node_name, domain=domain)
         self.t = node.types
         self.lock = threading.RLock()
         self.camera_frame = m.camera_frame or CAMERA_FRAME
@@ -473,11 +474,11 @@ class SimRobotServer:
 
 def serve_simulated(session, world=None, scenario: Optional[str] = None, topics: Any = None,
                     rate: float = 1.0, camera_rate: float = 5.0, tf_rate: float = 20.0,
-                    **kw) -> SimRobotServer:
+                    domain: Optional[int] = None, **kw) -> SimRobotServer:
     """A SimulatedRobot (on a scenario or a copy of ``world``) on a ``ScaledClock`` served on
     ``session``. Keywords go to SimulatedRobot."""
     from hearth.robot import create_adapter
     clock = ScaledClock(rate)
     robot = create_adapter(world=world, scenario=scenario, clock=clock, **kw)
     return SimRobotServer(robot, session, topics=topics, camera_rate=camera_rate,
-                          tf_rate=tf_rate)
+                          tf_rate=tf_rate, domain=domain)

@@ -11,7 +11,7 @@ import sys
 import time
 
 from hearth.cli.util import (add_command, add_run_arguments, add_topics_argument, close_map,
-                               make_executive, outcome_line, run_to_end)
+                               close_robot, make_executive, outcome_line, run_to_end)
 
 
 def register(sub) -> None:
@@ -77,6 +77,7 @@ def _run(args) -> int:
         if sink is not None:
             sink.wait_for_viewers_to_leave(args.foxglove_wait)
             sink.close()
+        close_robot(ex.robot)
         close_map(keeper, quiet=args.quiet)
     print(outcome_line(mission, result), flush=True)
     return 0 if result.outcome == "succeeded" else 1
