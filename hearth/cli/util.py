@@ -268,6 +268,12 @@ def close_robot(robot: Any) -> None:
         close()
 
 
+def link_lost(robot: Any) -> str | None:
+    """Why a live robot's link was lost (one line), or None (never lost, or not live)."""
+    lost = getattr(robot, "link_lost", None)
+    return lost() if callable(lost) else None
+
+
 def drop_stdout() -> None:
     """Whoever read stdout has gone (``hearth log show ... | head``): what is still to be
     printed goes to /dev/null, so neither a later print nor Python's final flush raises."""

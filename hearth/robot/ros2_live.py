@@ -203,9 +203,14 @@ class GoalAction(Action):
                                  self._result, timeout=self.robot.link_timeout)
 
     def on_feedback(self, fb) -> None:
-        p = getattr(fb, "progress", None)
+        p = getattr(fb, "progress", None)          # RobotTask's
         if p is not None:
-            self.progress = float(p)
+            self.progress = min(max(float(p), 0.0), 1.0)
+            return
+        left = getattr(fb, "distance_remaining", None)      # NavigateToPose's
+        if left is not None and math.isfinite(float(left)):
+            self._first_left = getattr(self, "_first_left", None) or max(float(left), 1e-6)
+            self.progress = min(max(1.0 - float(left) / self._first_left, 0.0), 0.99)
 
     def _result(self, resp) -> None:
         if resp is None:
@@ -274,7 +279,7 @@ class Ros2Robot:
 
     def __init__(self, world=None, endpoint: str = DEFAULT_ENDPOINT, topics: Any = None,
                  clock=None, domain: Optional[int] = None, session=None,
-                 connect_timeout: float = 10.0, capture_timeout: float = 5.0,
+                 connect_timeout: Optional[float] = None, capture_timeout: float = 5.0,
                  mount=HEAD):
         from hearth.robot.clock import WallClock
         self.world, self.endpoint = world, endpoint
@@ -282,6 +287,8 @@ class Ros2Robot:
         self.m: TopicMap = load_topic_map(topics) if not isinstance(topics, TopicMap) else topics
         self.mount = mount
         self.link_timeout = float(self.m.link_timeout)
+        connect_timeout = float(self.m.connect_timeout if connect_timeout is None
+                                else connect_timeout)
         self.capture_timeout = float(capture_timeout)
         self._own_session = session is None
         self.session = open_session(endpoint) if session is None else session
@@ -379,6 +386,19 @@ class Ros2Robot:
                          "(is the robot on rmw_zenoh_cpp, its router reachable, ROS_DOMAIN_ID "
                          "the same?)")
 
+    def robot_time_ns(self) -> int:
+        """The robot's time: the stamp of the newest tf it sent (ns since the UNIX epoch on its
+        clock, simulated or not; ``use_sim_time`` robots stamp with ``/clock``). Hearth stamps
+        what it sends with it, never with its own clock, so the two need not agree."""
+        return int(self._tf.latest_ns)
+
+    def link_lost(self) -> Optional[str]:
+        """Why the link to the robot is lost (one line), or None while it holds (after
+        ``close()``: as it was when closed)."""
+        if getattr(self, "_closed", False):
+            return self._lost_at_close
+        return self._lost_reason()
+
     def _lost_reason(self) -> Optional[str]:
         with self._cv:
             if self._link.lost:
@@ -464,7 +484,7 @@ class Ros2Robot:
         T = pose.matrix()
         from scipy.spatial.transform import Rotation
         q = Rotation.from_matrix(T[:3, :3]).as_quat()
-        ns = time.time_ns()
+        ns = self.robot_time_ns()
         cov = np.zeros(36)
         cov[0] = cov[7] = 0.01 ** 2
         cov[35] = math.radians(0.5) ** 2
@@ -496,7 +516,7 @@ class Ros2Robot:
         from scipy.spatial.transform import Rotation
         q = Rotation.from_matrix(T[:3, :3]).as_quat()
         return t["geometry_msgs/msg/PoseStamped"](
-            header=t["std_msgs/msg/Header"](stamp=stamp(time.time_ns(), t),
+            header=t["std_msgs/msg/Header"](stamp=stamp(self.robot_time_ns(), t),
                                             frame_id=self.m.map_frame),
             pose=t["geometry_msgs/msg/Pose"](
                 position=t["geometry_msgs/msg/Point"](*map(float, T[:3, 3])),
@@ -525,7 +545,7 @@ class Ros2Robot:
         pan, tilt = self.mount.clip(float(pan), float(tilt))
         t = self.types
         self._pub_head(t["trajectory_msgs/msg/JointTrajectory"](
-            header=t["std_msgs/msg/Header"](stamp=stamp(time.time_ns(), t), frame_id=""),
+            header=t["std_msgs/msg/Header"](stamp=stamp(self.robot_time_ns(), t), frame_id=""),
             joint_names=[self.m.head_pan_joint, self.m.head_tilt_joint],
             points=[t["trajectory_msgs/msg/JointTrajectoryPoint"](
                 positions=np.array([pan, tilt]), velocities=np.zeros(0),
@@ -693,6 +713,7 @@ class Ros2Robot:
     def close(self) -> None:
         if getattr(self, "_closed", False):
             return
+        self._lost_at_close = self._lost_reason() if hasattr(self, "_tf") else None
         self._closed = True
         try:
             self._lv.undeclare()

@@ -173,7 +173,8 @@ class TopicMap:
     initial_pose: str = "/initialpose"
     battery: str = "/battery_state"
     say: str = "/hearth/say"
-    link_timeout: float = 3.0
+    link_timeout: float = 3.0          # no tf for this long (s): the link is lost
+    connect_timeout: float = 10.0      # no NavigateToPose server and tf within this (s): refused
 
 
 _KEYS = {f.name for f in fields(TopicMap)}
