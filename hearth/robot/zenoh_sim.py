@@ -259,6 +259,11 @@ class SimRobotServer:
     def _ns(self) -> int:
         return int(round(self.clock.wall() * 1e9))
 
+    def _stamp_of(self, clock_s: float) -> int:
+        """ns since the UNIX epoch of a time of the robot's clock."""
+        return int(round((self.clock.epoch + clock_s) * 1e9)) if hasattr(self.clock, "epoch") \
+            else self._ns()
+
     def _header(self, ns: int, frame: str):
         return self.t["std_msgs/msg/Header"](stamp=stamp(ns, self.t), frame_id=frame)
 
@@ -296,6 +301,7 @@ class SimRobotServer:
     def _loop(self) -> None:
         t = self.t
         last_battery = -1e9
+        due = self.clock.now()
         while not self._stop.is_set():
             with self.lock:
                 ns = self._ns()
@@ -313,7 +319,10 @@ class SimRobotServer:
                     self._pub["battery"](self._battery_msg(ns, b))
             self.nav.poll()
             self.task.poll()
-            self.clock.sleep(self.tf_period)
+            # on a schedule of robot time (not a sleep after the work): a late message is
+            # followed by the next one sooner, a stall is not made up for with a burst
+            due = max(due + self.tf_period, self.clock.now())
+            self.clock.sleep(due - self.clock.now())
 
     def _battery_msg(self, ns: int, b):
         t = self.t
@@ -344,13 +353,20 @@ class SimRobotServer:
     def publish_frame(self) -> None:
         """Render one RGB-D frame and publish it (tf at its stamp first)."""
         t = self.t
-        with self.lock:
-            frame = self.robot.capture()
-            ns = int(round((self.clock.epoch + frame.timestamp) * 1e9)) \
-                if hasattr(self.clock, "epoch") else self._ns()
-            base = frame.base_pose
-            T_bc = np.linalg.inv(base.matrix()) @ np.asarray(frame.T_world_camera)
-            self._publish_tf(ns, base, T_bc)
+        job = getattr(self.robot, "capture_job", None)
+        if job is not None and getattr(self.robot, "renderer", "") != "mujoco":
+            with self.lock:                     # the state now, and tf at its stamp (in order)
+                render = job()
+                ns = self._stamp_of(render.timestamp)
+                self._publish_tf(ns, self.robot.base_pose(), self._T_base_camera())
+            frame = render()                    # tf goes on while it renders
+        else:
+            with self.lock:                     # MuJoCo reads the truth while it draws
+                frame = self.robot.capture()
+                ns = self._stamp_of(frame.timestamp)
+                base = frame.base_pose
+                self._publish_tf(ns, base, np.linalg.inv(base.matrix())
+                                 @ np.asarray(frame.T_world_camera))
         mm = np.clip(np.round(np.nan_to_num(frame.depth) * 1000.0), 0, 65535).astype("<u2")
         h, w = mm.shape
         Image = t["sensor_msgs/msg/Image"]
