@@ -240,8 +240,10 @@ class GoalAction(Action):
         t = self.robot.node.types
         req = t["action_msgs/srv/CancelGoal_Request"](goal_info=t["action_msgs/msg/GoalInfo"](
             goal_id=_uuid_msg(t, self.gid), stamp=stamp(0, t)))
-        self.robot.node.call(self.names["cancel_goal"], CANCEL_SRV[0], req, lambda r: None,
-                             timeout=self.robot.link_timeout)
+        answered = threading.Event()
+        self.robot._cancels.append(answered)          # close() waits for the robot's answer
+        self.robot.node.call(self.names["cancel_goal"], CANCEL_SRV[0], req,
+                             lambda r: answered.set(), timeout=self.robot.link_timeout)
 
 
 class _HeadAction(Action):
@@ -295,6 +297,7 @@ class Ros2Robot:
         self.node = node = Node(self.session, "hearth", domain=domain)
         self.types = node.types
         self._goals: dict[bytes, GoalAction] = {}
+        self._cancels: list[threading.Event] = []
         self._link = _Link()
         self._cv = threading.Condition()
         self._tf = _LiveTf(int(self.m.tf_tolerance * 1e9))
@@ -715,6 +718,10 @@ class Ros2Robot:
             return
         self._lost_at_close = self._lost_reason() if hasattr(self, "_tf") else None
         self._closed = True
+        t_end = time.monotonic() + self.link_timeout      # cancels sent at the end (Ctrl-C)
+        for answered in getattr(self, "_cancels", []):  # reach the robot before we go
+            if self._lost_at_close or not answered.wait(max(t_end - time.monotonic(), 0)):
+                break
         try:
             self._lv.undeclare()
         except Exception:                              # noqa: BLE001

@@ -81,6 +81,15 @@ def _T_of(pose_msg) -> np.ndarray:
     return T
 
 
+def _describe(goal) -> str:
+    """A goal in a few words: a NavigateToPose's x, y, yaw; a RobotTask's task and target."""
+    if hasattr(goal, "task"):
+        return " ".join(str(v) for v in (goal.task, goal.target) if str(v))
+    p, q = goal.pose.pose.position, goal.pose.pose.orientation
+    yaw = math.degrees(2 * math.atan2(q.z, q.w))
+    return f"to x {p.x:.2f}, y {p.y:.2f}, yaw {yaw:.0f} deg in {goal.pose.header.frame_id}"
+
+
 class ActionServer:
     """A ROS 2 action server on a Node (the five endpoints of ``action_names``).
 
@@ -88,8 +97,11 @@ class ActionServer:
     ``feedback(action) -> the Feedback message or None``. ``poll()`` (from the server's loop)
     moves goals on, publishes feedback and status, and answers waiting get_result calls."""
 
-    def __init__(self, node: Node, name: str, typename: str, start, result, feedback, lock):
+    def __init__(self, node: Node, name: str, typename: str, start, result, feedback, lock,
+                 log=None):
         self.node, self.typename, self._start = node, typename, start
+        self._log = log or (lambda text: None)
+        self.action = name
         self._result, self._feedback, self._lock = result, feedback, lock
         n = self.names = action_names(name)
         t = node.types
@@ -119,6 +131,7 @@ class ActionServer:
                     del self.goals[old]
         t = self.t
         reply(t[self.typename + "_SendGoal_Response"](accepted=True, stamp=stamp(now, t)))
+        self._log(f"{self.action} goal {gid.hex()[:8]}: accepted ({_describe(req.goal)})")
         self.poll()
 
     def _goal_info(self, gid: bytes, g: dict):
@@ -177,6 +190,9 @@ class ActionServer:
                     g["status"] = new
                     changed = True
                     if new in TERMINAL:
+                        self._log(f"{self.action} goal {gid.hex()[:8]}: "
+                                  f"{ {SUCCEEDED: 'succeeded', CANCELED: 'canceled'}.get(new, 'aborted')}"
+                                  + (f" ({g['action'].reason})" if new == ABORTED else ""))
                         g["result"] = self._result(g["action"], new)
                         res = t[self.typename + "_GetResult_Response"](status=new,
                                                                       result=g["result"])
@@ -213,7 +229,7 @@ class SimRobotServer:
 
     def __init__(self, robot, session, topics: Any = None, camera_rate: float = 5.0,
                  tf_rate: float = 20.0, node_name: str = "hearth_sim_robot",
-                 domain: Optional[int] = None):
+                 domain: Optional[int] = None, log=None):
         self.robot = robot
         self.clock = robot.clock
         self.m = m = load_topic_map(topics) if not isinstance(topics, TopicMap) else topics
@@ -241,9 +257,9 @@ class SimRobotServer:
                        self._on_initial_pose)
         node.subscribe(m.say, "std_msgs/msg/String", self._on_say)
         self.nav = ActionServer(node, m.navigate_action, NAV2_ACTION[0], self._navigate,
-                                self._nav_result, self._nav_feedback, self.lock)
+                                self._nav_result, self._nav_feedback, self.lock, log=log)
         self.task = ActionServer(node, m.task_action, TASK_ACTION[0], self._task,
-                                 self._task_result, self._task_feedback, self.lock)
+                                 self._task_result, self._task_feedback, self.lock, log=log)
         self._stop = threading.Event()
         self.robot.capture()        # the first frame builds the scene (seconds): not while live
         self._camera_errors = 0
@@ -490,11 +506,11 @@ class SimRobotServer:
 
 def serve_simulated(session, world=None, scenario: Optional[str] = None, topics: Any = None,
                     rate: float = 1.0, camera_rate: float = 5.0, tf_rate: float = 20.0,
-                    domain: Optional[int] = None, **kw) -> SimRobotServer:
+                    domain: Optional[int] = None, log=None, **kw) -> SimRobotServer:
     """A SimulatedRobot (on a scenario or a copy of ``world``) on a ``ScaledClock`` served on
     ``session``. Keywords go to SimulatedRobot."""
     from hearth.robot import create_adapter
     clock = ScaledClock(rate)
     robot = create_adapter(world=world, scenario=scenario, clock=clock, **kw)
     return SimRobotServer(robot, session, topics=topics, camera_rate=camera_rate,
-                          tf_rate=tf_rate, domain=domain)
+                          tf_rate=tf_rate, domain=domain, log=log)

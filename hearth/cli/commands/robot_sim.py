@@ -67,7 +67,8 @@ def _run(args) -> int:
         server = serve_simulated(session, world=world, scenario=args.scenario,
                                  topics=args.topics, rate=args.rate,
                                  camera_rate=args.camera_hz, tf_rate=args.tf_hz,
-                                 seed=args.seed, domain=args.domain)
+                                 seed=args.seed, domain=args.domain,
+                                 log=lambda text: print(f"robot-sim: {text}", flush=True))
         role = "router on" if mode == "router" else "peer of the router at"
         print(f"robot-sim: a ROS 2 robot on Zenoh ({role} {endpoint}, domain "
               f"{server.node.domain}); run a mission with: hearth run MISSION --ros2 "
