@@ -374,7 +374,14 @@ class Ros2Robot:
                     return
                 self._cv.wait(0.05)
         hashes = sorted(set(self._link.tokens.values()) - {self._nav_hash})
-        if hashes:
+        try:
+            info = self.session.info
+            alone = not list(info.routers_zid()) and not list(info.peers_zid())
+        except Exception:                              # noqa: BLE001 (an older zenoh)
+            alone = False
+        if alone:
+            why = "nothing answers there (no Zenoh router such as rmw_zenohd, no peer)"
+        elif hashes:
             why = (f"its NavigateToPose ({self.m.navigate_action}) has type hash {hashes[0]}, "
                    f"Hearth's is {self._nav_hash} (another nav2_msgs version)")
         elif not self._link.tokens:
@@ -385,9 +392,8 @@ class Ros2Robot:
         else:
             why = f"no tf from {self.m.map_frame} to {self.m.base_frame} ({self._tf_problem()})"
         self.close()
-        raise RobotError(f"no ROS 2 robot at {self.endpoint} within {timeout:g} s: {why} "
-                         "(is the robot on rmw_zenoh_cpp, its router reachable, ROS_DOMAIN_ID "
-                         "the same?)")
+        hint = "" if alone else " (is the robot on rmw_zenoh_cpp, ROS_DOMAIN_ID the same?)"
+        raise RobotError(f"no ROS 2 robot at {self.endpoint} within {timeout:g} s: {why}{hint}")
 
     def robot_time_ns(self) -> int:
         """The robot's time: the stamp of the newest tf it sent (ns since the UNIX epoch on its

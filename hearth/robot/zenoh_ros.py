@@ -271,11 +271,23 @@ def session_config(endpoint: str = DEFAULT_ENDPOINT, mode: str = "peer", listen:
 
 def open_session(endpoint: str = DEFAULT_ENDPOINT, mode: str = "peer"):
     require_zenoh()
+    import re
+
     import zenoh
+    if not re.fullmatch(r"[a-z][a-z0-9-]*/[^\s/]\S*", str(endpoint)):
+        raise RobotError(f"{endpoint!r} is not a Zenoh endpoint (<protocol>/<address>, e.g. "
+                         f"{DEFAULT_ENDPOINT})")
     try:
         return zenoh.open(session_config(endpoint, mode))
     except zenoh.ZError as err:
-        raise RobotError(f"zenoh: cannot open a session on {endpoint}: {err}") from None
+        raise RobotError(f"zenoh: cannot open a session on {endpoint}: {_plain(err)}") from None
+
+
+def _plain(err) -> str:
+    """Zenoh's error text without the Rust source locations it carries."""
+    import re
+    text = re.sub(r"\s+at \S+\.rs:\d+\.?", "", str(err))
+    return re.sub(r"[\[\]]", "", text).strip().rstrip(".")
 
 
 def stamp(ns: int, t=None):

@@ -498,9 +498,15 @@ class SimRobotServer:
                                                     state=act.status())
 
     def close(self) -> None:
+        """Stop serving: the threads end, the robot stops what it was doing (as a robot whose
+        software ends does), every liveliness token goes."""
         self._stop.set()
         for th in self._threads:
             th.join(timeout=5)
+        with self.lock:
+            stop = getattr(self.robot, "stop", None)
+            if callable(stop):
+                stop()
         self.node.close()
 
 

@@ -60,10 +60,17 @@ def live():
                          localisation_error=sc.localisation_error, seed=0)
     server = SimRobotServer(sim, session, camera_rate=4.0, domain=domain)
     robot = Ros2Robot(world=sc.belief, endpoint=endpoint, domain=domain, connect_timeout=20)
-    yield dict(sc=sc, params=params, target=target, sim=sim, server=server, robot=robot,
-               endpoint=endpoint, domain=domain, session=session)
+    live = dict(sc=sc, params=params, target=target, sim=sim, server=server, robot=robot,
+                endpoint=endpoint, domain=domain, session=session)
+
+    def restart():
+        """The robot comes back (a new node on the same robot)."""
+        live["server"].close()
+        live["server"] = SimRobotServer(sim, session, camera_rate=4.0, domain=domain)
+    live["restart"] = restart
+    yield live
     robot.close()
-    server.close()
+    live["server"].close()
     session.close()
 
 
@@ -196,6 +203,67 @@ def test_cancelling_a_mission_cancels_the_navigation_goal(live):
                for _, pose in belief.parking_positions(far.id)) > 0.1
 
 
+def _farthest_object(live):
+    belief, sim = live["sc"].belief, live["sim"]
+    return max(belief.large_objects(), key=lambda o: min(
+        pose.planar_distance(sim.base_pose()) for _, pose in belief.parking_positions(o.id)))
+
+
+def test_hearth_run_ros2_drives_the_live_robot(live, tmp_path, monkeypatch, capsys):
+    from hearth.cli.main import main
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(live["domain"]))
+    far = _farthest_object(live)
+    rc = main(["run", "go_to_rest", "--no-save", "--quiet", "--runs-dir", str(tmp_path),
+               "--ros2", live["endpoint"], "--param", f"rest_near_user={far.id}"])
+    out = capsys.readouterr()
+    assert rc == 0, out
+    assert out.out.startswith("go_to_rest: succeeded")
+    sim, belief = live["sim"], live["sc"].belief
+    assert min(pose.planar_distance(sim.base_pose())
+               for _, pose in belief.parking_positions(far.id)) < 0.05
+
+
+def test_a_link_lost_during_hearth_run_is_one_line_and_exit_2(live, tmp_path, monkeypatch,
+                                                              capsys):
+    import threading
+
+    from hearth.cli.main import main
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(live["domain"]))
+    server = live["server"]
+    before = set(server.nav.goals)
+
+    def pull_the_plug():
+        t_end = time.monotonic() + 30
+        while time.monotonic() < t_end:
+            new = [g for k, g in server.nav.goals.items() if k not in before]
+            if new and new[0]["status"] == EXECUTING:
+                server.close()
+                return
+            time.sleep(0.02)
+    th = threading.Thread(target=pull_the_plug, daemon=True)
+    th.start()
+    far = _farthest_object(live)
+    rc = main(["run", "go_to_rest", "--no-save", "--quiet", "--runs-dir", str(tmp_path),
+               "--ros2", live["endpoint"], "--param", f"rest_near_user={far.id}"])
+    th.join(5)
+    out = capsys.readouterr()
+    err = out.err.strip().splitlines()
+    assert rc == 2, out
+    assert len(err) == 1 and err[0].startswith("lost the link to the robot: its "
+                                               "NavigateToPose server /navigate_to_pose left")
+    live["restart"]()
+    robot = live["robot"]                       # the fixture's adapter: back when the robot is
+    t_end = time.monotonic() + 5
+    while robot.link_lost() and time.monotonic() < t_end:
+        time.sleep(0.05)
+    assert robot.link_lost() is None
+    t_end = time.monotonic() + 3                # tf from the new node
+    while robot.base_pose().planar_distance(live["sim"].base_pose()) > 1e-3 and \
+            time.monotonic() < t_end:
+        time.sleep(0.05)
+    assert robot.base_pose().planar_distance(live["sim"].base_pose()) < 1e-3
+
+
 def test_a_dead_endpoint_is_one_line_and_exit_2(capsys):
     from hearth.cli.main import main
     t0 = time.monotonic()
@@ -204,7 +272,7 @@ def test_a_dead_endpoint_is_one_line_and_exit_2(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1, err
     assert err[0].startswith("no ROS 2 robot at tcp/127.0.0.1:")
-    assert "no NavigateToPose server /navigate_to_pose" in err[0]
+    assert "nothing answers there" in err[0]
     assert time.monotonic() - t0 < 15
 
 

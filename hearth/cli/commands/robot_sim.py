@@ -23,10 +23,12 @@ DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 def register(sub) -> None:
     p = add_command(sub, "robot-sim", __doc__,
                     help="serve the simulated robot as a live ROS 2 robot over Zenoh")
-    p.add_argument("--world", default=None, metavar="W",
-                   help="the home (world file; default: the shipped demo home)")
-    p.add_argument("--scenario", default=None, metavar="DIR",
-                   help="a simulation scenario (its truth and start pose) instead of --world")
+    home = p.add_mutually_exclusive_group()
+    home.add_argument("--world", default=None, metavar="W",
+                      help="the home (world file; default: the shipped demo home)")
+    home.add_argument("--scenario", default=None, metavar="DIR",
+                      help="a simulation scenario (its truth, start pose, localisation error, "
+                           "stuck knobs) instead of --world")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--listen", default=None, metavar="ENDPOINT",
                        help=f"be the Zenoh router on ENDPOINT (default {DEFAULT_LISTEN})")
