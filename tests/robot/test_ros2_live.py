@@ -24,6 +24,8 @@ from hearth.robot.zenoh_ros import (ADMIN_SPACE, CANCELED, EXECUTING, NAV2_ACTIO
 # rmw_zenoh docs/design.md, "Topic and Service name mapping to Zenoh key expressions"
 DESIGN_STRING_KEY = ("0/chatter/std_msgs::msg::dds_::String_/"
                      "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18")
+DESIGN_SERVICE_KEY = ("2/add_two_ints/example_interfaces::srv::dds_::AddTwoInts_/"
+                      "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a")
 RATE = 4.0              # the simulated robot runs four times real time
 
 
@@ -83,8 +85,20 @@ def _executive(live):
 # -- names and encodings ---------------------------------------------------------------------
 
 def test_keys_and_hashes_are_the_ones_rmw_zenoh_documents():
+    from hearth.robot.zenoh_ros import _msgs, _service_texts, typestore
     assert topic_key(0, "/chatter", "std_msgs/msg/String") == DESIGN_STRING_KEY
     assert type_hash("std_msgs/msg/String") == DESIGN_STRING_KEY.rsplit("/", 1)[1]
+    # a service's hash covers its request, response and event (how the actions' send_goal,
+    # get_result and cancel_goal are hashed): the design document's add_two_ints
+    name = "example_interfaces/srv/AddTwoInts"
+    typestore().register(_msgs("srv", name, _service_texts(name, "int64 a\nint64 b\n",
+                                                           "int64 sum\n")))
+    assert topic_key(2, "/add_two_ints", name) == DESIGN_SERVICE_KEY
+    # as ZettaScale's rmw_zenoh subscriber example declares them
+    assert type_hash("tf2_msgs/msg/TFMessage") == \
+        "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
+    assert type_hash("sensor_msgs/msg/PointCloud2") == \
+        "RIHS01_9198cabf7da3796ae6fe19c4cb3bdd3525492988c70522628af5daa124bae2b5"
     seq, ns, gid = parse_attachment(attachment(7, b"g" * 16, stamp_ns=123))
     assert (seq, ns, gid) == (7, 123, b"g" * 16)
     assert len(attachment(7, b"g" * 16)) == 33          # int64 seq, int64 stamp, len, 16-byte gid
