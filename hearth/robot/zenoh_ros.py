@@ -51,6 +51,9 @@ ADMIN_SPACE = "@ros2_lv"
 #: rmw_zenoh's compact QoS of a default (reliable, volatile, keep last 10) endpoint, as in its
 #: design document's examples.
 DEFAULT_QOS = "::,10:,:,:,,"
+#: ... and of a latched (TRANSIENT_LOCAL, keep last 1) one, as /tf_static is declared in
+#: ZettaScale's rmw_zenoh examples.
+LATCHED_QOS = ":1:,1:,:,:,,"
 
 NAV2_ACTION = ("nav2_msgs/action/NavigateToPose", """\
 #goal definition
@@ -332,11 +335,11 @@ class Node:
         self._keep.append(tok)
         return tok
 
-    def _entity(self, kind: str, topic: str, typename: str) -> None:
+    def _entity(self, kind: str, topic: str, typename: str, qos: str = DEFAULT_QOS) -> None:
         fq = topic if topic.startswith("/") else "/" + topic
         self._token(f"{ADMIN_SPACE}/{self.domain}/{self.zid}/0/{next(self._ids)}/{kind}/%/"
                     f"{mangle(self.namespace)}/{self.name}/{mangle(fq)}/{dds_type(typename)}/"
-                    f"{type_hash(typename)}/{DEFAULT_QOS}")
+                    f"{type_hash(typename)}/{qos}")
 
     def key(self, topic: str, typename: str) -> str:
         return topic_key(self.domain, topic, typename)
@@ -357,7 +360,7 @@ class Node:
         """A function publishing ``typename`` messages on ``topic``. ``latched``: kept for
         subscribers that come later (TRANSIENT_LOCAL, as rmw_zenoh does it: an advanced
         publisher with a cache)."""
-        self._entity("MP", topic, typename)
+        self._entity("MP", topic, typename, LATCHED_QOS if latched else DEFAULT_QOS)
         if latched:
             import zenoh.ext as zx
             pub = zx.declare_advanced_publisher(self.session, self.key(topic, typename),
@@ -374,7 +377,7 @@ class Node:
     def subscribe(self, topic: str, typename: str, callback, latched: bool = False) -> None:
         """``callback(msg, source_stamp_ns)`` for every message; one that does not decode is
         dropped (a publisher of another definition has another key anyway)."""
-        self._entity("MS", topic, typename)
+        self._entity("MS", topic, typename, LATCHED_QOS if latched else DEFAULT_QOS)
 
         def on_sample(sample) -> None:
             try:
