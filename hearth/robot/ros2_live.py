@@ -41,7 +41,7 @@ from hearth.robot.rosbag import (COLOR_TOPICS, DEPTH_TOPICS, INFO_TOPICS, MAX_DE
                                  TopicMap, _Camera, _undistort, decode_compressed,
                                  load_topic_map)
 from hearth.robot.sim import Frame, HEAD, pan_tilt_to
-from hearth.robot.zenoh_ros import (ABORTED, ADMIN_SPACE, CANCEL_SRV, CANCELED, DEFAULT_ENDPOINT,
+from hearth.robot.zenoh_ros import (ADMIN_SPACE, CANCEL_SRV, CANCELED, DEFAULT_ENDPOINT,
                                     NAV2_ACTION, SUCCEEDED, TASK_ACTION, TERMINAL, Node,
                                     action_names, mangle, open_session, stamp, stamp_ns,
                                     type_hash)
