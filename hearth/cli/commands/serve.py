@@ -22,7 +22,8 @@ DEFAULT_MISSIONS = missions_dir()
 
 def register(sub) -> None:
     p = sub.add_parser("serve", help="serve the command API and the monitor page",
-                       description="Start the executive on a simulated (or replayed) robot and "
+                       description="Start the executive on a simulated, replayed or live "
+                                   "(--ros2) robot and "
                                    "serve the command API (OpenAPI at /docs) and the live "
                                    "monitor page at /. Localhost only unless a token is given.")
     p.add_argument("--host", default="127.0.0.1",
