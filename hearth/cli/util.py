@@ -140,10 +140,17 @@ def add_run_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
 
 
 def add_topics_argument(p: argparse.ArgumentParser) -> None:
-    """``--topics``: how a replayed ROS 2 bag names its topics and frames (run, step)."""
+    """``--topics``: how a replayed ROS 2 bag (or a live ROS 2 robot) names its topics and
+    frames; ``--ros2 [ENDPOINT]``: a live ROS 2 robot over Zenoh (run, step)."""
     p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
-                   help="with a ROS 2 bag: its topics and tf frames (a YAML file, or e.g. "
-                        "depth=/cam/depth,base_frame=base_footprint; docs/ros2-foxglove.md)")
+                   help="with a ROS 2 bag or --ros2: its topics and tf frames (a YAML file, "
+                        "or e.g. depth=/cam/depth,base_frame=base_footprint; "
+                        "docs/ros2-foxglove.md)")
+    p.add_argument("--ros2", nargs="?", const="tcp/localhost:7447", default=None,
+                   metavar="ENDPOINT",
+                   help="drive a live ROS 2 robot running rmw_zenoh_cpp through its Zenoh "
+                        "router at ENDPOINT (default tcp/localhost:7447), in real time; "
+                        "needs the ros extra (docs/ros2-foxglove.md, A live robot)")
 
 
 def add_map_arguments(p: argparse.ArgumentParser, saves: bool = True) -> None:
@@ -228,6 +235,8 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any, path: Any = None,
     except (ImportError, AttributeError):
         raise MissionError("no robot adapter: robot.create_adapter() does not exist yet") from None
     extra = {"topics": args.topics} if getattr(args, "topics", None) else {}   # a bag's mapping
+    if getattr(args, "ros2", None):
+        extra["ros2"] = args.ros2                       # a live ROS 2 robot over Zenoh
     adapter = create_adapter(world=world, scenario=args.scenario, recording=args.recording,
                              clock=clock, **extra)
     return world, adapter
@@ -235,7 +244,22 @@ def make_world_and_robot(args: argparse.Namespace, clock: Any, path: Any = None,
 
 def make_clock(args: argparse.Namespace) -> Any:
     from hearth.robot.clock import SimClock, WallClock
-    return WallClock() if getattr(args, "wall_clock", False) else SimClock()
+    live = getattr(args, "wall_clock", False) or getattr(args, "ros2", None)
+    return WallClock() if live else SimClock()
+
+
+def close_robot(robot: Any) -> None:
+    """Close the robot adapter of a run if it holds anything open (a live ROS 2 robot's Zenoh
+    session, a bag's reader); simulated robots have nothing to close."""
+    close = getattr(robot, "close", None)
+    if callable(close):
+        close()
+
+
+def link_lost(robot: Any) -> str | None:
+    """Why a live robot's link was lost (one line), or None (never lost, or not live)."""
+    lost = getattr(robot, "link_lost", None)
+    return lost() if callable(lost) else None
 
 
 def drop_stdout() -> None:

@@ -31,7 +31,7 @@ def __dir__() -> list[str]:
 
 
 def create_adapter(world=None, scenario: Optional[str] = None, recording: Optional[str] = None,
-                   clock: Any = None, topics: Any = None, **kw):
+                   clock: Any = None, topics: Any = None, ros2: Optional[str] = None, **kw):
     """The robot adapter for a run.
 
     - ``recording`` (a Hearth recording directory, or a ROS 2 bag: an ``.mcap`` file or a
@@ -43,16 +43,25 @@ def create_adapter(world=None, scenario: Optional[str] = None, recording: Option
       and locked doors.
     - neither: a ``SimulatedRobot`` whose truth is a copy of ``world`` (the belief map).
 
+    - ``ros2`` (a Zenoh endpoint, rmw_zenoh's router): a live ROS 2 robot,
+      ``hearth.robot.ros2_live.Ros2Robot``, with ``topics`` its names (the same mapping).
+
     Other keywords go to ``SimulatedRobot`` (``seed``, ``noise``, ``intrinsics``, ...).
     Raises RobotError (one line, with the file) for a bad recording or scenario.
     """
+    if ros2 is not None:
+        if recording is not None or scenario is not None:
+            raise RobotError("a live ROS 2 robot (--ros2) takes no scenario or recording")
+        from hearth.robot.ros2_live import Ros2Robot
+        return Ros2Robot(world=world, endpoint=ros2, topics=topics, clock=clock, **kw)
     if recording is not None and scenario is not None:
         raise RobotError("give a scenario or a recording, not both")
     if recording is not None:
         from hearth.robot.recording import ReplayRobot, open_recording
         return ReplayRobot(open_recording(recording, topics=topics), clock=clock, **kw)
     if topics is not None:
-        raise RobotError("--topics maps the topics of a ROS 2 bag given with --recording")
+        raise RobotError("--topics maps the topics of a ROS 2 bag given with --recording "
+                         "or of a live robot given with --ros2")
     from hearth.robot.simulated import SimulatedRobot
     if scenario is not None:
         from hearth.robot.scenario import load_scenario

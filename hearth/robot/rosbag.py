@@ -163,6 +163,19 @@ class TopicMap:
     tf_static: str = "/tf_static"
     sync_tolerance: float = 0.02
     tf_tolerance: float = 0.05
+    # A live robot (hearth/robot/ros2_live.py) reads the same mapping; bag replay ignores these.
+    odom_frame: str = ODOM_FRAME
+    navigate_action: str = "/navigate_to_pose"
+    task_action: str = "/hearth/robot_task"
+    head_command: str = "/head_controller/joint_trajectory"
+    joint_states: str = "/joint_states"
+    head_pan_joint: str = "head_pan_joint"
+    head_tilt_joint: str = "head_tilt_joint"
+    initial_pose: str = "/initialpose"
+    battery: str = "/battery_state"
+    say: str = "/hearth/say"
+    link_timeout: float = 3.0          # no tf for this long (s): the link is lost
+    connect_timeout: float = 10.0      # no NavigateToPose server and tf within this (s): refused
 
 
 _KEYS = {f.name for f in fields(TopicMap)}
@@ -177,7 +190,7 @@ def _topic_map(values: dict, where: str) -> TopicMap:
         if k not in _KEYS:
             raise RobotError(f"unknown key {k!r} in the topic mapping (keys: "
                              f"{', '.join(sorted(_KEYS))})", file=where)
-        if k.endswith("tolerance"):
+        if k.endswith(("tolerance", "timeout")):
             try:
                 v = float(v)
             except (TypeError, ValueError):

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import Iterable, Optional
+from typing import Callable, Iterable, Optional
 
 import numpy as np
 
@@ -178,6 +178,13 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
 
     # -- sensing ---------------------------------------------------------------------------
     def capture(self) -> Frame:
+        return self.capture_job()()
+
+    def capture_job(self) -> Callable[[], Frame]:
+        """A capture in two halves: this call takes the robot's state at this instant (poses,
+        head, the scene); the function it returns renders the frame from that alone, so a
+        caller serving the robot from several threads (hearth.robot.zenoh_sim) holds its lock
+        for the first half only, not for the rendering."""
         self._poll()
         T_true = camera_pose(self._true, self._pan, self._tilt, self.mount)
         believed = self.base_pose()
@@ -185,13 +192,19 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         draw = render_view
         if self.renderer == "mujoco":
             from hearth.robot.mujoco_render import render_view as draw
-        frame = draw(self.truth, self.intrinsics, T_true, self.rng, self.noise,
-                     scene=self._current_scene(), T_world_camera_believed=T_bel,
-                     timestamp=self.clock.now())
-        frame.pan, frame.tilt = self._pan, self._tilt
-        frame.base_pose, frame.base_pose_true = believed, self._true
-        frame.parking = self._parking_at(believed)
-        return frame
+        scene, now, pan, tilt, true = (self._current_scene(), self.clock.now(), self._pan,
+                                       self._tilt, self._true)
+        parking = self._parking_at(believed)
+
+        def render() -> Frame:
+            frame = draw(self.truth, self.intrinsics, T_true, self.rng, self.noise,
+                         scene=scene, T_world_camera_believed=T_bel, timestamp=now)
+            frame.pan, frame.tilt = pan, tilt
+            frame.base_pose, frame.base_pose_true = believed, true
+            frame.parking = parking
+            return frame
+        render.timestamp = now          # type: ignore[attr-defined]  (the frame's, known now)
+        return render
 
     def _current_scene(self):
         from hearth.perception.render import Scene

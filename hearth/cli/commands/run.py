@@ -11,7 +11,8 @@ import sys
 import time
 
 from hearth.cli.util import (add_command, add_run_arguments, add_topics_argument, close_map,
-                               make_executive, outcome_line, run_to_end)
+                               close_robot, link_lost, make_executive, outcome_line,
+                               run_to_end)
 
 
 def register(sub) -> None:
@@ -77,6 +78,11 @@ def _run(args) -> int:
         if sink is not None:
             sink.wait_for_viewers_to_leave(args.foxglove_wait)
             sink.close()
+        close_robot(ex.robot)
         close_map(keeper, quiet=args.quiet)
     print(outcome_line(mission, result), flush=True)
+    lost = link_lost(ex.robot)
+    if lost and result.outcome != "succeeded":     # not the mission's failure: the robot's
+        print(lost, file=sys.stderr, flush=True)
+        return 2
     return 0 if result.outcome == "succeeded" else 1

@@ -12,7 +12,7 @@ import os
 import sys
 
 from hearth.cli.util import (DEFAULT_WORLD, MAX_TICK_HZ, MIN_TICK_HZ, add_map_arguments,
-                               belief_file, close_map, integer_in, keep_map,
+                               belief_file, close_map, close_robot, integer_in, keep_map,
                                make_world_and_robot, number_in, tick_rate)
 from hearth.cli.commands.run import add_groot2_arguments, start_groot2
 from hearth import missions_dir
@@ -22,7 +22,8 @@ DEFAULT_MISSIONS = missions_dir()
 
 def register(sub) -> None:
     p = sub.add_parser("serve", help="serve the command API and the monitor page",
-                       description="Start the executive on a simulated (or replayed) robot and "
+                       description="Start the executive on a simulated, replayed or live "
+                                   "(--ros2) robot and "
                                    "serve the command API (OpenAPI at /docs) and the live "
                                    "monitor page at /. Localhost only unless a token is given.")
     p.add_argument("--host", default="127.0.0.1",
@@ -50,7 +51,13 @@ def register(sub) -> None:
     p.add_argument("--recording", default=None, metavar="PATH",
                    help="recording to replay (a Hearth recording or a ROS 2 bag)")
     p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
-                   help="with a ROS 2 bag: its topics and tf frames (docs/ros2-foxglove.md)")
+                   help="with a ROS 2 bag or --ros2: its topics and tf frames "
+                        "(docs/ros2-foxglove.md)")
+    p.add_argument("--ros2", nargs="?", const="tcp/localhost:7447", default=None,
+                   metavar="ENDPOINT",
+                   help="drive a live ROS 2 robot running rmw_zenoh_cpp through its Zenoh "
+                        "router at ENDPOINT (default tcp/localhost:7447); needs the ros extra "
+                        "(docs/ros2-foxglove.md, A live robot)")
     p.add_argument("--tick-hz", type=tick_rate, default=10.0,
                    help=f"tick rate (Hz, {MIN_TICK_HZ:g} to {MAX_TICK_HZ:g}; default 10)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
@@ -163,6 +170,7 @@ def _serve(args: argparse.Namespace) -> int:
         service.close()
         if sink is not None:
             sink.close()
+        close_robot(robot)
         close_map(keeper, quiet=True)
     return 0
 

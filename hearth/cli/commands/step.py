@@ -113,12 +113,13 @@ def set_parameter(ex: Executive, mission, text: str) -> str:
 
 
 def _run(args) -> int:
-    from hearth.cli.util import close_map
+    from hearth.cli.util import close_map, close_robot
 
     mission, params, ex, keeper = make_executive(args)
     try:
         return _step(args, mission, params, ex)
     finally:
+        close_robot(ex.robot)
         close_map(keeper)
 
 
