@@ -120,3 +120,21 @@ def test_a_knob_no_free_pose_reads_is_said_with_its_size_in_pixels(demo_world, r
     assert "none reads its unread knobs" in views.feedback_message
     assert "oven_knob_2: no free pose reads it (at best" in views.feedback_message
     assert "px radius" in views.feedback_message
+
+
+def test_free_poses_are_on_the_floor_of_a_room_and_clear_of_furniture(demo_world):
+    from hearth.skills.knob_views import BEARINGS, DISTANCES, free_floor
+    world = demo_world
+    boxes = {o.id: world.bounds_world(o.id) for o in world.large_objects()}
+    free = free_floor(world, boxes, 0.3)
+    for lo, hi in boxes.values():                   # nobody parks inside a cupboard
+        assert not free(*((np.asarray(lo) + np.asarray(hi)) / 2)[:2])
+    parking = world.parking_positions("oven")[0][1]
+    assert free(parking.x, parking.y)               # where the robot is sent to read them
+    priors = knob_priors(world, "oven")
+    face = np.mean([p.T_world_face()[:3, 3] for p in priors], axis=0)
+    normal = priors[0].T_world_knob[:3, 2][:2]
+    behind = ring(face[:2], -normal, (1.0,), (0,))[0]     # through the oven, into the wall
+    assert not free(behind[0], behind[1])
+    kept = [c for c in ring(face[:2], normal, DISTANCES, BEARINGS) if free(c[0], c[1])]
+    assert kept and all(math.hypot(c[0] - face[0], c[1] - face[1]) >= 0.4 - 1e-9 for c in kept)
