@@ -30,8 +30,10 @@ the view level alone (``LEVEL_PRIOR``).
 camera aimed at the knobs' centre) scores the expected number of unread knobs read from it
 (the sum of their readabilities; a knob whose line of sight passes through another large
 object's box scores 0 there); poses closer than ``min_apart`` to a better one, or to a pose
-already read from, are dropped (a second reading needs another place: ``OffViews``). Ties go to
-the pose nearer the robot.
+already read from, are dropped (a second reading needs another place: ``OffViews``), and so
+are poses that score no more than the view the knobs were just left unread from (``beat``:
+another view no better is not a better view; the mission's straight looks follow anyway).
+Ties go to the pose nearer the robot.
 
 Pure functions: poses, priors and readings in, ranked poses out. Choosing the candidates on
 the map's free floor and aiming the head are the caller's (hearth/skills/knob_views.py).
@@ -203,30 +205,43 @@ def occluded(eye, point, boxes: Sequence[tuple]) -> bool:
     return any(_segment_hits_box(a, b, np.asarray(lo, float), np.asarray(hi, float)) for lo, hi in boxes)
 
 
+def pose_views(want: Sequence[KnobPrior], aim, pose: tuple,
+               camera_at: Callable[[float, float, float, np.ndarray], np.ndarray], K: Intrinsics,
+               table: dict, blockers: Sequence[tuple] = (),
+               cfg: KnobViewConfig = KnobViewConfig()) -> tuple[float, list]:
+    """From base pose ``pose`` (x, y, yaw) with the camera aimed at ``aim``: the expected
+    number of the ``want`` knobs read (the sum of their readabilities) and each one's view."""
+    x, y, yaw = (float(c) for c in pose)
+    T_wc = camera_at(x, y, yaw, np.asarray(aim, dtype=float))
+    views = []
+    for p in want:
+        v = view_of(p, T_wc, K, cfg)
+        if v.in_image and blockers and occluded(T_wc[:3, 3], p.T_world_face()[:3, 3], blockers):
+            v.occluded, v.in_image = True, False
+        v.p_read = readability(table, v, cfg)
+        views.append(v)
+    return float(sum(v.p_read for v in views)), views
+
+
 def rank_views(priors: Sequence[KnobPrior], unread: Sequence[str], candidates: Sequence[tuple],
                camera_at: Callable[[float, float, float, np.ndarray], np.ndarray], K: Intrinsics,
                table: dict, robot_xy=(0.0, 0.0), tried: Sequence = (), blockers: Sequence[tuple] = (),
-               cfg: KnobViewConfig = KnobViewConfig(), keep: int = 3) -> tuple[list[RankedPose], dict]:
+               cfg: KnobViewConfig = KnobViewConfig(), keep: int = 3,
+               beat: float = 0.0) -> tuple[list[RankedPose], dict]:
     """The best ``keep`` of ``candidates`` ((x, y, yaw) base poses) to read the ``unread``
     knobs from, best first (module docstring), and per unread knob its best view over every
     candidate (a ``KnobView``: what the best free pose makes of it). ``camera_at(x, y, yaw,
     point)``: the camera pose there with the head aimed at ``point``; ``tried``: (x, y)
-    already read from; ``blockers``: (lo, hi) world boxes a line of sight may not cross."""
+    already read from; ``blockers``: (lo, hi) world boxes a line of sight may not cross;
+    ``beat``: a pose is kept only when it scores more than this (the score of the view the
+    knobs were just left unread from: another view no better than it is not a better view)."""
     want = [p for p in priors if p.knob_id in set(unread)]
     if not want:
         return [], {}
     aim = np.mean([p.T_world_face()[:3, 3] for p in want], axis=0)
     scored = []
     for x, y, yaw in candidates:
-        T_wc = camera_at(float(x), float(y), float(yaw), aim)
-        views = []
-        for p in want:
-            v = view_of(p, T_wc, K, cfg)
-            if v.in_image and blockers and occluded(T_wc[:3, 3], p.T_world_face()[:3, 3], blockers):
-                v.occluded, v.in_image = True, False
-            v.p_read = readability(table, v, cfg)
-            views.append(v)
-        score = float(sum(v.p_read for v in views))
+        score, views = pose_views(want, aim, (x, y, yaw), camera_at, K, table, blockers, cfg)
         travel = math.hypot(x - robot_xy[0], y - robot_xy[1])
         scored.append((-round(score, 3), travel, RankedPose(float(x), float(y), float(yaw),
                                                             tuple(aim), score, views)))
@@ -234,7 +249,7 @@ def rank_views(priors: Sequence[KnobPrior], unread: Sequence[str], candidates: S
     out: list[RankedPose] = []
     taken = [tuple(t) for t in tried]
     for _, _, r in scored:
-        if r.score <= 0.0:
+        if r.score <= max(0.0, round(beat, 3)):
             break
         if any(math.hypot(r.x - tx, r.y - ty) < cfg.min_apart for tx, ty in taken):
             continue

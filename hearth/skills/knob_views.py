@@ -48,7 +48,8 @@ class KnobViews(Skill):
         self.reader = kwargs.get("knob_reader")
 
     def update(self) -> S:
-        from hearth.perception.knob_views import KnobViewConfig, rank_views, ring, validation_table
+        from hearth.perception.knob_views import (KnobViewConfig, pose_views, rank_views, ring,
+                                                  validation_table)
         from hearth.perception.knobs import knob_priors
         from hearth.robot.sim import HEAD, camera_pose, pan_tilt_to
         from hearth.skills.map import robot_pose
@@ -87,11 +88,14 @@ class KnobViews(Skill):
                 pose = Pose.planar(x, y, yaw)
                 return camera_pose(pose, *pan_tilt_to(pose, point, mount), mount)
 
-            ranked, best = rank_views(priors, unread, candidates, camera_at, K,
-                                      validation_table(reader), robot_xy=(here.x, here.y),
-                                      tried=[(here.x, here.y)], blockers=blockers,
-                                      cfg=KnobViewConfig.for_reader(reader),
-                                      keep=int(self.input("keep") or 3))
+            table, cfg = validation_table(reader), KnobViewConfig.for_reader(reader)
+            # what the view from here (where they were just left unread) gives them
+            now, _ = pose_views(want, centre, (here.x, here.y, here.yaw), camera_at, K, table,
+                                blockers, cfg)
+            ranked, best = rank_views(priors, unread, candidates, camera_at, K, table,
+                                      robot_xy=(here.x, here.y), tried=[(here.x, here.y)],
+                                      blockers=blockers, cfg=cfg,
+                                      keep=int(self.input("keep") or 3), beat=now)
         except (PerceptionError, KeyError, ValueError) as err:
             self.feedback_message = f"{self.NAME}: {err}"
             return S.FAILURE
@@ -101,8 +105,9 @@ class KnobViews(Skill):
         said = [f"({r.x:.2f}, {r.y:.2f}) {math.hypot(r.x - here.x, r.y - here.y):.1f} m away, "
                 f"{r.score:.2f} knob{'s' if r.score != 1 else ''} expected read" for r in ranked]
         limits = [limit(self.world, v) for k, v in sorted(best.items()) if v.p_read < 0.05]
-        self.feedback_message = (f"{len(candidates)} free poses around {obj}; "
-                                 + ("; ".join(said) if said else "none reads its unread knobs")
+        self.feedback_message = (f"{len(candidates)} free poses around {obj}, {now:.2f} knob"
+                                 f"{'s' if now != 1 else ''} expected read from here; "
+                                 + ("; ".join(said) if said else "none reads its unread knobs better")
                                  + "".join(f"; {m}" for m in limits))
         return S.SUCCESS if places else S.FAILURE
 

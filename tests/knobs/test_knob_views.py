@@ -54,6 +54,13 @@ def test_a_pose_where_the_knob_looks_bigger_ranks_first_when_only_big_views_were
     # facing the knob, the head aimed at it
     assert abs(math.remainder(ranked[0].yaw - math.atan2(-normal[1], -normal[0]), 2 * math.pi)) < 1e-6
     assert best[p.knob_id].p_read == pytest.approx(ranked[0].score)
+    # from where a view as good as the best was just had, no pose is a better view
+    again, _ = rank_views(priors, [p.knob_id], poses, _camera_at, K, _table(p.knob_id, 14.0),
+                          beat=ranked[0].score)
+    assert again == []
+    fewer, _ = rank_views(priors, [p.knob_id], poses, _camera_at, K, _table(p.knob_id, 14.0),
+                          beat=ranked[-1].score)
+    assert [r.score for r in fewer] == [r.score for r in ranked if r.score > round(ranked[-1].score, 3)]
 
 
 def test_a_view_smaller_than_the_reader_reads_or_through_another_object_scores_nothing(demo_world):
