@@ -5,8 +5,10 @@ Candidate base poses stand on a ring around the unread knobs (``DISTANCES`` from
 (inside a room and ``BASE_CLEARANCE`` clear of every large object's footprint, the appliance's
 own included: hearth.worldmodel.viewing); hearth.perception.knob_views ranks them by what the
 knob reader would make of each knob from there (its size in pixels and angle off its axis
-against the reader's own validation views of that knob). The places come out best first as
-search places (x, y, yaw, look_at) for NavigateTo and LookAt (missions/subtrees/knobs.yaml).
+against the reader's own validation views of that knob), keeping only poses expected to read
+more of them than the view from where the robot stands (where they were just left unread).
+The places come out best first as search places (x, y, yaw, look_at) for NavigateTo and LookAt
+(missions/subtrees/knobs.yaml); with none the skill fails and says what it expects from here.
 """
 from __future__ import annotations
 
