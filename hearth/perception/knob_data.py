@@ -28,7 +28,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hearth.perception.camera import Intrinsics, look_at
-from hearth.perception.knobs import KnobConfig, KnobPrior, knob_priors
+from hearth.perception.knob_config import KnobConfig
+from hearth.perception.knob_priors import KnobPrior, knob_priors
 from hearth.perception.render import Rendering, Scene
 
 

@@ -51,7 +51,7 @@ import cv2
 import numpy as np
 
 from hearth.perception.camera import Intrinsics
-from hearth.perception.knobs import plane_heights
+from hearth.perception.knob_canvas import plane_heights
 
 
 @dataclass(frozen=True)

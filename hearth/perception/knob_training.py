@@ -53,10 +53,13 @@ from typing import Callable, Optional
 import numpy as np
 
 from hearth.perception.knob_data import KnobDataConfig, KnobScenes, render_views, true_center_m
-from hearth.perception.knobs import (
-    CalibratedThreshold, KnobConfig, KnobReader, KnobTemplates, canon, hard_view, knob_shape, view_level,
-    not_there, off_axis_deg, snap_to_state, to_rgb,
-)
+from hearth.perception.knob_canvas import off_axis_deg, to_rgb
+from hearth.perception.knob_config import KnobConfig
+from hearth.perception.knob_gates import CalibratedThreshold, hard_view, not_there, view_level
+from hearth.perception.knob_priors import canon
+from hearth.perception.knob_reading import KnobReader, snap_to_state
+from hearth.perception.knob_shapes import knob_shape
+from hearth.perception.knob_templates import KnobTemplates
 
 #: Bump when the templates, the views or the gates change in a way the configuration misses.
 CODE_VERSION = 37   # 37: the relief gate within relief_sigmas standard errors of the depth's slope (stands_se: a flat knob's relief is what the depth cannot pin); 36: the validation readings kept with the reader (``validation_``, each with its knob id), so gates can be calibrated again on other homes' readings (the knob bench's held-out families); 35: a dot reading's fit the exact check at the body centre and the dot's angle, neither moved; 34: no knob where the depth shows under min_relief of its relief (stands) or beyond max_offset_searches search radii (offset), the detect gate fitted on the others (the middle of the floor and the lowest positive where no negative is left); 33: the best coarse angle's half turn checked at the allowed angle nearest it (a knob that turns one way only); 32: body_center stops at steps under 0.1 mm, not 0.02; 31: dot_max_off_axis_deg 60, not 55 (the dot gates' readings); 30: the same with half a radius of slack; 29: a round body's measured top pixels kept by where their points are, not only by their projection on the top's plane (body_center); 28: a round body's depth put on its rendering by its top, not by the panel (body_center), and the marker's side seen obliquely in its profile (dot_profile); 27: a marker's readings beyond dot_max_off_axis_deg left out of the dot gates; 26: the dot margin's expected error as noise over contrast, the dominance cubed, no weak-marker factor (_dot_reading); 25: the coarse offset search's correlations as BLAS products of the canvas's windows (_windows), not matchTemplate calls (sums in another order); 24: readings the snap check refuses left out of the calibration at levels 0-1 (snap_free_levels); 23: a dot reading against the nearest other state (rival, dot_rival_gates); 22: the state next to the reading fitted, and taken where it fits better (_next_state); 21: the simulated noise draws changed order (colour levels)

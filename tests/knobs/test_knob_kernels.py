@@ -148,7 +148,7 @@ def test_the_exact_renderings_labels_are_numpys_bit_for_bit(home):
     """A skirt knob (home 1) and a pointer with a fixed base (home 4), seen from cameras
     around the axis, every turn and both face-class sets; one camera centre for all rays
     and one origin per ray."""
-    from hearth.perception.knobs import _Caster, knob_shape
+    from hearth.perception.knob_shapes import _Caster, knob_shape
     from hearth.worldmodel.homegen import generate_home
     w = generate_home(home)
     k = w.knobs()[0]
@@ -176,7 +176,7 @@ def test_only_rays_that_miss_a_scenes_box_are_left_uncast(home):
     whole here) and leaves out most of those that pass beside the knob, grazing ones
     included."""
     import open3d as o3d
-    from hearth.perception.knobs import _Caster, knob_shape
+    from hearth.perception.knob_shapes import _Caster, knob_shape
     from hearth.worldmodel.homegen import generate_home
     w = generate_home(home)
     k = w.knobs()[0]
@@ -239,7 +239,7 @@ def test_the_compiled_settle_finds_numpys_shift(reader, monkeypatch):
     (rendered views of the demo oven's knobs, Kinect noise): the shift numpy's loop finds,
     within 1e-9 px (the sums are made in another order), and the readings' states and
     angles are the ones that shift gives."""
-    import hearth.perception.knobs as kn
+    import hearth.perception.knob_window as kn
     from hearth.robot.noise import add_kinect_noise
     from hearth.perception.knob_data import KnobDataConfig, KnobScenes, render_views
     from tests.conftest import DEMO_WORLD

@@ -389,7 +389,7 @@ def test_a_level_with_few_readings_is_calibrated_with_its_nearest_level(reader, 
 
 def test_the_state_next_to_a_reading_is_the_nearest_other_state_on_its_side():
     import math
-    from hearth.perception.knobs import _next_state
+    from hearth.perception.knob_scoring import _next_state
 
     class Prior:
         symmetry = 1
@@ -432,7 +432,7 @@ def test_the_half_turn_candidate_is_the_allowed_angle_nearest_the_half_turn():
     states 0-223 degrees, the best coarse angle 61 with the knob at 222; the exact half turn,
     241, is not allowed), and none where no allowed angle comes that near."""
     import math
-    from hearth.perception.knobs import _with_half_turn
+    from hearth.perception.knob_gates import _with_half_turn
     alphas = np.radians(np.arange(-180, 180, 5.0))
     travel = (alphas >= math.radians(-1)) & (alphas <= math.radians(224))   # 0..223 deg, one way
     allowed = travel | (alphas <= math.radians(-137))          # -180..-137 = 180..223 deg

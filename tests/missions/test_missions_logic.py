@@ -231,8 +231,17 @@ def _oven_skills():
     return skills
 
 
+#: The free poses KnobViews chooses (its ranking is tests/knobs/test_knob_views.py's): two,
+#: facing the oven's knobs from the room.
+VIEW_PLACES = [dict(x=0.6, y=-1.2, yaw=1.2, look_at=[0.9, -0.4, 0.85], expected_read=0.9),
+               dict(x=1.3, y=-1.1, yaw=1.9, look_at=[0.9, -0.4, 0.85], expected_read=0.7)]
+
+
 def _turn_off_oven(world, robot):
-    return run("turn_off_oven.yaml", world, ROBOT_SCRIPTS, robot=robot, skills=_oven_skills())
+    return run("turn_off_oven.yaml", world,
+               ROBOT_SCRIPTS + [Script("KnobViews", outputs={"places": VIEW_PLACES,
+                                                            "count": len(VIEW_PLACES)})],
+               robot=robot, skills=_oven_skills())
 
 
 def _assert_turned_off(result, world, robot, knob_id, off_state):
@@ -316,26 +325,43 @@ def test_no_knob_read_from_the_first_place_reads_them_all_from_another(world):
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
 
 
-def test_a_knob_unread_from_every_parking_position_is_read_from_straight_in_front(world):
+def test_a_knob_unread_from_every_parking_position_is_read_from_the_best_free_pose(world):
     others = _other_parkings(world, FakeRobot())
     assert len(others) >= 2
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}] * (1 + len(others)))
     result, sub = _turn_off_oven(world, robot)
     assert result.outcome == "succeeded", result.reason
-    # every other parking position in turn, nearest first, then straight in front
+    # every other parking position in turn, nearest first, then the best free pose, facing
+    # the point KnobViews aims at
     assert [i["parking"] for i in _made(sub, "drive_aside").seen_inputs] == others
-    assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs"
-    assert _made(sub, "drive_straight").seen_inputs[-1]["distance"] == 1.0
+    assert _made(sub, "free_views").seen_inputs[-1]["knobs"] == ["oven_knob_4"]
+    assert [i["target"] for i in _made(sub, "drive_to_view").seen_inputs] == VIEW_PLACES[:1]
     assert robot.reads[:2 + len(others)] == [None] + [["oven_knob_4"]] * (1 + len(others))
     assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
     assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
 
 
-def test_a_knob_unread_from_every_place_is_never_taken_for_off(world):
-    # unread from the parking position, another one, and every view straight in front
+def test_a_knob_unread_from_every_parking_position_and_free_pose_is_read_from_straight_in_front(world):
     others = _other_parkings(world, FakeRobot())
-    views = len(others) + 3                 # every other parking position, three straight
+    before = 1 + len(others) + len(VIEW_PLACES)
+    robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
+                      unreadable=[{"oven_knob_4"}] * before)
+    result, sub = _turn_off_oven(world, robot)
+    assert result.outcome == "succeeded", result.reason
+    # the other parking positions, the free poses in turn, then straight in front
+    assert [i["target"] for i in _made(sub, "drive_to_view").seen_inputs] == VIEW_PLACES
+    assert _made(sub, "drive_straight").seen_inputs[-1]["parking"] == "knobs"
+    assert _made(sub, "drive_straight").seen_inputs[-1]["distance"] == 1.0
+    assert robot.reads[:1 + before] == [None] + [["oven_knob_4"]] * before
+    assert robot.truth_knobs["oven_knob_4"] == pytest.approx(0.0)
+    assert robot.said[-1] == "I turned off 1 knob of the oven; it is off now."
+
+
+def test_a_knob_unread_from_every_place_is_never_taken_for_off(world):
+    # unread from the parking position, the others, the free poses and every view straight in front
+    others = _other_parkings(world, FakeRobot())
+    views = len(others) + len(VIEW_PLACES) + 3   # other parking positions, free poses, three straight
     robot = FakeRobot(knobs={"oven_knob_4": _on(world, "oven_knob_4")},
                       unreadable=[{"oven_knob_4"}] * (1 + views))
     result, _ = _turn_off_oven(world, robot)
@@ -360,8 +386,8 @@ def test_a_turned_knob_unread_from_here_is_read_back_from_the_other_places(world
 
 def test_a_turned_knob_that_cannot_be_read_back_is_not_reported_off(world):
     # read fine first; after the turn no place can see it: here, every other parking
-    # position and the three views straight in front
-    views = len(_other_parkings(world, FakeRobot())) + 3
+    # position, the free poses and the three views straight in front
+    views = len(_other_parkings(world, FakeRobot())) + len(VIEW_PLACES) + 3
     robot = FakeRobot(knobs={"oven_knob_2": _on(world, "oven_knob_2")},
                       unreadable=[set()] + [{"oven_knob_2"}] * (1 + views))
     result, _ = _turn_off_oven(world, robot)
