@@ -30,6 +30,7 @@ from transitions import Machine
 
 from hearth.executive import treetick
 from hearth.executive.missionfile import Expr
+from hearth.skills.base import Feedback, words
 
 Status = common.Status
 MISSING = object()
@@ -231,7 +232,9 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         self.blackboard.set(self.target_key, self._current_item)
         if self.output_hook is not None:
             self.output_hook(self, "as", self.target_key, self._current_item)
-        self.feedback_message = f"item {self.index}: {self._current_item!r}"
+        # counted from 1 for a person; the item itself travels as a value
+        self.feedback_message = Feedback(f"item {self.index + 1}: {words(self._current_item)}",
+                                         item=self._current_item)
 
     def update(self) -> Status:
         stop_on = Status.SUCCESS if self.until == "success" else Status.FAILURE
@@ -280,15 +283,25 @@ def evaluate(expr: Expr, read: Reader) -> tuple[bool, str]:
         return False, f"{expr.text}: not set"
     if expr.op is None:
         value = bool(left) != expr.negate
-        return value, f"{expr.text}: {value}"
+        return value, Feedback(f"{expr.text}: {value}", value=left)
     right = read(expr.right)
     if right is MISSING:
         return False, f"{expr.text}: not set"
     try:
         value = bool(_OPS[expr.op](left, right))
     except TypeError:
-        return False, f"{expr.text}: cannot compare {left!r} and {right!r}"
-    return value, f"{expr.text}: {left!r} {expr.op} {right!r} is {value}"
+        return False, Feedback(f"{expr.text}: cannot compare {_said(left)} and {_said(right)}",
+                               left=left, right=right)
+    return value, Feedback(f"{expr.text}: {_said(left)} {expr.op} {_said(right)} is {value}",
+                           left=left, right=right)
+
+
+def _said(value: Any) -> str:
+    """An operand in a condition's message: a number or a string as the mission file writes
+    it, anything else in words (never a dict's or a list's Python repr)."""
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return repr(value)
+    return words(value)
 
 
 class Condition(Behaviour):
@@ -537,7 +550,8 @@ class StateMachine(FreshStart, py_trees.composites.Composite):
             outcome = self.outcome_readers[state]()
             if outcome is MISSING or outcome not in self.tables[state]:
                 # SMACH raises on an unmapped outcome; here the block fails, saying why.
-                self.feedback_message = f"state {state}: unmapped outcome {outcome!r}" \
+                self.feedback_message = Feedback(
+                    f"state {state}: unmapped outcome {_said(outcome)}", outcome=outcome) \
                     if outcome is not MISSING else f"state {state}: outcome key not set"
                 self.outcome = None
                 treetick.stop(self, Status.FAILURE)

@@ -142,7 +142,8 @@ def format_event(e: dict, t0: float = 0.0) -> str:
         extra = " (halted)" if e.get("halted") else ""
         return head + f"status  {path} {e['previous']} -> {e['status']}{extra}"
     if kind == "feedback":
-        return head + f"feedbk  {path}: {readable_text(e['message'])}"
+        return head + f"feedbk  {path}: {readable_text(e['message'])}" + (
+            f"  values={readable(e['values'])}" if e.get("values") else "")
     if kind == "write":
         return head + f"write   {{{e['key']}}} = {readable(e['value'])}  by {path}"
     if kind == "param":

@@ -77,7 +77,7 @@ class ReadKnobs(Skill):
             readings, fixes = read_panel(self._reader(), np.asarray(frame.color), K, T_wc, priors,
                                          depth=depth, only=set(ids) if ids else None)
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         states, angles, on, unknown, twice = {}, {}, [], [], []
         off_views = off_views_of(self)

@@ -63,7 +63,7 @@ class _PerceptionSkill(Skill):
         try:
             ok, self.feedback_message = self.perceive()
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         return S.SUCCESS if ok else S.FAILURE
 

@@ -84,7 +84,7 @@ class TrackObject(Skill):
             self.last_t = t
             est = self.tracker.update(depth, color, K, T_wc, dt)
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         self.updates += 1
         self.lost = 0 if est.ok else self.lost + 1
