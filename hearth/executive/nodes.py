@@ -298,10 +298,13 @@ def evaluate(expr: Expr, read: Reader) -> tuple[bool, str]:
 
 def _said(value: Any) -> str:
     """An operand in a condition's message: a number or a string as the mission file writes
-    it, anything else in words (never a dict's or a list's Python repr)."""
+    it, a list or a dict in words within parentheses, an empty one ``nothing`` (never a
+    Python repr)."""
     if value is None or isinstance(value, (str, int, float, bool)):
         return repr(value)
-    return words(value)
+    if isinstance(value, (list, tuple, dict)) and not value:
+        return "nothing"
+    return f"({words(value)})" if isinstance(value, (list, tuple, dict)) else words(value)
 
 
 class Condition(Behaviour):

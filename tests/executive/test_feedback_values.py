@@ -135,3 +135,25 @@ def test_words_write_values_as_the_monitor_page_does_never_as_python_reprs():
     assert words(Pose(1.0, 2.25, 0.0, 0.0, 0.0, np.pi / 2)) == "(1, 2.25) m, yaw 90°"
     assert words([1, 2, 3, 4, 5, 6]) == "1, 2, 3, 4 … (6 in all)"
     assert words(np.float64(0.123456)) == "0.123" and words(True) == "yes" and words(None) == "none"
+
+
+def test_a_condition_says_its_list_operands_in_words_and_carries_them_as_values(make_executive,
+                                                                                 mission_file):
+    path = mission_file("""\
+        name: x
+        blackboard: {unread: [k1, k2], done: []}
+        tree:
+          sequence:
+            - condition: "{done} == {unread}"
+              name: none_done
+            - {skill: Act, name: after}
+        """)
+    ex = make_executive()
+    seen = []
+    ex.subscribe(seen.append)
+    h = ex.submit(path)
+    ex.run_until_idle(100)
+    said = {e.path.rsplit("/", 1)[1]: e.data for e in seen if e.kind is EventKind.FEEDBACK}
+    assert said["none_done"] == {"message": "{done} == {unread}: nothing == (k1, k2) is False",
+                                 "values": {"left": [], "right": ["k1", "k2"]}}
+    assert h.result.outcome == "failed"
