@@ -435,8 +435,9 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
             if changed:
                 self.seen = now
                 self.restarts += 1
-                what = ", ".join(f"{p} {o!r} -> {n!r}" for p, (o, n) in changed.items())
-                self.feedback_message = f"restarting: {what}"
+                what = ", ".join(f"{p} {_said(o)} -> {_said(n)}" for p, (o, n) in changed.items())
+                self.feedback_message = Feedback(f"restarting: {what}",
+                                                 {p: [o, n] for p, (o, n) in changed.items()})
                 running = running_skills(self.decorated)
                 if self.decorated.status != Status.INVALID:
                     treetick.stop(self.decorated, Status.INVALID)
