@@ -108,7 +108,8 @@ class ReadKnobs(Skill):
                  f"moved: {f.why}" for f in fixes if f.used or f.why != WHERE_THE_MAP_SAYS]
         if twice:
             moved.append(f"{', '.join(twice)} read off from two places")
-        self.feedback_message = f"knobs: {said}" + "".join(f"; {m}" for m in moved)
+        self.report(f"knobs: {said}" + "".join(f"; {m}" for m in moved), states=states,
+                    angles_deg=angles, unknown=unknown)
         return S.SUCCESS if states else S.FAILURE
 
 

@@ -172,8 +172,8 @@ class RegisterArticulated(_PerceptionSkill):
         self.set_output("states", states)
         said = ", ".join(f"{p} {v:g} {'deg' if reg.parts[p].joint_type == 'revolute' else 'm'}"
                          for p, v in states.items())
-        return f"{oid}: {said or 'no part state read'}" + (
-            f"; unknown: {', '.join(unknown)}" if unknown else "")
+        return Feedback(f"{oid}: {said or 'no part state read'}" + (
+            f"; unknown: {', '.join(unknown)}" if unknown else ""), states=states, unknown=unknown)
 
 
 class EstimateHandle(_PerceptionSkill):
@@ -192,4 +192,5 @@ class EstimateHandle(_PerceptionSkill):
         pose = Pose.from_matrix(est.T_world_handle)
         self.set_output("pose", pose)
         prior = " (height from the map)" if est.prior_used else ""
-        return f"{hid} at {pose.x:.3f}, {pose.y:.3f}, {pose.z:.3f}{prior} from {est.points} points"
+        return Feedback(f"{hid} at {pose.x:.3f}, {pose.y:.3f}, {pose.z:.3f}{prior} from "
+                        f"{est.points} points", pose=pose, points=est.points)
