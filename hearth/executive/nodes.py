@@ -171,7 +171,8 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
     ``until="failure"`` (py_trees' semantics): success when every item succeeded, failure at
     the first failure. ``until="success"`` (search loops, e.g. parking positions): success at
     the first item whose child succeeds, failure when every item failed. An empty list is
-    success for ``failure`` and failure for ``success``.
+    success for ``failure`` and failure for ``success``; a source that is not a list is a
+    failure that says what it is (the source as a value).
     """
 
     _DONE = object()
@@ -187,6 +188,7 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         self.output_hook = None
         self._iterator = None
         self._current_item: Any = self._DONE
+        self._not_a_list: Feedback | None = None
         self.index = -1
 
     def tick(self) -> Iterator[Behaviour]:
@@ -216,8 +218,13 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         items = self.source()
         if items is MISSING or items is None:
             items = []
+        self._not_a_list = None
         if not isinstance(items, (list, tuple)):
-            raise TypeError(f"for_each {self.name}: source is not a list but {items!r}")
+            kind = ("a dict" if isinstance(items, dict) else "a string" if isinstance(items, str)
+                    else "a number" if isinstance(items, (int, float)) else type(items).__name__)
+            self._not_a_list = Feedback(f"the source is not a list but {kind}: {words(items)}",
+                                        source=items)
+            items = []
         self._iterator = iter(list(items))
         self.index = -1
         self._advance()
@@ -239,6 +246,9 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
     def update(self) -> Status:
         stop_on = Status.SUCCESS if self.until == "success" else Status.FAILURE
         go_on = Status.FAILURE if self.until == "success" else Status.SUCCESS
+        if self._not_a_list is not None:
+            self.feedback_message = self._not_a_list
+            return Status.FAILURE
         if self._current_item is self._DONE:
             return go_on
         child_status = self.decorated.status

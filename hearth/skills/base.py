@@ -104,6 +104,15 @@ def values_of(message: Any) -> dict[str, Any]:
     return dict(getattr(message, "values", None) or {})
 
 
+def error_text(err: BaseException) -> str:
+    """What an error says, for a sentence: ``str(err)``, except that a ``KeyError`` raised
+    with a message says the message (its ``str`` is the message's repr, in quotes)."""
+    if (isinstance(err, KeyError) and type(err).__str__ is KeyError.__str__
+            and len(err.args) == 1 and isinstance(err.args[0], str)):
+        return str.__str__(err.args[0])
+    return str(err)
+
+
 def json_value(value: Any) -> Any:
     """``value`` as plain JSON data (see :class:`Feedback`); an object JSON has no word for
     is its ``str``."""
@@ -265,7 +274,7 @@ class Skill(py_trees.behaviour.Behaviour):
     def report_error(self, err: BaseException) -> Feedback:
         """``report`` of a failure: ``"<NAME>: <err>"`` with the values the error was raised
         with (``raise PerceptionError(Feedback("...", fitness=0.3))``)."""
-        return self.report(f"{self.NAME}: {err}", **values_of(err))
+        return self.report(f"{self.NAME}: {error_text(err)}", **values_of(err))
 
     def is_halting(self) -> bool:
         """After ``terminate(INVALID)``: True while a robot action this skill started is still

@@ -147,7 +147,7 @@ class TurnKnob(RobotActionSkill):
         else:
             state = state or knob.off
             if state not in [s.name for s in knob.states]:
-                raise ValueError(f"{knob.id} has no state {state!r}; its states are "
+                raise ValueError(f'{knob.id} has no state "{state}"; its states are '
                                  + ", ".join(s.name for s in knob.states))
             a = knob.state_angle(state)
         self._knob, self._state, self._angle = knob.id, state, a

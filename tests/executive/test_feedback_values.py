@@ -12,7 +12,7 @@ from py_trees import common
 from hearth.executive.events import EventKind
 from hearth.executive.replay import format_event
 from hearth.executive.testing import test_skills
-from hearth.skills.base import Feedback, Skill, values_of, words
+from hearth.skills.base import Feedback, Port, Skill, values_of, words
 from hearth.skills.errors import SkillError
 from hearth.worldmodel.pose import Pose
 
@@ -157,3 +157,74 @@ def test_a_condition_says_its_list_operands_in_words_and_carries_them_as_values(
     assert said["none_done"] == {"message": "{done} == {unread}: nothing == (k1, k2) is False",
                                  "values": {"left": [], "right": ["k1", "k2"]}}
     assert h.result.outcome == "failed"
+
+
+class OnePlace(Skill):
+    """Writes one search place where a list of them is wanted (its output is of type any,
+    so loading cannot tell)."""
+    NAME = "OnePlace"
+    OUTPUTS = (Port("place", "any"),)
+
+    def update(self):
+        self.set_output("place", {"place": "hall", "x": 1.0})
+        return common.Status.SUCCESS
+
+
+def test_a_for_each_over_something_not_a_list_fails_saying_what_it_is(make_executive,
+                                                                       mission_file):
+    path = mission_file("""\
+        name: x
+        tree:
+          sequence:
+            - {skill: OnePlace, outputs: {place: places}}
+            - for_each: {skill: Act, name: visit}
+              in: "{places}"
+              as: place
+              name: each
+        """)
+    ex = make_executive(skills={**test_skills(), "OnePlace": OnePlace})
+    seen = []
+    ex.subscribe(seen.append)
+    h = ex.submit(path)
+    ex.run_until_idle(100)
+    assert h.result.outcome == "failed"
+    assert h.result.reason == "/x/each failed: the source is not a list but a dict: hall"
+    said = [e.data for e in seen if e.kind is EventKind.FEEDBACK and e.path.endswith("/each")]
+    assert said == [{"message": "the source is not a list but a dict: hall",
+                     "values": {"source": {"place": "hall", "x": 1.0}}}]
+
+
+class Unknown(Skill):
+    """Fails on a KeyError raised with a message, as the object skills do."""
+    NAME = "Unknown"
+
+    def update(self):
+        try:
+            raise KeyError('no small object matches "green mug"')
+        except KeyError as err:
+            self.report_error(err)
+        return common.Status.FAILURE
+
+
+def test_a_key_error_is_reported_as_its_message_and_a_robot_action_keeps_its_values(
+        make_executive, mission_file):
+    from hearth.skills.navigation import NavigateTo
+    path = mission_file("""\
+        name: x
+        tree:
+          selector:
+            - {skill: Unknown, name: unknown}
+            - skill: NavigateTo
+              name: go
+              inputs: {target: {room: hall}}
+        """)
+    ex = make_executive(skills={**_skills(), "Unknown": Unknown, "NavigateTo": NavigateTo})
+    seen = []
+    ex.subscribe(seen.append)
+    h = ex.submit(path)
+    ex.run_until_idle(100)
+    assert h.result.outcome == "failed"
+    said = {e.path.rsplit("/", 1)[1]: e.data for e in seen if e.kind is EventKind.FEEDBACK}
+    # str(KeyError) would be the message's repr, in quotes
+    assert said["unknown"] == {"message": 'Unknown: no small object matches "green mug"'}
+    assert said["go"] == {"message": "not a pose: room hall", "values": {"value": {"room": "hall"}}}
