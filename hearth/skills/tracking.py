@@ -101,6 +101,6 @@ class TrackObject(Skill):
             parent = self.world.parent(oid)
             local = Pose.from_matrix(np.linalg.inv(self.world.T_world(parent.id)) @ est.T_world_object)
             self.world.move_object(oid, parent.id, local, self.world.get(oid).relation, source=self.NAME)
-        self.feedback_message = (f"{oid} tracked over {self.updates} frames, now at "
-                                 f"({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+        self.report(f"{oid} tracked over {self.updates} frames, now at "
+                    f"({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})", frames=self.updates, pose=pose)
         return S.SUCCESS
