@@ -89,6 +89,16 @@ class Event:
         return out
 
 
+def json_default(value: Any) -> Any:
+    """``json.dumps``' ``default`` for events (the execution log, the command API's stream):
+    a value JSON has no word for as data where it has a plain form (a Pose its dict, numpy
+    values their numbers, a set a list: hearth.skills.base.json_value), else its repr."""
+    if hasattr(value, "as_dict") or hasattr(value, "tolist") or isinstance(value, (set, frozenset)):
+        from hearth.skills.base import json_value
+        return json_value(value)
+    return repr(value)
+
+
 def feedback_data(message: str) -> dict[str, Any]:
     """A FEEDBACK event's data for a node's ``feedback_message``: ``message``, the sentence as
     a plain str, and ``values`` when it is a hearth.skills.base.Feedback that carries some."""

@@ -1,5 +1,6 @@
 """A skill's feedback values through the command API: the event stream, a run's recent
-events and its tree carry them as JSON values beside the sentence."""
+events and its tree carry them as JSON values beside the sentence; a Pose it writes arrives
+as its dict, not as Python text."""
 from __future__ import annotations
 
 import json
@@ -12,15 +13,18 @@ from hearth.executive.command.api import create_app
 from hearth.executive.command.server import ServerThread, make_service
 from hearth.executive.testing import Substitution, test_skills
 from hearth.robot.clock import WallClock
-from hearth.skills.base import Skill
+from hearth.skills.base import Port, Skill
+from hearth.worldmodel.pose import Pose
 
 SENTENCE = "fridge registered 2.5 cm from the map (fitness 0.93)"
 
 
 class Register(Skill):
     NAME = "Register"
+    OUTPUTS = (Port("pose", "pose", required=False),)
 
     def update(self):
+        self.set_output("pose", Pose(1.5, 2.0, 0.75, 0.0, 0.0, 0.5))
         self.report(SENTENCE, moved_cm=2.5, fitness=0.9312, parts=["door", "drawer"])
         return common.Status.SUCCESS
 
@@ -30,7 +34,7 @@ def api(demo_world, tmp_path):
     (tmp_path / "m").mkdir()
     (tmp_path / "m" / "register.yaml").write_text(
         "hearth: 1\nname: register_test\ndescription: Register and report.\n"
-        "tree: {skill: Register, name: register}\n")
+        "tree: {skill: Register, name: register, outputs: {pose: fridge_pose}}\n")
     service = make_service(demo_world, None, [str(tmp_path / "m")],
                            skills={**test_skills(), "Register": Register},
                            make_skill=Substitution([], None), clock=WallClock(), tick_hz=50,
@@ -65,4 +69,9 @@ def test_the_stream_the_recent_events_and_the_tree_carry_feedback_values_as_valu
     assert [e["data"]["values"] for e in recent if e["event"] == "feedback"] == [want]
     node = api.get(f"/api/runs/{run_id}/tree").json()["root"]
     assert (node["feedback"], node["values"]) == (SENTENCE, want)
+    # the blackboard write of a Pose: its dict (the monitor page reads no Python text)
+    writes = [e["data"] for e in recent if e["event"] == "write"]
+    pose = {"x": 1.5, "y": 2.0, "z": 0.75, "roll": 0.0, "pitch": 0.0, "yaw": 0.5}
+    assert [(w["key"], w["value"]) for w in writes] == [("fridge_pose", pose)]
+    assert api.get(f"/api/runs/{run_id}").json()["result"]["outputs"] == {"fridge_pose": pose}
 

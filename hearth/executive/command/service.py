@@ -21,8 +21,9 @@ from typing import Any
 from hearth.executive.autonomy import Approvals
 from hearth.executive.command.commands import Interpretation, interpret
 from hearth.executive.command.vocabulary import Vocabulary, load_catalogue
-from hearth.executive.events import TERMINAL, EventKind
+from hearth.executive.events import TERMINAL, EventKind, json_default
 from hearth.executive.missionfile import plain
+from hearth.skills.base import json_value
 
 #: executive event kinds not forwarded (``tick``: one per tick on a wall clock; ``map``: the
 #: hub hears the map directly, also while no mission runs)
@@ -70,7 +71,7 @@ class EventHub:
 
     def publish(self, kind: str, data: dict[str, Any], run: str | None = None,
                 ends_run: bool = False) -> int:
-        text = json.dumps(data, default=repr)
+        text = json.dumps(data, default=json_default)
         with self._lock:
             self.last_seq += 1
             seq = self.last_seq
@@ -181,7 +182,8 @@ class RunRecord:
                 "priority": self.priority, "params": plain(self.params),
                 "submitted": self.submitted, "source": self.source,
                 "result": None if r is None else {"outcome": r.outcome, "reason": r.reason,
-                                                  "outputs": plain(r.outputs), "ticks": r.ticks,
+                                                  "outputs": json_value(plain(r.outputs)),
+                                                  "ticks": r.ticks,
                                                   "duration": r.duration,
                                                   "robot_stopped": r.robot_stopped}}
 

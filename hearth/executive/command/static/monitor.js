@@ -19,18 +19,8 @@ function num(x) {
   return String(Number(x.toFixed(a >= 100 ? 1 : a >= 1 ? 2 : 3)));
 }
 function deg(rad) { return Math.round(rad * 180 / Math.PI) + "°"; }
-const POSE_REPR = /^Pose\((.*)\)$/;    // hearth.worldmodel.pose.Pose as the server's JSON writes it
+// a pose: the server writes a hearth.worldmodel.pose.Pose as its dict (x, y, z, roll, pitch, yaw)
 function poseOf(v) {
-  if (typeof v === "string") {
-    const m = POSE_REPR.exec(v);
-    if (!m) return null;
-    const p = {};
-    for (const part of m[1].split(",")) {
-      const [k, val] = part.split("=");
-      p[k.trim()] = Number(val);
-    }
-    return Number.isFinite(p.x) && Number.isFinite(p.y) ? p : null;
-  }
   if (v && typeof v === "object" && !Array.isArray(v) && typeof v.x === "number"
       && typeof v.y === "number" && typeof v.place !== "string") return v;
   return null;
@@ -44,7 +34,7 @@ function fmt(v, depth) {
   if (v === null || v === undefined || v === "") return "—";
   if (typeof v === "number") return num(v);
   if (typeof v === "boolean") return v ? "yes" : "no";
-  if (typeof v === "string") { const p = poseOf(v); return p ? fmtPose(p) : v; }
+  if (typeof v === "string") return v;
   if (Array.isArray(v)) {
     if (!v.length) return "none";
     const many = v.some(x => x && typeof x === "object");
