@@ -101,7 +101,9 @@ def _readable(value: Any, budget: int) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
-        # Values the log could not keep as JSON are their repr ("Pose(x=2.900486012820682, ...)").
+        # Values the log could not keep as JSON are their repr (a Pose and numpy values are
+        # logged as their JSON form: hearth.executive.events.json_default; logs written
+        # before that hold "Pose(x=2.900486012820682, ...)").
         text = _LONG_FLOAT.sub(lambda m: _num(float(m.group())), value)
         return repr(text if len(text) <= budget else text[:budget] + "...")
     if isinstance(value, (dict, list, tuple)):
