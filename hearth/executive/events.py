@@ -33,7 +33,8 @@ class EventKind(_StrEnum):
     RUN = "run"
     #: a node's status changed: ``status``, ``previous``, ``halted`` (stopped from above)
     STATUS = "status"
-    #: a node's ``feedback_message`` changed: ``message``
+    #: a node's ``feedback_message`` changed: ``message`` (the sentence) and, when the
+    #: skill reported them (``Skill.report``), ``values`` (names -> JSON values)
     FEEDBACK = "feedback"
     #: a declared key written: ``key``, ``value``, ``port``
     WRITE = "write"
@@ -86,6 +87,24 @@ class Event:
             out["path"] = self.path
         out.update(self.data)
         return out
+
+
+def json_default(value: Any) -> Any:
+    """``json.dumps``' ``default`` for events (the execution log, the command API's stream):
+    a value JSON has no word for as data where it has a plain form (a Pose its dict, numpy
+    values their numbers, a set a list: hearth.skills.base.json_value), else its repr."""
+    if hasattr(value, "as_dict") or hasattr(value, "tolist") or isinstance(value, (set, frozenset)):
+        from hearth.skills.base import json_value
+        return json_value(value)
+    return repr(value)
+
+
+def feedback_data(message: str) -> dict[str, Any]:
+    """A FEEDBACK event's data for a node's ``feedback_message``: ``message``, the sentence as
+    a plain str, and ``values`` when it is a hearth.skills.base.Feedback that carries some."""
+    values = getattr(message, "values", None)
+    text = str.__str__(message)
+    return {"message": text, "values": values} if values else {"message": text}
 
 
 @dataclass

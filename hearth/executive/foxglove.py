@@ -8,8 +8,8 @@ capture and base pose is published too. Times are the robot clock's wall time.
 
 | topic | schema | what |
 | --- | --- | --- |
-| /hearth/log | foxglove.Log | every execution-log event as one line (status changes, feedback, lifecycle, parameters, map updates), named by its tree path |
-| /hearth/tree | hearth.TreeStatus (JSON) | the whole tree after each change: run, mission, state, tick, and every node's path, status and last feedback |
+| /hearth/log | foxglove.Log | every execution-log event as one line (status changes, feedback with its values, lifecycle, parameters, map updates), named by its tree path |
+| /hearth/tree | hearth.TreeStatus (JSON) | the whole tree after each change: run, mission, state, tick, and every node's path, status, last feedback and the values it carried (JSON values, plottable) |
 | /robot/pose | foxglove.PoseInFrame | the believed base pose in ``map`` |
 | /tf | foxglove.FrameTransforms | map -> base_link -> camera_color_optical_frame |
 | /camera/color, /camera/depth | foxglove.RawImage | each capture: rgb8, and 16UC1 millimetres |
@@ -35,7 +35,9 @@ TREE_SCHEMA = {
         "tick": {"type": "integer"}, "t": {"type": "number"},
         "nodes": {"type": "array", "items": {"type": "object", "properties": {
             "path": {"type": "string"}, "status": {"type": "string"},
-            "feedback": {"type": "string"}}}}}}
+            "feedback": {"type": "string"},
+            "values": {"type": "object", "description": "the values the feedback carried "
+                                                         "(hearth.skills.base.Feedback)"}}}}}}
 TOPICS = ("/hearth/log", "/hearth/tree", "/robot/pose", "/tf", "/camera/color", "/camera/depth",
           "/camera/calibration", "/map/objects")
 
@@ -253,11 +255,9 @@ class FoxgloveSink:
             elif not self._run.get("mission"):
                 self._name_run(ev.run)
             if kind == "status":
-                self._nodes.setdefault(ev.path, {"path": ev.path, "status": "INVALID",
-                                                 "feedback": ""})["status"] = e["status"]
+                self._node(ev.path)["status"] = e["status"]
             elif kind == "feedback":
-                self._nodes.setdefault(ev.path, {"path": ev.path, "status": "INVALID",
-                                                 "feedback": ""})["feedback"] = e["message"]
+                self._node(ev.path).update(feedback=e["message"], values=e.get("values", {}))
             elif kind == "run":
                 self._run["state"] = e.get("state", "")
             if kind in ("status", "feedback", "run"):
@@ -278,6 +278,10 @@ class FoxgloveSink:
             except Exception:  # noqa: BLE001 - a viewer must never stop the robot
                 pass
 
+    def _node(self, path: str) -> dict[str, Any]:
+        return self._nodes.setdefault(path, {"path": path, "status": "INVALID", "feedback": "",
+                                             "values": {}})
+
     def _new_run(self, run_id: str) -> None:
         self._run = {"run": run_id, "state": "running", "mission": "", "file": ""}
         self._nodes = {}
@@ -292,7 +296,7 @@ class FoxgloveSink:
         mission = handle.mission
         self._run.update(mission=mission.name, file=str(getattr(mission, "file", "") or ""))
         for n in mission.nodes():
-            self._nodes.setdefault(n.path, {"path": n.path, "status": "INVALID", "feedback": ""})
+            self._node(n.path)
 
     # ---- the robot
     def publish_pose(self, pose, ns: Optional[int] = None) -> None:

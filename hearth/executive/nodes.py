@@ -30,6 +30,7 @@ from transitions import Machine
 
 from hearth.executive import treetick
 from hearth.executive.missionfile import Expr
+from hearth.skills.base import Feedback, words
 
 Status = common.Status
 MISSING = object()
@@ -170,7 +171,8 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
     ``until="failure"`` (py_trees' semantics): success when every item succeeded, failure at
     the first failure. ``until="success"`` (search loops, e.g. parking positions): success at
     the first item whose child succeeds, failure when every item failed. An empty list is
-    success for ``failure`` and failure for ``success``.
+    success for ``failure`` and failure for ``success``; a source that is not a list is a
+    failure that says what it is (the source as a value).
     """
 
     _DONE = object()
@@ -186,6 +188,7 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         self.output_hook = None
         self._iterator = None
         self._current_item: Any = self._DONE
+        self._not_a_list: Feedback | None = None
         self.index = -1
 
     def tick(self) -> Iterator[Behaviour]:
@@ -215,8 +218,13 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         items = self.source()
         if items is MISSING or items is None:
             items = []
+        self._not_a_list = None
         if not isinstance(items, (list, tuple)):
-            raise TypeError(f"for_each {self.name}: source is not a list but {items!r}")
+            kind = ("a dict" if isinstance(items, dict) else "a string" if isinstance(items, str)
+                    else "a number" if isinstance(items, (int, float)) else type(items).__name__)
+            self._not_a_list = Feedback(f"the source is not a list but {kind}: {words(items)}",
+                                        source=items)
+            items = []
         self._iterator = iter(list(items))
         self.index = -1
         self._advance()
@@ -231,11 +239,16 @@ class ForEach(DeepestFirst, py_trees.decorators.ForEach):
         self.blackboard.set(self.target_key, self._current_item)
         if self.output_hook is not None:
             self.output_hook(self, "as", self.target_key, self._current_item)
-        self.feedback_message = f"item {self.index}: {self._current_item!r}"
+        # counted from 1 for a person; the item itself travels as a value
+        self.feedback_message = Feedback(f"item {self.index + 1}: {words(self._current_item)}",
+                                         item=self._current_item)
 
     def update(self) -> Status:
         stop_on = Status.SUCCESS if self.until == "success" else Status.FAILURE
         go_on = Status.FAILURE if self.until == "success" else Status.SUCCESS
+        if self._not_a_list is not None:
+            self.feedback_message = self._not_a_list
+            return Status.FAILURE
         if self._current_item is self._DONE:
             return go_on
         child_status = self.decorated.status
@@ -280,15 +293,28 @@ def evaluate(expr: Expr, read: Reader) -> tuple[bool, str]:
         return False, f"{expr.text}: not set"
     if expr.op is None:
         value = bool(left) != expr.negate
-        return value, f"{expr.text}: {value}"
+        return value, Feedback(f"{expr.text}: {value}", value=left)
     right = read(expr.right)
     if right is MISSING:
         return False, f"{expr.text}: not set"
     try:
         value = bool(_OPS[expr.op](left, right))
     except TypeError:
-        return False, f"{expr.text}: cannot compare {left!r} and {right!r}"
-    return value, f"{expr.text}: {left!r} {expr.op} {right!r} is {value}"
+        return False, Feedback(f"{expr.text}: cannot compare {_said(left)} and {_said(right)}",
+                               left=left, right=right)
+    return value, Feedback(f"{expr.text}: {_said(left)} {expr.op} {_said(right)} is {value}",
+                           left=left, right=right)
+
+
+def _said(value: Any) -> str:
+    """An operand in a condition's message: a number or a string as the mission file writes
+    it, a list or a dict in words within parentheses, an empty one ``nothing`` (never a
+    Python repr)."""
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return repr(value)
+    if isinstance(value, (list, tuple, dict)) and not value:
+        return "nothing"
+    return f"({words(value)})" if isinstance(value, (list, tuple, dict)) else words(value)
 
 
 class Condition(Behaviour):
@@ -419,8 +445,9 @@ class Watch(DeepestFirst, py_trees.decorators.Decorator):
             if changed:
                 self.seen = now
                 self.restarts += 1
-                what = ", ".join(f"{p} {o!r} -> {n!r}" for p, (o, n) in changed.items())
-                self.feedback_message = f"restarting: {what}"
+                what = ", ".join(f"{p} {_said(o)} -> {_said(n)}" for p, (o, n) in changed.items())
+                self.feedback_message = Feedback(f"restarting: {what}",
+                                                 {p: [o, n] for p, (o, n) in changed.items()})
                 running = running_skills(self.decorated)
                 if self.decorated.status != Status.INVALID:
                     treetick.stop(self.decorated, Status.INVALID)
@@ -537,7 +564,8 @@ class StateMachine(FreshStart, py_trees.composites.Composite):
             outcome = self.outcome_readers[state]()
             if outcome is MISSING or outcome not in self.tables[state]:
                 # SMACH raises on an unmapped outcome; here the block fails, saying why.
-                self.feedback_message = f"state {state}: unmapped outcome {outcome!r}" \
+                self.feedback_message = Feedback(
+                    f"state {state}: unmapped outcome {_said(outcome)}", outcome=outcome) \
                     if outcome is not MISSING else f"state {state}: outcome key not set"
                 self.outcome = None
                 treetick.stop(self, Status.FAILURE)

@@ -101,7 +101,9 @@ def _readable(value: Any, budget: int) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
-        # Values the log could not keep as JSON are their repr ("Pose(x=2.900486012820682, ...)").
+        # Values the log could not keep as JSON are their repr (a Pose and numpy values are
+        # logged as their JSON form: hearth.executive.events.json_default; logs written
+        # before that hold "Pose(x=2.900486012820682, ...)").
         text = _LONG_FLOAT.sub(lambda m: _num(float(m.group())), value)
         return repr(text if len(text) <= budget else text[:budget] + "...")
     if isinstance(value, (dict, list, tuple)):
@@ -142,7 +144,8 @@ def format_event(e: dict, t0: float = 0.0) -> str:
         extra = " (halted)" if e.get("halted") else ""
         return head + f"status  {path} {e['previous']} -> {e['status']}{extra}"
     if kind == "feedback":
-        return head + f"feedbk  {path}: {readable_text(e['message'])}"
+        return head + f"feedbk  {path}: {readable_text(e['message'])}" + (
+            f"  values={readable(e['values'])}" if e.get("values") else "")
     if kind == "write":
         return head + f"write   {{{e['key']}}} = {readable(e['value'])}  by {path}"
     if kind == "param":

@@ -2,7 +2,8 @@
 
 A log is a ``start`` header, one line per :class:`~hearth.executive.events.Event` and an ``end``
 line (docs/missions.md, "Events and execution logs"; read back by hearth/executive/replay.py).
-Every line is ``json.dumps(obj, default=repr)``; status lines, most of a log, are formatted
+Every line is ``json.dumps(obj, default=json_default)`` (a Pose as its dict, numpy values as
+numbers, anything else JSON has no word for as its repr); status lines, most of a log, are formatted
 by hand on the hot path (a tick of a 200-node tree writes about 30 of them) and must be the
 same bytes as the generic path, ``json.dumps(Event(...).to_json())``:
 tests/executive/test_runlog.py writes both through this class and compares the files.
@@ -20,7 +21,7 @@ from typing import IO, Any
 
 from py_trees import common
 
-from hearth.executive.events import Event, EventKind
+from hearth.executive.events import Event, EventKind, json_default
 from hearth.executive.missionfile import Mission, plain
 
 log = logging.getLogger("hearth.executive")
@@ -38,7 +39,7 @@ _TAILS = {(a.value, b.value, halted): f', "status": "{a.value}", "previous": "{b
 
 
 def dumps(obj: Any) -> str:
-    return json.dumps(obj, default=repr)
+    return json.dumps(obj, default=json_default)
 
 
 def header_fields(run_id: str, mission: Mission, params: dict[str, Any], priority: int,

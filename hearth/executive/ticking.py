@@ -20,7 +20,7 @@ from py_trees import common
 import logging
 
 from hearth.executive import nodes, treetick
-from hearth.executive.events import EventKind
+from hearth.executive.events import EventKind, feedback_data
 from hearth.executive.missionfile import plain
 from hearth.executive.runlog import RunLog
 from hearth.executive.tree import BuiltTree
@@ -187,9 +187,12 @@ class Run:
                     tell(node, st, prev)
                 node.hearth_last = st
             fb = node.feedback_message
-            if fb and fb != node.hearth_feedback:
+            # a new sentence, or the same one with other values (a Feedback's)
+            if fb and fb is not node.hearth_feedback and (
+                    fb != node.hearth_feedback
+                    or getattr(fb, "values", None) != getattr(node.hearth_feedback, "values", None)):
                 node.hearth_feedback = fb
-                self.emit(self, EventKind.FEEDBACK, node.hearth_path, message=fb)
+                self.emit(self, EventKind.FEEDBACK, node.hearth_path, **feedback_data(fb))
             if node.status is not st:
                 changed_after.append(node)
             elif st is RUNNING:

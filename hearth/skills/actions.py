@@ -9,7 +9,7 @@ from typing import Any, Optional
 
 import py_trees
 
-from hearth.skills.base import Skill
+from hearth.skills.base import Feedback, Skill, error_text, values_of
 
 
 class RobotActionSkill(Skill):
@@ -19,7 +19,8 @@ class RobotActionSkill(Skill):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.action: Optional[Any] = None
-        self.error: Optional[str] = None
+        #: why the action could not start: a sentence, with the values it was raised with
+        self.error: Optional[Feedback] = None
 
     def start(self):  # pragma: no cover - abstract
         raise NotImplementedError
@@ -36,7 +37,7 @@ class RobotActionSkill(Skill):
         try:
             self.action = self.start()
         except Exception as err:  # bad input, unknown node: fail this skill with the reason
-            self.error = str(err)
+            self.error = Feedback(error_text(err), values_of(err))
 
     def update(self) -> py_trees.common.Status:
         if self.error is not None:

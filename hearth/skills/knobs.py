@@ -77,7 +77,7 @@ class ReadKnobs(Skill):
             readings, fixes = read_panel(self._reader(), np.asarray(frame.color), K, T_wc, priors,
                                          depth=depth, only=set(ids) if ids else None)
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         states, angles, on, unknown, twice = {}, {}, [], [], []
         off_views = off_views_of(self)
@@ -108,7 +108,8 @@ class ReadKnobs(Skill):
                  f"moved: {f.why}" for f in fixes if f.used or f.why != WHERE_THE_MAP_SAYS]
         if twice:
             moved.append(f"{', '.join(twice)} read off from two places")
-        self.feedback_message = f"knobs: {said}" + "".join(f"; {m}" for m in moved)
+        self.report(f"knobs: {said}" + "".join(f"; {m}" for m in moved), states=states,
+                    angles_deg=angles, unknown=unknown)
         return S.SUCCESS if states else S.FAILURE
 
 
@@ -146,7 +147,7 @@ class TurnKnob(RobotActionSkill):
         else:
             state = state or knob.off
             if state not in [s.name for s in knob.states]:
-                raise ValueError(f"{knob.id} has no state {state!r}; its states are "
+                raise ValueError(f'{knob.id} has no state "{state}"; its states are '
                                  + ", ".join(s.name for s in knob.states))
             a = knob.state_angle(state)
         self._knob, self._state, self._angle = knob.id, state, a

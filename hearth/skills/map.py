@@ -44,7 +44,7 @@ class ResolveObject(Skill):
         else:
             matches = [m for m in self.world.find(words) if isinstance(m.node, SmallObject)]
             if not matches:
-                self.feedback_message = f"I don't know any {words!r} in this home"
+                self.report(f"I don't know any \"{words}\" in this home", words=words)
                 return S.FAILURE
             best = [m.node for m in best_matches(matches)]
         if len(best) > 1:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import py_trees
 
-from hearth.skills.base import Port, Skill
+from hearth.skills.base import Port, Skill, words
 from hearth.skills.values import as_pose
 from hearth.worldmodel.nodes import Knob
 
@@ -234,6 +234,10 @@ def look_target(world, target: Any, focus: str = "centre"):
     return None
 
 
+def _xyz(point) -> str:
+    return "(" + ", ".join(f"{c:.2f}" for c in point) + ") m"
+
+
 class LookAt(Skill):
     """Turn the head so the camera looks at a node (or a point): ``robot.look_at``. Succeeds
     without moving when there is nothing to aim at (a search place without a target)."""
@@ -254,9 +258,9 @@ class LookAt(Skill):
         # Head moves are instant requests in the adapter protocol (a DoneAction).
         status = action.status() if hasattr(action, "status") else "succeeded"
         if status == "failed":
-            self.feedback_message = f"could not look at {point.round(2).tolist()}: {action.reason}"
+            self.report(f"could not look at {_xyz(point)}: {action.reason}", point=point.round(3))
             return S.FAILURE
-        self.feedback_message = f"looking at {point.round(2).tolist()}"
+        self.report(f"looking at {_xyz(point)}", point=point.round(3))
         return S.SUCCESS
 
 
@@ -318,7 +322,7 @@ class PlaceId(Skill):
         place = self.input("place")
         pid = place.get("place") if isinstance(place, dict) else place
         if not isinstance(pid, str) or pid not in self.world:
-            self.feedback_message = f"not a place in the map: {place!r}"
+            self.report(f"not a place in the map: {words(place)}", place=place)
             return S.FAILURE
         self.set_output("id", pid)
         self.feedback_message = pid

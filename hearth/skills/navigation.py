@@ -35,7 +35,7 @@ def _knob_distance(distance) -> float:
         return KNOB_VIEW_DISTANCE
     lo, hi = KNOB_DISTANCES
     if not lo <= float(distance) <= hi:
-        raise ValueError(f"distance {distance!r}: the knobs are viewed from {lo:g} to {hi:g} m")
+        raise ValueError(f"distance {distance}: the knobs are viewed from {lo:g} to {hi:g} m")
     return float(distance)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import py_trees
 
 from hearth.perception.errors import PerceptionError
-from hearth.skills.base import Port, Skill
+from hearth.skills.base import Feedback, Port, Skill
 from hearth.worldmodel.frames import as_matrix
 from hearth.worldmodel.pose import Pose
 
@@ -34,7 +34,7 @@ def resolve_object(world, words) -> str:
         return words
     hits = world.find(str(words), kinds=("SmallObject",))
     if not hits:
-        raise KeyError(f"no small object matches {words!r}")
+        raise KeyError(f'no small object matches "{words}"')
     return hits[0].node.id
 
 
@@ -63,7 +63,7 @@ class _PerceptionSkill(Skill):
         try:
             ok, self.feedback_message = self.perceive()
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         return S.SUCCESS if ok else S.FAILURE
 
@@ -106,15 +106,17 @@ class DetectObject(_PerceptionSkill):
         accepted = best is not None and best in det.accepted
         self.set_output("confidence", best.confidence if best else 0.0)
         if not accepted:
-            return False, (f"{oid} not recognised" + (f" (best confidence {best.confidence:.2f})"
-                                                      if best else ""))
+            return False, Feedback(f"{oid} not recognised" + (
+                f" (best confidence {best.confidence:.2f})" if best else ""),
+                confidence=best.confidence if best else None)
         pose = Pose.from_matrix(best.T_world_object)
         self.set_output("pose", pose)
         if self.input("update_map") and det.surface:
             parent = det.surface.split("/")[0]
             local = Pose.from_matrix(np.linalg.inv(self.world.T_world(parent)) @ best.T_world_object)
             self.world.move_object(oid, parent, local, "on", source=self.NAME)
-        return True, f"{oid} found on {det.surface} (confidence {best.confidence:.2f})"
+        return True, Feedback(f"{oid} found on {det.surface} (confidence {best.confidence:.2f})",
+                              confidence=best.confidence, surface=det.surface, pose=pose)
 
 
 class VerifyObject(_PerceptionSkill):
@@ -142,12 +144,14 @@ class VerifyObject(_PerceptionSkill):
         conf = h.confidence if h else 0.0
         self.set_output("confidence", conf)
         if h is None or conf < float(self.input("min_confidence")):
-            return False, f"{oid} not verified (confidence {conf:.2f})"
+            return False, Feedback(f"{oid} not verified (confidence {conf:.2f})", confidence=conf)
         if h.mostly_hidden_by_furniture(DetectionConfig().min_visible_fraction):
-            return False, (f"{oid} not verified: only {h.visible_fraction:.0%} of it in sight, "
-                           f"the rest hidden by the furniture (confidence {conf:.2f})")
+            return False, Feedback(f"{oid} not verified: only {h.visible_fraction:.0%} of it in "
+                                   f"sight, the rest hidden by the furniture (confidence "
+                                   f"{conf:.2f})", confidence=conf,
+                                   visible_fraction=h.visible_fraction)
         self.set_output("pose", Pose.from_matrix(h.T_world_object))
-        return True, f"{oid} verified (confidence {conf:.2f})"
+        return True, Feedback(f"{oid} verified (confidence {conf:.2f})", confidence=conf)
 
 
 class PlanNextBestView(_PerceptionSkill):
@@ -187,8 +191,10 @@ class PlanNextBestView(_PerceptionSkill):
                             weights=[h.weight for h in hs])
         self.set_output("look_at", [float(v) for v in target + (0, 0, 0.05)])
         self.set_output("visible_fraction", best.visible_fraction)
-        return True, (f"view of {oid} from ({x:.2f}, {y:.2f}): {best.visible_fraction:.0%} "
-                      f"of its facing surface unoccluded, {len(views)} candidates")
+        return True, Feedback(f"view of {oid} from ({x:.2f}, {y:.2f}): "
+                              f"{best.visible_fraction:.0%} of its facing surface unoccluded, "
+                              f"{len(views)} candidates", pose=Pose.planar(x, y, yaw),
+                              visible_fraction=best.visible_fraction, candidates=len(views))
 
     def _at_place(self, oid: str) -> list:
         """Hypotheses of the object standing at the place being searched, for a view of the

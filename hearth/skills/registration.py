@@ -14,7 +14,7 @@ import numpy as np
 import py_trees
 
 from hearth.perception.errors import PerceptionError
-from hearth.skills.base import Port, Skill
+from hearth.skills.base import Feedback, Port, Skill
 from hearth.worldmodel.pose import Pose
 
 S = py_trees.common.Status
@@ -37,7 +37,7 @@ class _PerceptionSkill(Skill):
         try:
             self.feedback_message = self.perceive()
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         return S.SUCCESS
 
@@ -67,7 +67,8 @@ class RegisterLargeObject(_PerceptionSkill):
             self.world.set_pose(oid, pose, source=self.NAME)
         self.set_output("pose", pose)
         self.set_output("fitness", reg.base.fitness)
-        return f"{oid} registered {moved * 100:.1f} cm from the map (fitness {reg.base.fitness:.2f})"
+        return Feedback(f"{oid} registered {moved * 100:.1f} cm from the map (fitness "
+                        f"{reg.base.fitness:.2f})", moved_cm=moved * 100, fitness=reg.base.fitness)
 
 
 class RefineLocalisation(_PerceptionSkill):
@@ -103,33 +104,38 @@ class RefineLocalisation(_PerceptionSkill):
         self.set_output("quality", fix.quality)
         if not fix.ok:
             why = "; ".join(fix.quality.get("doubts") or ()) or "too weak"
-            raise PerceptionError(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
-                                  f"(fitness {fix.quality['fitness']:.2f}); pose left unchanged")
+            raise PerceptionError(Feedback(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
+                                           f"(fitness {fix.quality['fitness']:.2f}); pose left "
+                                           f"unchanged", fix.quality, landmarks=fix.landmarks))
         against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier
                        if fix.evidence is not None), key=lambda t: t[0], default=(0.0, None))
         if against[0] > cfg.max_contradiction_m:
             # Two views of one pose further apart than twice the error a fix may have: one
             # of them is wrong and neither says which (the trusted one was, at home 5; the
             # earlier one, at home 23), so the pose is left as it was.
-            raise PerceptionError(
+            raise PerceptionError(Feedback(
                 f"fix on {', '.join(fix.landmarks)} not trusted: the view of "
                 f"{', '.join(against[1]['landmarks'])} puts the robot {100 * against[0]:.1f} cm "
-                f"away along a direction it pins down; pose left unchanged")
+                f"away along a direction it pins down; pose left unchanged",
+                landmarks=fix.landmarks, contradicted_by=against[1]['landmarks'],
+                contradiction_cm=100 * against[0]))
         self.robot.apply_correction(Pose.from_matrix(fix.T_world_base))
         corr = dict(dx=fix.dx, dy=fix.dy, dyaw=fix.dyaw)
         self.set_output("correction", corr)
         moved = (f"{math.hypot(fix.dx, fix.dy) * 100:.1f} cm, {math.degrees(fix.dyaw):.1f} deg "
                  f"on {', '.join(fix.landmarks)}")
+        corrected = dict(dx_cm=100 * fix.dx, dy_cm=100 * fix.dy, dyaw_deg=math.degrees(fix.dyaw),
+                         landmarks=fix.landmarks)
         if fix.loose:
             # the best pose this view gives, so it is applied (the other missions read knobs
             # and grasp better from it than from the pose before), but a pose a few
             # centimetres along the landmarks explains the view nearly as well: the skill
             # fails, so that the missions try other landmarks and never say "corrected" on it
-            raise PerceptionError(
+            raise PerceptionError(Feedback(
                 f"localisation moved by {moved}, but not pinned down: a pose "
                 f"{100 * fix.quality['ring_m']:.0f} cm away explains the view nearly as well "
-                f"(drop {fix.quality['ring_drop']:.3f})")
-        return f"localisation corrected by {moved}"
+                f"(drop {fix.quality['ring_drop']:.3f})", fix.quality, **corrected))
+        return Feedback(f"localisation corrected by {moved}", **corrected)
 
 
 class RegisterArticulated(_PerceptionSkill):
@@ -166,8 +172,8 @@ class RegisterArticulated(_PerceptionSkill):
         self.set_output("states", states)
         said = ", ".join(f"{p} {v:g} {'deg' if reg.parts[p].joint_type == 'revolute' else 'm'}"
                          for p, v in states.items())
-        return f"{oid}: {said or 'no part state read'}" + (
-            f"; unknown: {', '.join(unknown)}" if unknown else "")
+        return Feedback(f"{oid}: {said or 'no part state read'}" + (
+            f"; unknown: {', '.join(unknown)}" if unknown else ""), states=states, unknown=unknown)
 
 
 class EstimateHandle(_PerceptionSkill):
@@ -186,4 +192,5 @@ class EstimateHandle(_PerceptionSkill):
         pose = Pose.from_matrix(est.T_world_handle)
         self.set_output("pose", pose)
         prior = " (height from the map)" if est.prior_used else ""
-        return f"{hid} at {pose.x:.3f}, {pose.y:.3f}, {pose.z:.3f}{prior} from {est.points} points"
+        return Feedback(f"{hid} at {pose.x:.3f}, {pose.y:.3f}, {pose.z:.3f}{prior} from "
+                        f"{est.points} points", pose=pose, points=est.points)

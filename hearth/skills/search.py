@@ -68,7 +68,7 @@ class ProposeSearchPositions(Skill):
             found = propose_search_positions(seg.points("table"), room.bounds, occ, robot_xy, cfg,
                                              T_world_room=T_world_room(room))
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         poses = [Pose(sp.x, sp.y, 0.0, 0.0, 0.0, sp.yaw) for sp in found]
         tables = {id(sp.table): sp.table for sp in found}

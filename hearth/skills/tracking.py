@@ -84,7 +84,7 @@ class TrackObject(Skill):
             self.last_t = t
             est = self.tracker.update(depth, color, K, T_wc, dt)
         except (PerceptionError, KeyError, ValueError) as err:
-            self.feedback_message = f"{self.NAME}: {err}"
+            self.report_error(err)
             return S.FAILURE
         self.updates += 1
         self.lost = 0 if est.ok else self.lost + 1
@@ -101,6 +101,6 @@ class TrackObject(Skill):
             parent = self.world.parent(oid)
             local = Pose.from_matrix(np.linalg.inv(self.world.T_world(parent.id)) @ est.T_world_object)
             self.world.move_object(oid, parent.id, local, self.world.get(oid).relation, source=self.NAME)
-        self.feedback_message = (f"{oid} tracked over {self.updates} frames, now at "
-                                 f"({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+        self.report(f"{oid} tracked over {self.updates} frames, now at "
+                    f"({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})", frames=self.updates, pose=pose)
         return S.SUCCESS

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from hearth.skills.base import Feedback, words
 from hearth.skills.errors import SkillError
 from hearth.worldmodel import frames
 from hearth.worldmodel.pose import Pose
@@ -14,4 +15,4 @@ def as_pose(value: Any) -> Pose:
     try:
         return frames.as_pose(value)
     except ValueError:
-        raise SkillError(f"not a pose: {value!r}") from None
+        raise SkillError(Feedback(f"not a pose: {words(value)}", value=value)) from None

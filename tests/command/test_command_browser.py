@@ -171,6 +171,17 @@ class Creep(ScriptedSkill):
         return common.Status.SUCCESS
 
 
+class Gauge(ScriptedSkill):
+    """A test-only check that reports a sentence and its values (Skill.report), as the
+    registration skills do."""
+    NAME = "Gauge"
+
+    def update(self):
+        self.report("fix on fridge not trusted: too weak (fitness 0.31); pose left unchanged",
+                    fitness=0.3123, rmse_mm=4.1, landmarks=["fridge", "oven"], converged=False)
+        return common.Status.SUCCESS
+
+
 class TurnTestKnob(ScriptedSkill):
     """A test-only step that acts on the home (autonomy 2): it asks when 1 is granted (the
     command tests' oven_test uses it too)."""
@@ -212,9 +223,10 @@ class MonitorServer:
             Script(match="/each_test/*/look", duration=0.3, outcomes=["success", "success", "failure"]),
             Script(match="/each_test/*/verify", outcomes=["failure"], feedback="not the right place"),
             Script(match="/each_test/hold", duration=3600.0),
+            Script(match="/report_test/hold", duration=3600.0),
         ]
         skills = test_skills()
-        skills.update({c.NAME: c for c in (Creep, TurnTestKnob)})
+        skills.update({c.NAME: c for c in (Creep, TurnTestKnob, Gauge)})
         missions = [str(HERE / "missions"), str(HERE / "monitor_missions"),
                     str(big_mission(tmp_path / "big_test.yaml"))]
         self.service = make_service(world, None, missions, skills=skills,
@@ -400,6 +412,34 @@ def test_for_each_items_are_shown_fresh_and_the_state_survives_a_reload(monitor,
     page.reload()
     assert page.wait_for(TEXT.format("run-status"), "cancelled") == "cancelled"
     assert page.js(TEXT.format("run-reason")) == "cancelled by a client"
+
+
+VALUES_OF = ('Array.from(document.querySelectorAll(\'#feedback li[data-path="{}"] table.values tr\'))'
+             '.map(tr => [tr.cells[0].textContent, tr.cells[1].textContent])')
+
+
+def test_a_feedbacks_values_are_shown_as_a_table_under_its_sentence(monitor, chromium):
+    srv = monitor()
+    page = chromium(srv.url + "/")
+    run_id = srv.submit("report_test")
+    assert page.wait_for(node_status("/report_test/hold"), "RUNNING") == "RUNNING"
+    sentence = "fix on fridge not trusted: too weak (fitness 0.31); pose left unchanged"
+    assert page.wait_for(node_text("/report_test/check"), sentence) == sentence
+    # The values the sentence does not say in these words, in words; none of them as JSON.
+    rows = page.wait_for(VALUES_OF.format("/report_test/check"),
+                         [["fitness", "0.312"], ["rmse mm", "4.1"], ["landmarks", "fridge, oven"],
+                          ["converged", "no"]])
+    assert rows == [["fitness", "0.312"], ["rmse mm", "4.1"], ["landmarks", "fridge, oven"],
+                    ["converged", "no"]]
+    assert page.js(LOG_LINES_OF.format("/report_test/check")) == [sentence]
+    title = page.js('document.querySelector(\'li.node[data-path="/report_test/check"] > .row .fb\').title')
+    assert title.splitlines() == [sentence, "fitness 0.312", "rmse mm 4.1", "landmarks fridge, oven",
+                                  "converged no"]
+    # The same after a reload (from the run's recent events and its tree).
+    page.reload()
+    assert page.wait_for(TEXT.format("run-id"), run_id) == run_id
+    assert page.wait_for(VALUES_OF.format("/report_test/check"), rows) == rows
+    srv.client.post(f"/api/runs/{run_id}/cancel")
 
 
 LAYOUT = """(() => {

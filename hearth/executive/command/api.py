@@ -40,6 +40,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from hearth.executive.command.service import CommandService, Conflict, NotFound
 from hearth.executive.errors import MissionError, MissionValidationError
+from hearth.executive.events import json_default
 from hearth.util.files import BadJSON, load_json
 
 #: A request body, in bytes: refused from its Content-Length before it is read, and by counting
@@ -807,7 +808,7 @@ async def _stream(service: CommandService, cursor: int, run: str | None, close_o
             if service.run(run).handle.done:
                 ended = True    # its last event was read (or had already been dropped)
         if ended:
-            yield f"event: end\ndata: {json.dumps(service.run(run).to_json(), default=repr)}\n\n"
+            yield f"event: end\ndata: {json.dumps(service.run(run).to_json(), default=json_default)}\n\n"
             return
         if not items:
             try:

@@ -21,8 +21,9 @@ from typing import Any
 from hearth.executive.autonomy import Approvals
 from hearth.executive.command.commands import Interpretation, interpret
 from hearth.executive.command.vocabulary import Vocabulary, load_catalogue
-from hearth.executive.events import TERMINAL, EventKind
+from hearth.executive.events import TERMINAL, EventKind, json_default
 from hearth.executive.missionfile import plain
+from hearth.skills.base import json_value
 
 #: executive event kinds not forwarded (``tick``: one per tick on a wall clock; ``map``: the
 #: hub hears the map directly, also while no mission runs)
@@ -70,7 +71,7 @@ class EventHub:
 
     def publish(self, kind: str, data: dict[str, Any], run: str | None = None,
                 ends_run: bool = False) -> int:
-        text = json.dumps(data, default=repr)
+        text = json.dumps(data, default=json_default)
         with self._lock:
             self.last_seq += 1
             seq = self.last_seq
@@ -181,7 +182,8 @@ class RunRecord:
                 "priority": self.priority, "params": plain(self.params),
                 "submitted": self.submitted, "source": self.source,
                 "result": None if r is None else {"outcome": r.outcome, "reason": r.reason,
-                                                  "outputs": plain(r.outputs), "ticks": r.ticks,
+                                                  "outputs": json_value(plain(r.outputs)),
+                                                  "ticks": r.ticks,
                                                   "duration": r.duration,
                                                   "robot_stopped": r.robot_stopped}}
 
@@ -208,7 +210,7 @@ class CommandService:
         self._runs: OrderedDict[str, RunRecord] = OrderedDict()
         self._keep_runs = keep_runs
         self._idem: OrderedDict[str, tuple[str, str]] = OrderedDict()   # key -> (fingerprint, run)
-        self._live: dict[str, tuple[dict[str, str], dict[str, str]]] = {}
+        self._live: dict[str, tuple[dict[str, str], dict[str, dict]]] = {}
         self._unsubs += [executive.subscribe(self._on_event),
                          self.approvals.subscribe(self._on_approval)]
         self.started = time.time()
@@ -234,7 +236,7 @@ class CommandService:
             if kind is EventKind.STATUS:
                 live[0][ev.path] = ev.data.get("status", "")
             else:
-                live[1][ev.path] = ev.data.get("message", "")
+                live[1][ev.path] = ev.data
         ends = kind is EventKind.RUN and ev.data.get("state") in TERMINAL
         self.hub.publish(kind, ev.to_json(), run=ev.run, ends_run=ends)
 
@@ -364,7 +366,8 @@ class CommandService:
         return rec
 
     def tree(self, run_id: str) -> dict[str, Any]:
-        """The run's tree: nodes with their last reported status and feedback."""
+        """The run's tree: nodes with their last reported status and feedback (the sentence,
+        and the values it carried: ``{}`` when none)."""
         rec = self.run(run_id)
         live = self._live.get(run_id, ({}, {}))
         statuses, feedback = dict(live[0]), dict(live[1])
@@ -372,7 +375,8 @@ class CommandService:
         def node(spec: Any) -> dict[str, Any]:
             return {"path": spec.path, "name": spec.name, "kind": spec.kind,
                     "label": spec.label, "status": statuses.get(spec.path, "INVALID"),
-                    "feedback": feedback.get(spec.path, ""),
+                    "feedback": feedback.get(spec.path, {}).get("message", ""),
+                    "values": feedback.get(spec.path, {}).get("values", {}),
                     "children": [node(c) for c in spec.children]}
         return {"run": rec.id, "mission": rec.mission, "status": rec.handle.status,
                 "root": node(rec.handle.mission.root)}

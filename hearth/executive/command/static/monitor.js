@@ -19,18 +19,8 @@ function num(x) {
   return String(Number(x.toFixed(a >= 100 ? 1 : a >= 1 ? 2 : 3)));
 }
 function deg(rad) { return Math.round(rad * 180 / Math.PI) + "°"; }
-const POSE_REPR = /^Pose\((.*)\)$/;    // hearth.worldmodel.pose.Pose as the server's JSON writes it
+// a pose: the server writes a hearth.worldmodel.pose.Pose as its dict (x, y, z, roll, pitch, yaw)
 function poseOf(v) {
-  if (typeof v === "string") {
-    const m = POSE_REPR.exec(v);
-    if (!m) return null;
-    const p = {};
-    for (const part of m[1].split(",")) {
-      const [k, val] = part.split("=");
-      p[k.trim()] = Number(val);
-    }
-    return Number.isFinite(p.x) && Number.isFinite(p.y) ? p : null;
-  }
   if (v && typeof v === "object" && !Array.isArray(v) && typeof v.x === "number"
       && typeof v.y === "number" && typeof v.place !== "string") return v;
   return null;
@@ -44,7 +34,7 @@ function fmt(v, depth) {
   if (v === null || v === undefined || v === "") return "—";
   if (typeof v === "number") return num(v);
   if (typeof v === "boolean") return v ? "yes" : "no";
-  if (typeof v === "string") { const p = poseOf(v); return p ? fmtPose(p) : v; }
+  if (typeof v === "string") return v;
   if (Array.isArray(v)) {
     if (!v.length) return "none";
     const many = v.some(x => x && typeof x === "object");
@@ -68,73 +58,28 @@ function fmt(v, depth) {
   }
   return String(v);
 }
-// Skills write Python values into their messages ("fix not trusted ({'fitness': 0.86, ...})");
-// a small reader of Python literals (dicts, lists, tuples, strings, numbers, True/False/None)
-// turns them into the same words as above. Written here: the page has no libraries.
-function pyValue(s, i) {
-  const ws = () => { while (s[i] === " ") i++; };
-  const seq = (close, add) => {
-    i++; ws();
-    if (s[i] === close) { i++; return; }
-    for (;;) {
-      add();
-      ws();
-      if (s[i] === ",") { i++; ws(); if (s[i] === close) { i++; return; } continue; }
-      if (s[i] === close) { i++; return; }
-      throw new SyntaxError("not a Python value");
-    }
-  };
-  const value = () => {
-    ws();
-    const c = s[i];
-    if (c === "{") {
-      const o = {};
-      seq("}", () => {
-        const k = value(); ws();
-        if (s[i] !== ":") throw new SyntaxError("not a dict");
-        i++;
-        o[String(k)] = value();
-      });
-      return o;
-    }
-    if (c === "[" || c === "(") {
-      const a = [];
-      seq(c === "[" ? "]" : ")", () => a.push(value()));
-      return a;
-    }
-    if (c === "'" || c === '"') {
-      let out = "";
-      for (i++; i < s.length && s[i] !== c; i++) out += s[i] === "\\" ? s[++i] : s[i];
-      if (i >= s.length) throw new SyntaxError("open string");
-      i++;
-      return out;
-    }
-    const rest = s.slice(i);
-    const np = /^np\.\w+\(([^()]*)\)/.exec(rest);          // numpy 2 scalars
-    if (np) { i += np[0].length; return Number(np[1]); }
-    const m = /^(?:-?\d+(?:\.\d*)?(?:e[+-]?\d+)?|True|False|None)/.exec(rest);
-    if (!m) throw new SyntaxError("not a Python value");
-    i += m[0].length;
-    return m[0] === "True" ? true : m[0] === "False" ? false : m[0] === "None" ? null : Number(m[0]);
-  };
-  const v = value();
-  return [v, i];
+// A feedback's values (a skill's Skill.report, hearth/skills/base.py: JSON values beside its
+// sentence) as a small table; values the sentence already says in these words are left out.
+function says(text, words) {
+  const quoted = words.replace(/[.*+?^${}()|[\]\\]/g, "\\$&");
+  return new RegExp("(^|[^\\w.])" + quoted + "($|[^\\w])").test(text);
 }
-function prettyText(text) {
-  text = String(text).replace(/Pose\([^()]*\)/g, m => { const p = poseOf(m); return p ? fmtPose(p) : m; });
-  let out = "";
-  for (let i = 0; i < text.length;) {
-    const c = text[i];
-    if (c === "{" || (c === "[" && /^\[\s*[{(]/.test(text.slice(i, i + 3)))) {
-      try {
-        const [v, j] = pyValue(text, i);
-        if (v && typeof v === "object") { out += fmt(v); i = j; continue; }
-      } catch (e) { /* not a value: keep the text as it is */ }
-    }
-    out += c;
-    i++;
+function unsaid(values, text) {
+  return Object.entries(values || {}).filter(([, v]) => !says(text, fmt(v)));
+}
+function valuesTable(values, text) {
+  const rows = unsaid(values, text);
+  if (!rows.length) return null;
+  const table = el("table", {"class": "values"});
+  for (const [k, v] of rows) {
+    const tr = el("tr");
+    tr.append(el("th", {}, k.replace(/_/g, " ")), el("td", {}, fmt(v)));
+    table.append(tr);
   }
-  return out;
+  return table;
+}
+function valuesWords(values, text) {
+  return unsaid(values, text).map(([k, v]) => `${k.replace(/_/g, " ")} ${fmt(v)}`).join("\n");
 }
 const PERCENT = /^(.*?):?\s*(\d{1,3})\s?%$/;
 function progressOf(text) {
@@ -221,8 +166,8 @@ function buildTree(spec) {
     // a skill's label is "Skill" or "Skill name"
     const skill = s.kind === "skill" ? String(s.label || s.name).split(" ")[0] : null;
     const n = {path: s.path, name: s.name, kind: s.kind, skill, parent,
-               rep: s.status || "INVALID", fb: s.feedback || "", visit: -1, start: -1,
-               item: undefined, children: [], li: null, folded: false, shownStatus: null,
+               rep: s.status || "INVALID", fb: s.feedback || "", values: s.values || {},
+               visit: -1, start: -1, children: [], li: null, folded: false, shownStatus: null,
                shownFb: null};
     byPath.set(n.path, n);
     n.children = (s.children || []).map(c => make(c, n));
@@ -237,11 +182,6 @@ function visited(n, tick) {
     if (a.rep !== "RUNNING") a.start = tick;   // ticked again after it had ended: restarted
     a.visit = tick;
   }
-}
-function nodeText(n, msg) {
-  const m = /^item (\d+): /.exec(msg || "");
-  if (n.kind === "for_each" && m && n.item !== undefined) return `item ${Number(m[1]) + 1}: ${fmt(n.item)}`;
-  return prettyText(msg || "");
 }
 function nodeEl(n) {
   const li = el("li", {"class": "node", "data-path": n.path, "data-status": n.rep, "data-kind": n.kind});
@@ -272,7 +212,7 @@ function renderTree() {
   const running = [];
   const walk = (n, fresh) => {
     const st = fresh ? n.rep : "INVALID";
-    const fb = fresh ? nodeText(n, n.fb) : "";
+    const fb = fresh ? n.fb : "";
     if (st !== n.shownStatus) {
       n.shownStatus = st;
       n.li.setAttribute("data-status", st);
@@ -282,7 +222,8 @@ function renderTree() {
       n.shownFb = fb;
       const span = n.li.querySelector(":scope > .row .fb");
       span.textContent = fb;
-      span.title = fb;
+      const more = fb ? valuesWords(n.values, fb) : "";
+      span.title = more ? fb + "\n" + more : fb;
       const old = n.li.querySelector(":scope > .row .bar");
       if (old) old.remove();
       const p = st === "RUNNING" ? progressOf(fb) : null;
@@ -372,24 +313,28 @@ function logLine(cls, who, text, path) {
   while (ul.children.length > LOG_LINES) ul.lastChild.remove();
   return li;
 }
-function setLogText(li, text) {
+function setLogText(li, text, values) {
   const msg = li.querySelector(".msg");
   msg.textContent = text;
   const p = progressOf(text);
   if (p) msg.append(bar(p.pct));
+  const old = li.querySelector("table.values");
+  if (old) old.remove();
+  const table = valuesTable(values, text);
+  if (table) li.append(table);
   li.querySelector(".t").textContent = t0 !== null && lastT !== null ? clock(lastT - t0) : "";
 }
 function logFeedback(ev, n) {
-  const text = n ? nodeText(n, ev.message) : prettyText(ev.message);
+  const text = String(ev.message || "");
   const open = logOpen.get(ev.path);
   const prefix = prefixOf(text);
   if (open && open.prefix === prefix && open.li.isConnected) {
-    setLogText(open.li, text);                    // progress rewrites its own line
+    setLogText(open.li, text, ev.values);         // progress rewrites its own line
     if (!progressOf(text)) logOpen.delete(ev.path);
     return;
   }
   const li = logLine("feedback", n ? n.name : ev.path.split("/").pop(), "", ev.path);
-  setLogText(li, text);
+  setLogText(li, text, ev.values);
   if (progressOf(text)) logOpen.set(ev.path, {li, prefix});
   else logOpen.delete(ev.path);
 }
@@ -410,10 +355,9 @@ function runEvent(kind, ev) {
       n.rep = ev.status;
     }
   } else if (kind === "feedback") {
-    if (n) { visited(n, ev.tick); n.fb = ev.message; }
+    if (n) { visited(n, ev.tick); n.fb = ev.message; n.values = ev.values || {}; }
     logFeedback(ev, n);
   } else if (kind === "write") {
-    if (n && n.kind === "for_each" && ev.port === "as") n.item = ev.value;
     logLine("write", nodeName(ev.path), `${String(ev.key).split("/").pop()} = ${fmt(ev.value)}`, ev.path);
   } else if (kind === "run") {
     if (shown && ev.run === shown.id) {
