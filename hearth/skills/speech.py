@@ -17,7 +17,7 @@ from typing import Any
 
 import py_trees
 
-from hearth.skills.base import Port, Skill
+from hearth.skills.base import Port, Skill, words
 from hearth.worldmodel.nodes import Knob
 
 S = py_trees.common.Status
@@ -34,7 +34,7 @@ def _label(world, value: Any) -> str:
     if isinstance(value, dict):
         return "the position at {:.1f}, {:.1f}".format(float(value.get("x", 0.0)),
                                                         float(value.get("y", 0.0)))
-    return "" if value is None else str(value)
+    return "" if value is None else words(value)
 
 
 def _join(words: list[str]) -> str:
@@ -75,7 +75,9 @@ class Say(Skill):
             count = len(count)
         detail = self.input("detail")
         if isinstance(detail, (list, tuple)):
-            detail = "; ".join(str(d) for d in detail if d)
+            detail = "; ".join(words(d) for d in detail if d)
+        elif detail is not None and not isinstance(detail, str):
+            detail = words(detail)
         places = self.input("places") or []
         fields = dict(object=_label(self.world, self.input("object")),
                       place=_label(self.world, self.input("place")),
@@ -84,7 +86,8 @@ class Say(Skill):
                       s="" if count == 1 else "s",
                       places=_join(["the " + _label(self.world, p) for p in places]),
                       detail=detail or "")
-        fields.update(self.input("values") or {})
+        fields.update({k: v if isinstance(v, (str, int, float)) else words(v)
+                       for k, v in (self.input("values") or {}).items()})
         text = str(self.input("text"))
         try:
             text = text.format(**fields)

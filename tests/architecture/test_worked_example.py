@@ -3,6 +3,7 @@ the skill, the mission and the Python that runs it on the simulated home are the
 code blocks."""
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -30,3 +31,7 @@ def test_the_worked_example_counts_and_says_it(tmp_path, monkeypatch):
     said = [line for line in (tmp_path / "runs").glob("*.jsonl")
             for line in line.read_text().splitlines() if "I count" in line]
     assert said, "Say did not speak the count"
+    counted = [json.loads(line) for f in (tmp_path / "runs").glob("*.jsonl")
+               for line in f.read_text().splitlines() if "objects on" in line]
+    assert any((e.get("values") or {}).get("count") == tally["count"] for e in counted), \
+        "the skill's feedback does not carry its count as a value"

@@ -70,3 +70,16 @@ def test_the_oven_and_localisation_missions_feedback_is_words(world, tmp_path, m
     assert feedback
     said = [(e["path"], e["message"]) for e in feedback if PY_REPR.search(e["message"])]
     assert said == [], result.reason
+
+
+def test_say_words_lists_and_places_it_is_given(world):
+    from hearth.skills.base import Bindings, Literal
+    from hearth.skills.speech import Say
+    given = dict(text="{detail}; near {place}; tried {tries}",
+                 detail=[{"knob": 2, "state": "off"}, "stuck"],
+                 place={"x": 1.0, "y": 2.0}, values={"tries": [1, 2]})
+    say = Say("say", Bindings(inputs={k: Literal(v) for k, v in given.items()}))
+    say.setup(world=world)
+    text = say.sentence()
+    assert not PY_REPR.search(text), text
+    assert "stuck" in text and "1, 2" in text and "1.0, 2.0" in text
