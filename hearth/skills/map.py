@@ -73,7 +73,10 @@ class PlanSearch(Skill):
               Port("user_room", "string", required=False, default=None),
               Port("learned", "boolean", required=False, default=True),
               Port("max_places", "integer", required=False, default=6),
-              Port("exclude", "list", required=False, default=None))
+              Port("exclude", "list", required=False, default=None),
+              Port("among", "list", required=False, default=None,
+                   description="only these places (the first plan): planning again from "
+                               "where the robot is reorders them, never swaps one out"))
     OUTPUTS = (Port("places", "list", required=False), Port("count", "integer", required=False),
                Port("first", "dict", required=False, description="the cheapest place"))
 
@@ -84,6 +87,13 @@ class PlanSearch(Skill):
                               user_room=self.input("user_room") or None,
                               weights=SearchWeights(), learned=bool(self.input("learned")),
                               exclude=exclude)
+        among = self.input("among")
+        if among is not None:
+            # The budget is the places of the first plan: a re-plan from another position
+            # may change their order, but must not push one of them out for a place the
+            # first plan ranked below the budget (it would never be looked at).
+            keep = {place_id(p) for p in among}
+            places = [p for p in places if p.place in keep]
         places = places[: int(self.input("max_places") or len(places))]
         self.set_output("places", [p.as_dict() for p in places])
         self.set_output("count", len(places))
