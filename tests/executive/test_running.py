@@ -309,7 +309,8 @@ def test_go_to_rest_follows_presence_change_mid_run(make_executive):
     ex = make_executive([S("NavigateTo", duration=3.0, halt_duration=0.3)], robot=robot,
                         skills=None)
     ex.skills = None
-    h = ex.submit("missions/go_to_rest.yaml", presence="home")
+    h = ex.submit("missions/go_to_rest.yaml", presence="home", rest_near_user="side_table",
+                  rest_out_of_the_way="kitchen_table")
     for _ in range(10):
         ex.tick()
     ex.set_parameter("presence", "away")
