@@ -170,8 +170,10 @@ def object_places(world, object_id: str) -> list[tuple[str, float]]:
     place (PLACE_WEIGHTS[0]), the one the map believes (PLACE_WEIGHTS[1]), a third one
     (PLACE_WEIGHTS[2]). Fixed per home and object (the same every run)."""
     from hearth.worldmodel.search import candidate_places
+    from hearth.worldmodel.validate import all_parts
     believed = world.parent(object_id).id
-    others = sorted(p.id for p in candidate_places(world) if p.id != believed and p.surfaces)
+    others = sorted(p.id for p in candidate_places(world) if p.id != believed
+                    and (p.surfaces or any(q.surfaces for q in all_parts(p))))
     if not others:
         return [(believed, 1.0)]
     h = int(hashlib.sha256(object_id.encode()).hexdigest()[:8], 16)
@@ -182,6 +184,12 @@ def object_places(world, object_id: str) -> list[tuple[str, float]]:
         out.append((picks[1], PLACE_WEIGHTS[2]))
     total = sum(w for _, w in out)
     return [(p, w / total) for p, w in out]
+
+
+def object_height(world, object_id: str) -> float:
+    """Height (metres) of a small object's model above its base."""
+    from hearth.robot.scenario import _height
+    return _height(world, object_id)
 
 
 def sample_place(places: list[tuple[str, float]], rng) -> str:
@@ -223,18 +231,32 @@ def _config(mission: str):
 def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario",
              level: Optional[str] = None) -> bool:
     """Move a small object to a free spot of one of a place's surfaces (``level``: that
-    surface's id; default: one drawn at random). Returns False when no spot is free."""
+    surface's id; default: one drawn at random), its parts' included (into a drawer when
+    the object is low enough for it). Returns False when no spot is free."""
     from hearth.worldmodel.pose import Pose
+    from hearth.worldmodel.containers import headroom
+    from hearth.worldmodel.validate import all_parts
     place = world.get(place_id)
-    if not place.surfaces:
+    # (part or None, surface): the place's own surfaces and its parts' (a drawer's floor, for
+    # an object low enough to stay in the closed drawer)
+    height = None
+    options = [(None, s) for s in place.surfaces]
+    for part in all_parts(place):
+        for s in part.surfaces:
+            if height is None:
+                height = object_height(world, object_id)
+            if height <= headroom(part, s):
+                options.append((part, s))
+    if not options:
         return False
     if level is not None:
-        surf = next(s for s in place.surfaces if s.id == level)
+        part, surf = next(o for o in options if o[1].id == level)
     else:
-        surf = place.surfaces[int(rng.integers(len(place.surfaces)))]
-    others = [c for c in place.children if c.id != object_id
+        part, surf = options[int(rng.integers(len(options)))]
+    pid = part.id if part is not None else ""
+    others = [c for c in place.children if c.id != object_id and c.part == pid
               and abs(c.pose.z - surf.pose.z) < 0.05]
-    T = surf.pose.matrix()      # surface frame in the place's frame (it may be turned)
+    T = surf.pose.matrix()      # surface frame in the place's (or part's) frame
     for _ in range(60):
         u = rng.uniform(-0.35, 0.35) * surf.size_x
         v = rng.uniform(-0.35, 0.35) * surf.size_y
@@ -243,7 +265,7 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
             world.move_object(object_id, place_id,
                               Pose(float(x), float(y), float(z), 0.0, 0.0,
                                    float(rng.uniform(-math.pi, math.pi))),
-                              relation=surf.relation, source=source)
+                              relation=surf.relation, source=source, part=pid)
             return True
     return False
 

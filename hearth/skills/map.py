@@ -7,7 +7,7 @@ import py_trees
 
 from hearth.skills.base import Port, Skill
 from hearth.skills.values import as_pose
-from hearth.worldmodel.nodes import LargeArticulatedObject, SmallObject
+from hearth.worldmodel.nodes import SmallObject
 from hearth.worldmodel.pose import Pose
 from hearth.worldmodel.search import SearchWeights, search_order
 from hearth.worldmodel.world import best_matches
@@ -181,7 +181,8 @@ class RecordSearch(Skill):
 
 class UpdateObjectLocation(Skill):
     """Write where an object was seen: its new parent and its pose (world frame in,
-    parent frame in the map). Nothing changes when it is where the map said."""
+    parent frame in the map; seen in an open drawer, the drawer's frame: the map has it "in"
+    the drawer and it moves with it)."""
 
     NAME = "UpdateObjectLocation"
     DESCRIPTION = "write an object's observed place and pose into the map"
@@ -196,9 +197,18 @@ class UpdateObjectLocation(Skill):
         pid = place_id(place)
         relation = self.input("relation") or (place.get("relation") if isinstance(place, dict) else None) or "on"
         T_world_obj = as_pose(self.input("pose")).matrix()
-        T_world_parent = self.world.T_world(pid)
+        # Seen on a part's surface (in an open drawer): the map keeps it in that part's frame,
+        # so it moves with the drawer when the drawer is closed.
+        level = self.world.surface_near(pid, T_world_obj[:3, 3])
+        part = ""
+        if level is not None and level.part:
+            q = np.linalg.inv(level.T_world_surface) @ T_world_obj[:, 3]
+            if abs(q[0]) <= level.size_x / 2 + 0.05 and abs(q[1]) <= level.size_y / 2 + 0.05:
+                part = level.part
+        T_world_parent = self.world.T_world(part or pid)
         pose_parent = Pose.from_matrix(np.linalg.inv(T_world_parent) @ T_world_obj)
-        self.world.move_object(oid, pid, pose_parent, relation=relation, source=self.NAME)
+        self.world.move_object(oid, pid, pose_parent, relation=relation, source=self.NAME,
+                               part=part)
         where = self.world.describe_location(oid)
         self.set_output("location", where)
         self.feedback_message = f"{oid} is {where}"
@@ -226,29 +236,36 @@ class DescribeLocation(Skill):
 
 
 class ClosedParts(Skill):
-    """The closed doors and drawers (with handles) of a place that must be opened to look in.
+    """The closed doors and drawers (with handles) of a place that must be opened to look in
+    (hearth/worldmodel/containers.py): closed hinged doors, drawers that hold surfaces, and
+    of sliding doors sharing a track the one that uncovers where the object is believed;
+    the track's other doors are ``other_half``, to open (after closing the first) for a
+    second look.
 
-    Outputs an empty list for places without any (a table)."""
+    Outputs empty lists for places without any (a table)."""
 
     NAME = "ClosedParts"
     DESCRIPTION = "list a container's closed doors and drawers"
     INPUTS = (Port("place", "any"),
+              Port("object_id", "node_id", required=False, default=None,
+                   description="the object looked for (a sliding door uncovering where it is "
+                               "believed is opened first)"),
               Port("open_threshold", "number", required=False, default=0.35,
-                   description="a door counts as open above this (rad or m)"))
-    OUTPUTS = (Port("parts", "list", required=False), Port("count", "integer", required=False))
+                   description="a door counts as open above this (rad)"))
+    OUTPUTS = (Port("parts", "list", required=False), Port("count", "integer", required=False),
+               Port("other_half", "list", required=False,
+                    description="sliding doors to open after closing the first of their track"))
 
     def update(self) -> S:
+        from hearth.worldmodel.containers import openings
         place = self.input("place")
         pid = place_id(place)
-        node = self.world.get(pid)
-        out = []
-        if isinstance(node, LargeArticulatedObject) and "container" in node.affordances:
-            thr = float(self.input("open_threshold"))
-            for p in node.parts:
-                if p.type == "door" and p.handles and p.joint.state < thr:
-                    out.append({"part": p.id, "handle": p.handles[0].id})
+        found = openings(self.world, pid, self.input("object_id"),
+                         float(self.input("open_threshold")))
+        out = found.first
         self.set_output("parts", out)
         self.set_output("count", len(out))
+        self.set_output("other_half", found.then)
         self.feedback_message = (f"{pid}: " + (", ".join(p["part"] for p in out) + " closed"
                                                     if out else "nothing to open"))
         return S.SUCCESS

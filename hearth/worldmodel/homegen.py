@@ -163,7 +163,10 @@ CLOSE_HUES = [("blue", "navy"), ("red", "crimson"), ("orange", "amber"), ("green
 #: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it;
 #: 8 = the knob panel's place and off mid-travel drawn from the designs' generator (the rest
 #:     of a seed's home as in version 4).
-GENERATOR_VERSION = 8
+#: 9 = a chest's top drawer has a floor (a part surface) that may hold a small object (drawn
+#:     from a generator of its own); half the bedroom wardrobes have two sliding doors on one
+#:     track with recessed pulls (issue 43).
+GENERATOR_VERSION = 9
 
 KNOB_DESIGNS = [
     ("white", (0.9, 0.9, 0.88), (0.05, 0.05, 0.05), (0.018, 0.026), (0.018, 0.026)),
@@ -326,6 +329,8 @@ class _Ctx:
     #: knob designs are drawn from a generator of their own, so that varying them leaves the
     #: rest of a seed's home (layout, states, objects) as it was
     design_rng: Optional[np.random.Generator] = None
+    #: objects in drawers are drawn from a generator of their own too
+    drawer_rng: Optional[np.random.Generator] = None
 
     def u(self, lo: float, hi: float) -> float:
         return float(self.rng.uniform(lo, hi))
@@ -642,10 +647,37 @@ def _hinged_door(ctx: _Ctx, pid: str, name: str, front_x: float, hinge_y: float,
     return Part(pid, "door", joint, name=name, model=Model([face]), handles=[handle])
 
 
-def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
+def _sliding_doors(ctx: _Ctx, oid: str, D: float, W: float, height: float, z0: float, color,
+                   t: float, handle_z: float) -> list[Part]:
+    """Two sliding doors on one track (a bypass wardrobe): each covers one half of the front
+    (overlapping 4 cm in the middle), the left one (+y) on the outer runner, the right one on
+    the inner; each slides towards the other half, over or behind the other door, so opening
+    one uncovers its own half and covers nothing new (they exclude each other:
+    ``Part.track``). A recessed pull near each door's outer edge. No random draw: the rest of
+    the home as a hinged wardrobe's."""
+    dw = _mm(W / 2 + 0.02)
+    travel = _mm(W / 2 - 0.02)
+    track = f"{oid}_track"
+    pull = (0.12, 0.12, 0.13)
+    out = []
+    for side, name, x in ((+1, "left", D / 2 + 1.5 * t + 0.006), (-1, "right", D / 2 + t / 2 + 0.002)):
+        pid = f"{oid}_door_{name}"
+        joint = Joint("prismatic", origin=Pose(_mm(x), _mm(side * W / 4), _mm(z0)),
+                      axis=(0.0, float(-side), 0.0), lower=0.0, upper=travel, state=0.0)
+        face = box(t, dw, height, 0, 0, height / 2, color=color, name="face")
+        handle = Handle(f"{pid}_pull", Pose(_mm(t / 2), _mm(side * (dw / 2 - 0.05)), _mm(handle_z)),
+                        radius=0.015, length=0.14, standoff=0.01, color=pull, material="matte",
+                        handle_kind="recessed")
+        out.append(Part(pid, "door", joint, name=f"{name} sliding door", model=Model([face]),
+                        handles=[handle], track=track))
+    return out
+
+
+def cupboard(ctx: _Ctx, kind: str = "cupboard", sliding: bool = False) -> Piece:
     """A cupboard with one door (hinged left or right) or two (hinged at the outer edges),
     1-3 shelves inside; ``kind``: cupboard (low, or tall with some probability), wardrobe
-    (tall), sideboard (low, wide), cabinet (wall-mounted)."""
+    (tall), sideboard (low, wide), cabinet (wall-mounted). ``sliding``: two sliding doors on
+    one track instead (``_sliding_doors``)."""
     cfg = ctx.cfg
     wall = kind == "cabinet"
     tall = kind == "wardrobe" or (kind == "cupboard" and ctx.chance(cfg.tall_cupboard_probability))
@@ -680,7 +712,9 @@ def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
     door_color = color if ctx.chance(0.7) else ctx.pick(PAINTS)
     vertical = ctx.chance(0.8)
     parts = []
-    if two:
+    if sliding:
+        parts = _sliding_doors(ctx, oid, D, W, door_h, plinth + 0.005, door_color, dt, handle_z)
+    elif two:
         dw = _mm(W / 2 - 0.004)
         parts.append(_hinged_door(ctx, f"{oid}_door_left", "left door", D / 2, W / 2, dw, door_h,
                                   plinth + 0.005, +1, door_color, dt, handle_z, vertical))
@@ -695,8 +729,9 @@ def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
     obj = LargeArticulatedObject(
         id=oid, type=kind, name=ctx.ids.name(f"{ctx.room_name} {names[kind]}"), pose=Pose(),
         model=Model(v), affordances=["container", "openable"], surfaces=surfaces, parts=parts,
-        description=f"{'tall ' if tall else ''}{names[kind]}, {len(parts)} door{'s' if two else ''}")
-    front = D / 2 + dt + 0.002
+        description=f"{'tall ' if tall else ''}{names[kind]}, {len(parts)} "
+                    f"{'sliding ' if sliding else ''}door{'s' if two else ''}")
+    front = D / 2 + dt + 0.002 + (dt + 0.004 if sliding else 0.0)
     views = [View("face", (front, 0.0, lift + min(H / 2, 1.0)))]
     views += _surface_views(_lifted(surfaces, lift), headroom, D / 2, cfg, open_above)
     reach = [tuple(_handle_point(p, lift)) for p in parts]
@@ -716,9 +751,15 @@ def _handle_point(part: Part, lift: float = 0.0) -> np.ndarray:
     return np.array([o.x + h.x, o.y + h.y, lift + o.z + h.z])
 
 
+#: A top drawer gets a floor that may hold small objects when its floor is at most this high
+#: (m): the head camera (1.3 m up) looks into it from the parking position once it is open.
+DRAWER_FLOOR_MAX = 0.95
+
+
 def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
     """1-4 drawers of different heights (prismatic parts sliding out along +x, a bar handle
-    each); a surface on top when the unit is low."""
+    each); a surface on top when the unit is low; the top drawer's floor a surface of its
+    part (``DRAWER_FLOOR_MAX``)."""
     cfg = ctx.cfg
     D, W = _mm(ctx.u(0.4, 0.55)), _mm(ctx.u(0.4, 0.9))
     n = ctx.i(*cfg.drawers)
@@ -731,6 +772,7 @@ def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
     w = ctx.rng.uniform(0.6, 1.6, n)
     heights = [_mm(x) for x in room * w / w.sum()]
     parts, z = [], plinth + 0.005
+    drawer_headroom: dict[str, float] = {}
     front_t = _mm(ctx.u(0.018, 0.025))
     hcolor = ctx.pick([(0.75, 0.75, 0.78), (0.2, 0.2, 0.2), (0.8, 0.65, 0.3)])
     for i, dh in enumerate(heights):
@@ -748,10 +790,18 @@ def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
                         standoff=standoff, color=hcolor)
         joint = Joint("prismatic", origin=Pose(_mm(D / 2 + front_t / 2 + 0.002), 0.0, _mm(z)),
                       axis=(1.0, 0.0, 0.0), lower=0.0, upper=_mm(D * 0.75), state=0.0)
+        floor = []
+        if i == n - 1 and z + 0.036 <= DRAWER_FLOOR_MAX:
+            # the top drawer: looked into from above once open, so it may hold small objects
+            # (its floor, part frame: moves with the drawer; no random draw, the rest of the
+            # home as before)
+            floor = [Surface(f"drawer_{i + 1}_floor", Pose(_mm(-tray_d / 2 - front_t / 2), 0.0, 0.036),
+                             _mm(tray_d - 0.03), _mm(W - 0.09), "in")]
+            drawer_headroom[floor[0].id] = _mm(fh - 0.036 - 0.01)
         parts.append(Part(pid, "drawer", joint, name=f"drawer {i + 1} from the bottom",
-                          model=Model(model), handles=[handle]))
+                          model=Model(model), handles=[handle], surfaces=floor))
         z += dh
-    surfaces, headroom, open_above = [], {}, set()
+    surfaces, headroom, open_above = [], dict(drawer_headroom), set()
     if H <= 1.1:
         surfaces.append(Surface("top", Pose(0, 0, H), _mm(D - 0.04), _mm(W - 0.04)))
         headroom["top"], open_above = math.inf, {"top"}
@@ -1364,6 +1414,9 @@ class _SmallPlacer:
                     out.append((pc, s))
                 elif want == "top" and o.type != "table" and s.id == "top":
                     out.append((pc, s))
+            if want == "drawer" and pc.parking:
+                for part in getattr(o, "parts", ()):
+                    out += [(pc, s) for s in part.surfaces]
             if want == "under" and o.type == "table" and o.surfaces[0].pose.z >= 0.6 \
                     and o.surfaces[0].size_x >= 0.5 and o.surfaces[0].size_y >= 0.5:
                 s = o.surfaces[0]
@@ -1387,9 +1440,9 @@ class _SmallPlacer:
                 return False
         return True
 
-    def place(self, kind: str, colour: str, where: str) -> Optional[SmallObject]:
+    def place(self, kind: str, colour: str, where: str, slots=None) -> Optional[SmallObject]:
         ctx = self.ctx
-        slots = self.slots(where)
+        slots = self.slots(where) if slots is None else slots
         if not slots:
             return None
         rgb = COLOURS[colour]
@@ -1405,7 +1458,9 @@ class _SmallPlacer:
                 continue
             # inside and on shelves, near the front half where a camera sees in
             lo_x = 0.0 if s.relation == "in" or pc.obj.type == "bookshelf" else -hx
-            if s.relation == "under":          # under a table: near an edge, seen from a side
+            if where == "drawer":              # away from the front panel, seen from above
+                lx, ly = ctx.u(-hx, 0.3 * hx), ctx.u(-hy, hy)
+            elif s.relation == "under":          # under a table: near an edge, seen from a side
                 lx = ctx.u(-hx, hx)
                 ly = ctx.pick([-1, 1]) * ctx.u(hy * 0.5, hy)
             else:
@@ -1423,10 +1478,11 @@ class _SmallPlacer:
             type_id = kind.replace(" ", "_")
             oid = ctx.ids.exact(f"{colour}_{type_id}")
             grasp = GraspPoint(Pose(0, 0, _mm(min(height * 0.55, 0.1))))
+            part = next((p.id for p in getattr(pc.obj, "parts", ()) if s in p.surfaces), "")
             obj = SmallObject(id=oid, type=kind, pose=pose, relation=s.relation, color=colour,
                               description=f"{colour} {desc}", grasp_points=[grasp],
                               default_positions=[DefaultPosition(pc.obj.id, s.relation, pose)],
-                              model=Model(visuals))
+                              model=Model(visuals), part=part)
             pc.obj.children.append(obj)
             q = _tokens(f"{colour} {kind}")
             self.words.append((q, q | _tokens(desc) | _tokens(oid)))
@@ -1464,6 +1520,34 @@ def small_objects(ctx: _Ctx, pieces: list[Piece]) -> list[SmallObject]:
             obj = placer.place(kind, colour, ctx.pick(["table", "top", "shelf"]))
         if obj is not None:
             out.append(obj)
+    out += drawer_objects(ctx, placer)
+    return out
+
+
+#: What goes in a drawer, and how often a drawer with a floor holds one.
+DRAWER_KINDS = ["pill box", "remote", "book", "box"]
+DRAWER_PROBABILITY = 0.6
+
+
+def drawer_objects(ctx: _Ctx, placer: "_SmallPlacer") -> list[SmallObject]:
+    """Small objects in the drawers that have a floor (``DRAWER_PROBABILITY`` each), low
+    enough to stay inside the closed drawer. Drawn from ``ctx.drawer_rng``, so the rest of a
+    seed's home is what it was without them."""
+    if ctx.drawer_rng is None:
+        return []
+    placer.ctx = replace(ctx, rng=ctx.drawer_rng)
+    out = []
+    try:
+        for slot in placer.slots("drawer"):
+            if not placer.ctx.chance(DRAWER_PROBABILITY):
+                continue
+            kind = placer.ctx.pick(DRAWER_KINDS)
+            colour = placer.colour_for(kind)
+            obj = placer.place(kind, colour, "drawer", slots=[slot]) if colour else None
+            if obj is not None:
+                out.append(obj)
+    finally:
+        placer.ctx = ctx
     return out
 
 
@@ -1516,7 +1600,7 @@ def _furniture_plan(ctx: _Ctx, kind: str) -> list[tuple[str, Callable[[], Piece]
         add("drawers", lambda: drawer_unit(c), 0.3)
         add("chair", lambda: chair(c), 0.3)
     elif kind == "bedroom":
-        add("wardrobe", lambda: cupboard(c, "wardrobe"), 0.85)
+        add("wardrobe", lambda: cupboard(c, "wardrobe", sliding=c.chance(0.5)), 0.85)
         add("drawers", lambda: drawer_unit(c), 0.7)
         add("table", lambda: table(c, "bedside"), 0.5)
         add("drawers", lambda: drawer_unit(c, "bedside"), 0.4)
@@ -1734,6 +1818,8 @@ def _turn_front(ctx: _Ctx, piece: Piece) -> None:
                    for p in obj.parking]
     obj.surfaces = [replace(s, pose=turn(s.pose)) for s in obj.surfaces]
     for ch in obj.children:
+        if ch.part:         # in the part's frame, which the joint origin turns
+            continue
         ch.pose = turn(ch.pose)
         ch.default_positions = [replace(d, pose=turn(d.pose)) if d.parent == obj.id else d
                                 for d in ch.default_positions]
@@ -1769,7 +1855,8 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
     library: dict[str, Model] = {}
     with tempfile.TemporaryDirectory(prefix="hearth-homegen-") as tmp:
         ctx = _Ctx(rng, config, _Ids(), _Meshes(Path(tmp)), library, knobs_left=config.max_knobs,
-                   design_rng=np.random.default_rng([int(seed), 0x6B6E6F62]))
+                   design_rng=np.random.default_rng([int(seed), 0x6B6E6F62]),
+                   drawer_rng=np.random.default_rng([int(seed), 0x64726177]))
         scratch = World(Apartment(id="scratch", library=library), base_dir=Path(tmp))
         n_rooms = ctx.i(*config.rooms)
         others = [k for k in ROOM_KINDS if k != "kitchen"]

@@ -15,7 +15,9 @@ from typing import Iterator, Optional
 
 from hearth.util.files import file_inside
 from hearth.worldmodel.errors import WorldError
-from hearth.worldmodel.nodes import KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
+from hearth.worldmodel.nodes import (
+    HANDLE_KINDS, KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual,
+)
 from hearth.worldmodel.pose import Pose
 
 #: Joint values are compared with this slack so that a state written as the limit itself
@@ -215,11 +217,7 @@ def _node_value_problems(node) -> Iterator[str]:
         for p in node.parking:
             yield from _text("parking position id", p.id, nid, optional=False)
             yield from _pose(f"parking position {p.id}", p.pose, nid)
-        for s in node.surfaces:
-            yield from _text("surface id", s.id, nid, optional=False)
-            yield from _pose(f"surface {s.id} pose", s.pose, nid)
-            yield from _positive(f"surface {s.id} sizeX", s.size_x, nid)
-            yield from _positive(f"surface {s.id} sizeY", s.size_y, nid)
+        yield from _surface_values(node.surfaces, nid)
         for a in node.affordances:
             if not isinstance(a, str) or not a or a.split() != [a]:
                 yield f"{nid}: affordance {a!r} is not one word"
@@ -227,6 +225,8 @@ def _node_value_problems(node) -> Iterator[str]:
                 yield from _text("affordance", a, nid)
     elif kind == "Part":
         j = node.joint
+        yield from _text("track", node.track, nid)
+        yield from _surface_values(node.surfaces, nid)
         yield from _pose("joint origin", j.origin, nid)
         for what in ("lower", "upper", "state"):
             yield from _coord(f"joint {what}", getattr(j, what), nid)
@@ -262,11 +262,20 @@ def _node_value_problems(node) -> Iterator[str]:
             yield f"{nid}: a fixed base needs a base"
     elif kind == "SmallObject":
         yield from _text("color", node.color, nid)
+        yield from _text("part", node.part, nid)
         for g in node.grasp_points:
             yield from _pose("grasp point", g.pose, nid)
         for d in node.default_positions:
             yield from _text("default position parent", d.parent, nid, optional=False)
             yield from _pose(f"default position on {d.parent}", d.pose, nid)
+
+
+def _surface_values(surfaces, nid: str) -> Iterator[str]:
+    for s in surfaces:
+        yield from _text("surface id", s.id, nid, optional=False)
+        yield from _pose(f"surface {s.id} pose", s.pose, nid)
+        yield from _positive(f"surface {s.id} sizeX", s.size_x, nid)
+        yield from _positive(f"surface {s.id} sizeY", s.size_y, nid)
 
 
 def _apartment_value_problems(apartment: Apartment) -> Iterator[str]:
@@ -334,14 +343,23 @@ def asset_problem(rel, base_dir: Optional[Path], kind: str = "mesh") -> Optional
 
 # -- the checks ------------------------------------------------------------------------------
 
+def all_parts(node) -> Iterator[Part]:
+    """Every part of an articulated object or part, depth first."""
+    for p in getattr(node, "parts", ()):
+        yield p
+        yield from all_parts(p)
+
+
 def _unique_surfaces(node, bad) -> None:
     """A surface is named by its object and its id (where an object stands, what a search
-    looks at): two of one object with one id could not be told apart."""
+    looks at): two of one object with one id could not be told apart, whether they are the
+    object's own or its parts' (a drawer's floor)."""
     seen: set[str] = set()
-    for srf in getattr(node, "surfaces", ()):
-        if srf.id in seen:
-            bad(f"{node.id}: duplicate surface id {srf.id!r}", srf)
-        seen.add(srf.id)
+    for owner in (node, *all_parts(node)):
+        for srf in getattr(owner, "surfaces", ()):
+            if srf.id in seen:
+                bad(f"{node.id}: duplicate surface id {srf.id!r}", srf)
+            seen.add(srf.id)
 
 
 def semantic_problems(apartment: Apartment, name: Optional[str],
@@ -474,12 +492,21 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 elif not (j.lower - LIMIT_EPS <= j.state <= j.upper + LIMIT_EPS):
                     bad(f"part {node.id!r}: joint state {j.state} is outside its limits "
                         f"[{j.lower}, {j.upper}]", j)
-            _unique_surfaces(node, bad)
+            if node.track and j.type != "prismatic":
+                bad(f"part {node.id!r}: a part on a track (track {node.track!r}) slides: its "
+                    f"joint must be prismatic", node)
             check_model(node.model, node)
+        elif kind == "Handle":
+            if node.handle_kind not in HANDLE_KINDS:
+                bad(f"handle {node.id!r}: kind {node.handle_kind!r} is not one of "
+                    f"{', '.join(HANDLE_KINDS)}", node)
         elif kind == "Knob":
             check_knob(node)
         elif kind == "SmallObject":
             check_model(node.model, node)
+            if node.part and node.part not in {p.id for p in all_parts(parent)}:
+                bad(f"{node.id}: part {node.part!r} is not a part of its parent "
+                    f"{parent.id!r}", node)
             for d in node.default_positions:
                 if d.parent not in seen:
                     bad(f"{node.id}: default position names unknown parent {d.parent!r}", d)
