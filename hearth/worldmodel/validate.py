@@ -362,6 +362,106 @@ def _unique_surfaces(node, bad) -> None:
             seen.add(srf.id)
 
 
+#: Two closed sliding doors on one track that share more than this fraction of the narrower
+#: one's width along the track cover the same span: neither uncovers a half of its own when
+#: slid open (a bypass wardrobe's doors overlap by a few centimetres in the middle).
+TRACK_OVERLAP_FRACTION = 0.5
+
+
+def _rpy(pose: Pose) -> list[list[float]]:
+    """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` as rows (pose.py's convention), by hand: validating
+    does not import scipy (pose.py)."""
+    cr, sr = math.cos(pose.roll), math.sin(pose.roll)
+    cp, sp = math.cos(pose.pitch), math.sin(pose.pitch)
+    cy, sy = math.cos(pose.yaw), math.sin(pose.yaw)
+    return [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr]]
+
+
+def _apply(R, v) -> tuple[float, float, float]:
+    return tuple(sum(R[i][k] * v[k] for k in range(3)) for i in range(3))
+
+
+def _closed_span(door: Part) -> Optional[tuple[tuple, float, float]]:
+    """A sliding door's slide direction in its parent's frame (unit) and the interval its
+    primitive shapes (boxes, cylinders, spheres: their bounding boxes) cover along it with
+    the door closed (joint at its lower limit); None when it has no primitive shape (a mesh
+    is not read to validate)."""
+    j = door.joint
+    n = math.sqrt(sum(a * a for a in j.axis))
+    if n == 0:
+        return None
+    R0 = _rpy(j.origin)
+    axis = _apply(R0, tuple(a / n for a in j.axis))
+    offset = tuple(j.lower * a / n for a in j.axis)          # the slide, in the part frame
+    o = (j.origin.x, j.origin.y, j.origin.z)
+    along = []
+    for v in door.model.visuals:
+        if v.shape == "box":
+            h = tuple(s / 2 for s in v.size)
+        elif v.shape == "cylinder":
+            h = (v.radius, v.radius, v.length / 2)
+        elif v.shape == "sphere":
+            h = (v.radius,) * 3
+        else:
+            continue
+        Rv = _rpy(v.pose)
+        for corner in ((sx * h[0], sy * h[1], sz * h[2])
+                       for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)):
+            c = _apply(Rv, corner)
+            p_part = (c[0] + v.pose.x + offset[0], c[1] + v.pose.y + offset[1],
+                      c[2] + v.pose.z + offset[2])
+            p = _apply(R0, p_part)
+            along.append(sum(axis[i] * (p[i] + o[i]) for i in range(3)))
+    return (axis, min(along), max(along)) if along else None
+
+
+def _track_problems(obj, bad) -> None:
+    """Doors on one track exclude each other (docs/world-format.md, "Sliding doors"): a
+    track needs two or more, they slide along one line, and closed each covers a span of
+    its own."""
+    tracks: dict[str, list[tuple[object, Part]]] = {}
+
+    def walk(owner) -> None:
+        for p in owner.parts:
+            if p.track:
+                tracks.setdefault(p.track, []).append((owner, p))
+            walk(p)
+
+    walk(obj)
+    for track, doors in tracks.items():
+        if len(doors) == 1:
+            bad(f"{obj.id}: part {doors[0][1].id!r} is the only door on track {track!r} (doors "
+                f"on one track exclude each other: give the track two doors or drop it)",
+                doors[0][1])
+            continue
+        spans = {}
+        for owner, d in doors:
+            if d.joint.type == "prismatic":
+                span = _closed_span(d)
+                if span is not None:
+                    spans[d.id] = (owner, d, span)
+        seen = list(spans.values())
+        for i, (owner_a, a, (axis_a, lo_a, hi_a)) in enumerate(seen):
+            for owner_b, b, (axis_b, lo_b, hi_b) in seen[i + 1:]:
+                if owner_a is not owner_b:
+                    continue            # spans in different frames: not compared
+                dot = sum(x * y for x, y in zip(axis_a, axis_b))
+                if abs(dot) < 0.99:
+                    bad(f"{obj.id}: sliding doors {a.id!r} and {b.id!r} on track {track!r} "
+                        f"slide along different lines", b)
+                    continue
+                if dot < 0:             # opposite slides: measure b along a's direction
+                    lo_b, hi_b = -hi_b, -lo_b
+                shared = min(hi_a, hi_b) - max(lo_a, lo_b)
+                narrower = min(hi_a - lo_a, hi_b - lo_b)
+                if shared > TRACK_OVERLAP_FRACTION * narrower:
+                    bad(f"{obj.id}: sliding doors {a.id!r} and {b.id!r} on track {track!r} "
+                        f"overlap by {shared:.2f} m of {narrower:.2f} m when closed (each "
+                        f"must cover a span of its own)", b)
+
+
 def semantic_problems(apartment: Apartment, name: Optional[str],
                       base_dir: Optional[Path]) -> list[WorldError]:
     """Every problem the schema cannot see. ``name`` is the file (problems carry its lines);
@@ -481,6 +581,8 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 bad(f"{node.id}: duplicate parking position ids", node)
             _unique_surfaces(node, bad)
             check_model(node.model, node)
+            if kind == "LargeArticulatedObject":
+                _track_problems(node, bad)
         elif kind == "Part":
             j = node.joint
             if j.type != "fixed":
