@@ -235,6 +235,28 @@ class DescribeLocation(Skill):
         return S.SUCCESS
 
 
+class Uncovered(Skill):
+    """Succeed unless, by the map, a sliding door of the object's furniture stands in front
+    of it (``containers.covering_door``; objects "in" their furniture only). Looking in at an
+    angle through the half a search slid open, a camera can see an object behind the other
+    half, where no arm reaches: the search then slides the halves and looks again."""
+
+    NAME = "Uncovered"
+    DESCRIPTION = "check that no sliding door stands in front of an object"
+    INPUTS = (Port("object_id", "node_id"),)
+    OUTPUTS = ()
+
+    def update(self) -> S:
+        from hearth.worldmodel.containers import covering_door
+        oid = self.input("object_id")
+        door = covering_door(self.world, oid) if self.world.get(oid).relation == "in" else None
+        if door is not None:
+            self.feedback_message = f"{oid} is behind {door}"
+            return S.FAILURE
+        self.feedback_message = f"no sliding door in front of {oid}"
+        return S.SUCCESS
+
+
 class ClosedParts(Skill):
     """The closed doors and drawers (with handles) of a place that must be opened to look in
     (hearth/worldmodel/containers.py): closed hinged doors, drawers that hold surfaces, and

@@ -12,7 +12,7 @@ from hearth.executive.scenarios import MISSIONS, resolve_world
 from hearth.robot.clock import SimClock
 from hearth.robot.simulated import SimulatedRobot
 from hearth.skills.base import Bindings, Key, Literal
-from hearth.skills.map import ClosedParts, UpdateObjectLocation
+from hearth.skills.map import ClosedParts, Uncovered, UpdateObjectLocation
 from hearth.worldmodel.io import parse_world, to_xml
 from hearth.worldmodel.pose import Pose
 
@@ -93,6 +93,32 @@ def test_the_search_opens_the_sliding_half_in_front_of_the_object_first(home, cl
     then = py_trees.blackboard.Blackboard.get("/then")
     assert [p["part"] for p in first] == [covering_door(world, inside.id)]
     assert len(then) == 1 and then[0]["part"] != first[0]["part"]
+
+
+def test_an_object_seen_behind_the_half_slid_over_it_is_not_taken_for_within_reach(
+        home, clean_blackboard):
+    """Looking in at an angle through the half slid open, the camera can see an object
+    behind the other half (home:100, teal bottle, seed 101: then "could not pick it up"):
+    Uncovered fails while a sliding door stands in front of it, so the search slides the
+    halves and looks again."""
+    world, _, wardrobe, inside = home
+    from hearth.worldmodel.containers import covering_door, sliding_open_state
+
+    def uncovered():
+        skill = Uncovered(bindings=Bindings({"object_id": Literal(inside.id)}, {}))
+        skill.setup(world=world, robot=None)
+        skill.tick_once()
+        return skill.status, skill.feedback_message
+
+    front = covering_door(world, inside.id)                 # closed, in front of it
+    other = next(p for p in wardrobe.parts if p.track and p.id != front)
+    assert uncovered() == (py_trees.common.Status.FAILURE, f"{inside.id} is behind {front}")
+    world.set_joint_state(other.id, sliding_open_state(other))    # slid over it
+    assert covering_door(world, inside.id) is not None
+    assert uncovered()[0] == py_trees.common.Status.FAILURE
+    world.set_joint_state(other.id, other.joint.lower)
+    world.set_joint_state(front, sliding_open_state(world.get(front)))   # its own half open
+    assert uncovered() == (py_trees.common.Status.SUCCESS, f"no sliding door in front of {inside.id}")
 
 
 def test_an_object_in_a_drawer_is_fetched(home):
