@@ -16,7 +16,13 @@ Prints one JSON object. Per mission, pooled over every world run: ``success_rate
 and did not: a knob left on, an object not where it was reported, a residual over 2 cm after
 "corrected"), ``failure_reasons``, ``sim_time_s_mean``, ``wall_time_s_mean``; fetch:
 ``positions_visited_mean_learned`` / ``_fixed`` (after the warm-up searches) and
-``success_rate_by_object_type``; localisation: the residual error. Then the same per mission
+``success_rate_by_object_type``, ``cases_in_drawers`` / ``cases_behind_sliding_doors``
+(achievable cases of the main order whose object stood in a drawer / behind a sliding door
+of a track, in truth) with their ``success_rate_in_drawers`` /
+``success_rate_behind_sliding_doors`` (``..._every_order``: the runs of both orders);
+localisation: the residual error. ``--order fixed`` runs the fetch cases with the fixed
+search order only (its figures are then the main ones), ``--order learned`` with the
+learned one only, ``both`` (default) each achievable case twice. Then the same per mission
 for the generated homes alone (``generated``) and the demo home alone (``demo``),
 ``per_world`` success rates, and the ``slowest`` cases. Wall times are inflated when other
 work shares the CPU.
@@ -47,6 +53,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--missions", type=suite_missions,
                         default=("fetch_object", "turn_off_oven", "refine_localisation"),
                         help="comma-separated missions (default: the three named ones)")
+    parser.add_argument("--order", choices=("learned", "fixed", "both"), default="both",
+                        help="search order of the fetch cases: the learned one, the fixed one "
+                             "from the map, or both (default; each achievable case runs twice)")
     parser.add_argument("--warmup", type=int, default=20,
                         help="map-level warm-up searches before each fetch case (default 20)")
     parser.add_argument("--homes", type=int, default=None,
@@ -79,8 +88,10 @@ def run(args) -> dict:
     worlds = worlds_of(args)
     renderer = getattr(args, "renderer", None) or "hearth"
     os.environ["HEARTH_SIM_RENDERER"] = renderer      # the workers' simulated robots inherit it
+    order = getattr(args, "order", None) or "both"
+    orders = ("learned", "fixed") if order == "both" else (order,)
     cases = suite_cases(n, seed=args.seed, missions=missions,
-                        warmup=getattr(args, "warmup", 20), worlds=worlds)
+                        warmup=getattr(args, "warmup", 20), worlds=worlds, orders=orders)
     verbose = getattr(args, "verbose", False) or bool(os.environ.get("HEARTH_BENCH_VERBOSE"))
     engines = getattr(args, "engine", None) or ["local"]
     engines = [engines] if isinstance(engines, str) else list(engines)
@@ -92,6 +103,7 @@ def run(args) -> dict:
     results = first["results"]
     out = {"scenarios_per_mission": n, "jobs": jobs, "seed": args.seed,
            "worlds": worlds, "warmup_searches": getattr(args, "warmup", 20),
+           "order": order,
            "cases_run": len(results), "engine": engines[0], "renderer": renderer,
            "total_wall_s": first["total_wall_s"], "scenarios_per_s": first["scenarios_per_s"],
            "errors_by_kind": first["errors_by_kind"],

@@ -101,6 +101,9 @@ class CaseResult:
     target: str = ""
     target_type: str = ""
     wrong_success: bool = False
+    #: where a fetch case's object stands in truth when the mission starts: "drawer" (in a
+    #: drawer), "sliding" (behind a sliding door of a track), "" elsewhere
+    where: str = ""
 
 
 # ---------------------------------------------------------------------------------------
@@ -170,8 +173,10 @@ def object_places(world, object_id: str) -> list[tuple[str, float]]:
     place (PLACE_WEIGHTS[0]), the one the map believes (PLACE_WEIGHTS[1]), a third one
     (PLACE_WEIGHTS[2]). Fixed per home and object (the same every run)."""
     from hearth.worldmodel.search import candidate_places
+    from hearth.worldmodel.validate import all_parts
     believed = world.parent(object_id).id
-    others = sorted(p.id for p in candidate_places(world) if p.id != believed and p.surfaces)
+    others = sorted(p.id for p in candidate_places(world) if p.id != believed
+                    and (p.surfaces or any(q.surfaces for q in all_parts(p))))
     if not others:
         return [(believed, 1.0)]
     h = int(hashlib.sha256(object_id.encode()).hexdigest()[:8], 16)
@@ -182,6 +187,12 @@ def object_places(world, object_id: str) -> list[tuple[str, float]]:
         out.append((picks[1], PLACE_WEIGHTS[2]))
     total = sum(w for _, w in out)
     return [(p, w / total) for p, w in out]
+
+
+def object_height(world, object_id: str) -> float:
+    """Height (metres) of a small object's model above its base."""
+    from hearth.robot.scenario import _height
+    return _height(world, object_id)
 
 
 def sample_place(places: list[tuple[str, float]], rng) -> str:
@@ -223,18 +234,32 @@ def _config(mission: str):
 def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario",
              level: Optional[str] = None) -> bool:
     """Move a small object to a free spot of one of a place's surfaces (``level``: that
-    surface's id; default: one drawn at random). Returns False when no spot is free."""
+    surface's id; default: one drawn at random), its parts' included (into a drawer when
+    the object is low enough for it). Returns False when no spot is free."""
     from hearth.worldmodel.pose import Pose
+    from hearth.worldmodel.containers import headroom
+    from hearth.worldmodel.validate import all_parts
     place = world.get(place_id)
-    if not place.surfaces:
+    # (part or None, surface): the place's own surfaces and its parts' (a drawer's floor, for
+    # an object low enough to stay in the closed drawer)
+    height = None
+    options = [(None, s) for s in place.surfaces]
+    for part in all_parts(place):
+        for s in part.surfaces:
+            if height is None:
+                height = object_height(world, object_id)
+            if height <= headroom(part, s):
+                options.append((part, s))
+    if not options:
         return False
     if level is not None:
-        surf = next(s for s in place.surfaces if s.id == level)
+        part, surf = next(o for o in options if o[1].id == level)
     else:
-        surf = place.surfaces[int(rng.integers(len(place.surfaces)))]
-    others = [c for c in place.children if c.id != object_id
+        part, surf = options[int(rng.integers(len(options)))]
+    pid = part.id if part is not None else ""
+    others = [c for c in place.children if c.id != object_id and c.part == pid
               and abs(c.pose.z - surf.pose.z) < 0.05]
-    T = surf.pose.matrix()      # surface frame in the place's frame (it may be turned)
+    T = surf.pose.matrix()      # surface frame in the place's (or part's) frame
     for _ in range(60):
         u = rng.uniform(-0.35, 0.35) * surf.size_x
         v = rng.uniform(-0.35, 0.35) * surf.size_y
@@ -243,7 +268,7 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
             world.move_object(object_id, place_id,
                               Pose(float(x), float(y), float(z), 0.0, 0.0,
                                    float(rng.uniform(-math.pi, math.pi))),
-                              relation=surf.relation, source=source)
+                              relation=surf.relation, source=source, part=pid)
             return True
     return False
 
@@ -376,6 +401,17 @@ def _wrong_success(case: Case, target: str, sim, belief, residual: Optional[floa
     return False
 
 
+def hidden_where(truth, object_id: str) -> str:
+    """"drawer" when the object is in a drawer (a part of its furniture, by ``part``),
+    "sliding" when a sliding door of a track stands in front of it, else ""."""
+    if object_id not in truth:
+        return ""
+    from hearth.worldmodel.containers import covering_door
+    if truth.get(object_id).part:
+        return "drawer"
+    return "sliding" if covering_door(truth, object_id) else ""
+
+
 def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
              record_to: Optional[str] = None, replay_from: Optional[str] = None) -> CaseResult:
     """Run one case on the simulated robot (simulated clock). ``record_to``: write every
@@ -402,6 +438,7 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
             robot = RecordingRobot(sim, record_to, info=dict(mission=case.mission,
                                                              seed=case.seed, params=params))
     belief = sc.belief
+    where = hidden_where(sc.truth, target) if case.mission in FETCH else ""
     changes: list[str] = []
     belief.subscribe(lambda ch: changes.append(f"{ch.node} {ch.field}: {ch.old} -> {ch.new}")
                      if ch.field not in ("search",) else None)
@@ -448,21 +485,29 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
                       residual_cm=residual, said=said, map_changes=changes,
                       log_path=str(res.log_path) if res.log_path else None, world=case.world,
                       target=target, target_type=getattr(node, "type", "") or "",
-                      wrong_success=wrong)
+                      wrong_success=wrong, where=where)
 
 
 # ---------------------------------------------------------------------------------------
 # The suite and its summary
 # ---------------------------------------------------------------------------------------
+#: The search orders a fetch case runs with: the learned one and the fixed one from the map.
+ORDERS = ("learned", "fixed")
+
+
 def suite_cases(n: int, seed: int = 0, missions=NAMED, warmup: int = 20,
-                unachievable_every: int = 4, worlds=("demo",), fetch_every_type: bool = True
-                ) -> list[Case]:
+                unachievable_every: int = 4, worlds=("demo",), fetch_every_type: bool = True,
+                orders=ORDERS) -> list[Case]:
     """Cases per world and mission. Targets come from each world's map (:func:`targets`):
     fetch and search cases cover every kind of small object of the home (one case per type,
     at least ``n``), the oven cases cycle through its appliances with knobs, the localisation
     cases through its landmarks. Every ``unachievable_every``-th fetch or oven case is
     unachievable (object absent, knob stuck). Each achievable fetch case runs twice, with the
-    learned and with the fixed search order, after ``warmup`` searches."""
+    learned and with the fixed search order, after ``warmup`` searches (``orders``: only
+    those named; an unachievable case runs with the first)."""
+    orders = tuple(orders) or ORDERS
+    if any(o not in ORDERS for o in orders):
+        raise ValueError(f"search orders are {', '.join(ORDERS)}, not {orders!r}")
     cases = []
     for w in worlds:
         world = resolve_world(w)
@@ -479,11 +524,9 @@ def suite_cases(n: int, seed: int = 0, missions=NAMED, warmup: int = 20,
                                   and i % unachievable_every == unachievable_every - 1)
                 target = found[i % len(found)]
                 if m in FETCH:
-                    cases.append(Case(m, s, achievable, learned=True, warmup=warmup, world=w,
-                                      target=target))
-                    if achievable:
-                        cases.append(Case(m, s, achievable, learned=False, warmup=warmup,
-                                          world=w, target=target))
+                    for order in (orders if achievable else orders[:1]):
+                        cases.append(Case(m, s, achievable, learned=order == "learned",
+                                          warmup=warmup, world=w, target=target))
                 else:
                     cases.append(Case(m, s, achievable, world=w, target=target))
     return cases
@@ -500,7 +543,8 @@ def _rate(xs) -> Optional[float]:
 
 
 def _mission_summary(rs: list[dict], m: str) -> dict:
-    main = [r for r in rs if r["learned"]]
+    # the learned order's runs (a run of the fixed order alone: those)
+    main = [r for r in rs if r["learned"]] or list(rs)
     ach = [r for r in main if r["achievable"]]
     una = [r for r in main if not r["achievable"]]
     d: dict[str, Any] = {
@@ -520,12 +564,22 @@ def _mission_summary(rs: list[dict], m: str) -> dict:
             got = [r["positions_visited"] for r in rs if r["learned"] == learned
                    and r["achievable"] and r["outcome"] == "succeeded"]
             d[f"positions_visited_mean_{key}"] = _mean(got)
-        fixed = [r for r in rs if not r["learned"]]
-        d["success_rate_fixed_order"] = _rate(r["outcome"] == "succeeded" for r in fixed)
+        fixed = [r for r in rs if not r["learned"] and r["achievable"]]
+        d["success_rate_fixed_order"] = _rate(r["outcome"] == "succeeded" and r["correct"]
+                                              for r in fixed)
         by_type: dict[str, list] = defaultdict(list)
         for r in ach:
             by_type[r.get("target_type") or "?"].append(r["outcome"] == "succeeded" and r["correct"])
         d["success_rate_by_object_type"] = {t: _rate(v) for t, v in sorted(by_type.items())}
+        # where the object stood in truth (issue 43): in a drawer, behind a sliding door
+        for where, key in (("drawer", "in_drawers"), ("sliding", "behind_sliding_doors")):
+            got = [r for r in ach if r.get("where") == where]
+            d[f"cases_{key}"] = len(got)
+            d[f"success_rate_{key}"] = _rate(r["outcome"] == "succeeded" and r["correct"]
+                                             for r in got)
+            every = [r for r in rs if r["achievable"] and r.get("where") == where]
+            d[f"success_rate_{key}_every_order"] = _rate(
+                r["outcome"] == "succeeded" and r["correct"] for r in every)
     if m == "refine_localisation":
         d["residual_cm_mean"] = _mean(r["residual_cm"] for r in main)
         d["residual_cm_max"] = max((r["residual_cm"] for r in main

@@ -295,8 +295,9 @@ def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
     g = np.linspace(-0.45, 0.45, 7)
     gx, gy = np.meshgrid(g, g)
     for obj in world.large_objects():
-        for s in getattr(obj, "surfaces", []):
-            T = world.T_world(obj.id) @ s.pose.matrix()
+        # its own surfaces and its parts' (a drawer's floor, where the drawer is now)
+        for s in world.surfaces_of(obj.id):
+            T = s.T_world_surface
             local = np.c_[gx.ravel() * s.size_x, gy.ravel() * s.size_y, np.zeros(gx.size)]
             pw = local @ T[:3, :3].T + T[:3, 3]
             pc = pw @ T_cw[:3, :3].T + T_cw[:3, 3]
@@ -321,7 +322,7 @@ def expected_surfaces(world, T_world_camera: np.ndarray, K: Intrinsics,
                     a = T[:3, :3].T @ (aim - T[:3, 3])
                     aimed = abs(a[0]) < s.size_x / 2 + 0.1 and abs(a[1]) < s.size_y / 2 + 0.1 \
                         and -0.05 < a[2] < 0.5
-                out.append((f"{obj.id}/{s.id}", T, s.size_x, s.size_y,
+                out.append((f"{obj.id}/{s.surface}", T, s.size_x, s.size_y,
                             (not aimed, -float(np.exp(-r ** 2).sum()))))
     out.sort(key=lambda t: t[4])
     return [t[:4] for t in out]
@@ -632,10 +633,10 @@ def _headroom(world, surface: str, T_ws: np.ndarray, sx: float, sy: float) -> fl
     oid, sid = surface.split("/", 1)
     node = world.get(oid) if oid in world else None
     best = math.inf
-    for s in getattr(node, "surfaces", ()):
-        if s.id == sid:
+    for s in (world.surfaces_of(oid) if node is not None else ()):
+        if s.surface == sid:
             continue
-        T = world.T_world(oid) @ s.pose.matrix()
+        T = s.T_world_surface
         dz = T[2, 3] - T_ws[2, 3]
         c = np.linalg.inv(T_ws) @ T[:, 3]
         if dz > 0.02 and abs(c[0]) < (sx + s.size_x) / 2 and abs(c[1]) < (sy + s.size_y) / 2:
@@ -660,10 +661,9 @@ def _explained_by_furniture(world, object_id: str, points_world: np.ndarray,
 
 def _surface_by_name(world, surface: str):
     oid, sid = surface.split("/")
-    obj = world.get(oid)
-    for s in obj.surfaces:
-        if s.id == sid:
-            return (surface, world.T_world(oid) @ s.pose.matrix(), s.size_x, s.size_y)
+    for s in world.surfaces_of(oid):
+        if s.surface == sid:
+            return (surface, s.T_world_surface, s.size_x, s.size_y)
     raise PerceptionError(f"no surface {surface!r} in the map")
 
 
@@ -926,8 +926,9 @@ def verify_object(world, object_id: str, T_world_object: np.ndarray, depth: np.n
     not verify as the blue one); None when there is none."""
     surface = None
     for obj in world.large_objects():
-        for s in getattr(obj, "surfaces", []):
-            T = world.T_world(obj.id) @ s.pose.matrix()
+        # its own surfaces and its parts' (a drawer's floor, where the drawer is now)
+        for s in world.surfaces_of(obj.id):
+            T = s.T_world_surface
             local = np.linalg.inv(T) @ np.append(np.asarray(T_world_object)[:3, 3], 1.0)
             if abs(local[0]) < s.size_x / 2 + 0.05 and abs(local[1]) < s.size_y / 2 + 0.05 \
                     and abs(local[2]) < 0.05:

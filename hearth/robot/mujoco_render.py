@@ -188,7 +188,9 @@ def _knob_bodies(w: _Writer, k, library, owner: str) -> str:
     return out
 
 
-def _part_body(w: _Writer, part, library, owner: str) -> str:
+def _part_body(w: _Writer, part, library, owner: str, inside=None) -> str:
+    """A part's body (joint, geoms, handles, knobs, child parts) and the small objects
+    ``inside`` it (part id -> objects whose pose is in that part's frame: a drawer's)."""
     from hearth.worldmodel.geometry import handle_visuals, model_visuals
     j = part.joint
     body = f'<body {_pose_attrs(j.origin.matrix())}>'
@@ -206,8 +208,10 @@ def _part_body(w: _Writer, part, library, owner: str) -> str:
         out += w.geoms(handle_visuals(h), h.pose.matrix(), h.id, owner)
     for k in part.knobs:
         out += _knob_bodies(w, k, library, owner)
+    for c in (inside or {}).get(part.id, ()):
+        out += w.geoms(model_visuals(c.model, library), c.pose.matrix(), c.id, c.id)
     for c in part.parts:
-        out += _part_body(w, c, library, owner)
+        out += _part_body(w, c, library, owner, inside)
     return out + "</body>"
 
 
@@ -239,10 +243,15 @@ def world_to_mjcf(world, width: int = 640, height: int = 480) -> MJCF:
                     b += w.geoms(handle_visuals(h), h.pose.matrix(), h.id, obj.id)
                 for k in obj.knobs:
                     b += _knob_bodies(w, k, library, obj.id)
+                inside: dict = {}
+                for c in obj.children:
+                    if c.part:
+                        inside.setdefault(c.part, []).append(c)
                 for p in obj.parts:
-                    b += _part_body(w, p, library, obj.id)
+                    b += _part_body(w, p, library, obj.id, inside)
             for c in obj.children:
-                b += w.geoms(model_visuals(c.model, library), c.pose.matrix(), c.id, c.id)
+                if not c.part:       # those in a part (a drawer) move with its body
+                    b += w.geoms(model_visuals(c.model, library), c.pose.matrix(), c.id, c.id)
             bodies.append(b + "</body>")
     from hearth.perception.render import LIGHT_WORLD
     L = -np.asarray(LIGHT_WORLD, dtype=float)

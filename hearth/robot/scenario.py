@@ -376,18 +376,18 @@ def visible_pixels(world, object_id: str, open_doors: bool = True,
     from hearth.perception.camera import Intrinsics, project
     from hearth.perception.nbv import NBVConfig, candidate_bases
     from hearth.robot.sim import HEAD, camera_pose, pan_tilt_to
-    from hearth.worldmodel.geometry import scene_meshes, small_object_meshes
-    from hearth.worldmodel.nodes import LargeArticulatedObject
+    from hearth.worldmodel.containers import search_states
+    from hearth.worldmodel.geometry import part_in_object_T, scene_meshes, small_object_meshes
 
     K = intrinsics or Intrinsics.kinect()
     obj = world.get(object_id)
     parent = world.parent(object_id)
     room = world.room_of(parent.id)
-    states = {}
-    if open_doors and isinstance(parent, LargeArticulatedObject):
-        for p in _all_parts(parent.parts):
-            if p.joint.type == "revolute":
-                states[p.id] = min(math.radians(90), p.joint.upper)
+    states = search_states(world, object_id) if open_doors else {}
+    T_world_object = world.T_world(object_id)
+    if obj.part and obj.part in states:     # in a drawer: where it is once the drawer is open
+        T_world_object = world.T_world(parent.id) @ part_in_object_T(parent, obj.part, states) \
+            @ obj.pose.matrix()
     scene = o3d.t.geometry.RaycastingScene()
     mine = set()
     for lm in scene_meshes(world, room_ids=[room.id], states=states or None):
@@ -395,7 +395,8 @@ def visible_pixels(world, object_id: str, open_doors: bool = True,
             gid = scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
             if lm.node == object_id:
                 mine.add(gid)
-    verts = np.vstack([np.asarray(lm.mesh.vertices) for lm in small_object_meshes(world, obj)])
+    verts = np.vstack([np.asarray(lm.mesh.vertices)
+                       for lm in small_object_meshes(world, obj, T_world_object=T_world_object)])
     centre = verts.mean(0)
     aim = np.r_[centre[:2], (verts[:, 2].min() + verts[:, 2].max()) / 2]
     poses = [(p.x, p.y, p.yaw) for _, p in world.parking_positions(parent.id)]
@@ -424,9 +425,3 @@ def visible_pixels(world, object_id: str, open_doors: bool = True,
         if n > best:
             best, best_pose = n, (float(x), float(y), float(yaw))
     return best, best_pose
-
-
-def _all_parts(parts):
-    for p in parts:
-        yield p
-        yield from _all_parts(p.parts)

@@ -540,12 +540,22 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         return None
 
     def _closed_container(self, obj: SmallObject) -> Optional[str]:
+        """What keeps the hand from an object (its id), if anything: the drawer it is in
+        while that is not open; a sliding door that covers it; a container whose doors are
+        all closed."""
         if obj.relation != "in":
             return None
         parent = self.truth.parent(obj.id)
         if not isinstance(parent, LargeArticulatedObject):
             return None
-        movable = [p for p in _all_parts(parent.parts) if p.joint.type != "fixed"]
+        from hearth.worldmodel.containers import covering_door, is_open
+        if obj.part:
+            part = self.truth.get(obj.part)
+            return None if is_open(part) else part.id
+        cover = covering_door(self.truth, obj.id)
+        if cover is not None:
+            return cover
+        movable = [p for p in _all_parts(parent.parts) if p.joint.type != "fixed" and not p.track]
         if movable and all(abs(p.joint.state - p.joint.lower) < 0.05 for p in movable):
             return parent.id
         return None

@@ -39,6 +39,54 @@ class NearestCharger(Skill):
         return S.SUCCESS
 
 
+class RestPlace(Skill):
+    """Where to rest (hearth/worldmodel/rest.py): the place given, else from the map: a
+    declared rest place in the user's room (affordance ``rest``), else the free floor
+    nearest the user's room; while the user is away a place with affordance ``rest_away``,
+    else the nearest charger's dock, else free floor. Fails only when the map has neither."""
+
+    NAME = "RestPlace"
+    DESCRIPTION = "choose where to rest, near the user or out of the way"
+    INPUTS = (Port("place", "string", required=False, default="",
+                   description="a large object to rest at (given: used as it is)"),
+              Port("room", "string", required=False, default="",
+                   description="the user's room (default: the room the robot is in)"),
+              Port("away", "boolean", required=False, default=False,
+                   description="out of the way (the user is out) instead of near the user"))
+    OUTPUTS = (Port("target", "any", required=False,
+                    description="a node id (its parking position) or a world base pose"),
+               Port("words", "string", required=False, description="the place in words"))
+
+    def update(self) -> S:
+        from hearth.skills.map import robot_pose
+        from hearth.worldmodel.rest import rest_place
+        given = self.input("place") or ""
+        if given:
+            self.set_output("target", given)
+            self.set_output("words", f"the {self.world.label(given)}"
+                            if self.world is not None and given in self.world
+                            else given)
+            self.feedback_message = f"resting at {given} (given)"
+            return S.SUCCESS
+        room = self.input("room") or ""
+        if room:
+            room = next((r.id for r in self.world.rooms if room in (r.id, r.name)), room)
+            if room not in self.world:
+                room = ""
+        found = rest_place(self.world, room or None, away=bool(self.input("away")),
+                           robot_pose=robot_pose(self.robot))
+        if found is None:
+            self.feedback_message = "the map has no rest place and no free floor"
+            return S.FAILURE
+        target = found.target
+        if not isinstance(target, str):     # a base pose, as a search place gives one
+            target = {"x": target.x, "y": target.y, "yaw": target.yaw}
+        self.set_output("target", target)
+        self.set_output("words", found.words)
+        self.feedback_message = f"resting at {found.words} ({found.how})"
+        return S.SUCCESS
+
+
 class Dock(RobotActionSkill):
     """Back onto the charger the robot stands at (its dock pose)."""
 

@@ -6,12 +6,14 @@ import math
 from hearth.skills.actions import RobotActionSkill
 from hearth.skills.base import Port
 from hearth.skills.values import as_pose
+from hearth.worldmodel.containers import sliding_open_state
 from hearth.worldmodel.nodes import Part
 
 
 class OpenArticulated(RobotActionSkill):
-    """Open a door or drawer by its handle to ``target`` (rad or m; default: 90 degrees or
-    80 % of a drawer's travel, within the joint's limits) and write the new state to the map."""
+    """Open a door or drawer by its handle to ``target`` (rad or m; default: 90 degrees, 80 %
+    of a drawer's travel, a sliding door all the way; within the joint's limits) and write
+    the new state to the map."""
 
     NAME = "OpenArticulated"
     AUTONOMY = 2
@@ -38,7 +40,8 @@ class OpenArticulated(RobotActionSkill):
         t = self.input("target")
         j = node.joint
         if t is None:
-            t = math.radians(90) if j.type == "revolute" else 0.8 * j.upper
+            # a sliding door all the way (its half uncovered), a drawer 80 % of its travel
+            t = math.radians(90) if j.type == "revolute" else sliding_open_state(node)
         return min(max(float(t), j.lower), j.upper)
 
     def start(self):

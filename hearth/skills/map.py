@@ -7,7 +7,7 @@ import py_trees
 
 from hearth.skills.base import Port, Skill
 from hearth.skills.values import as_pose
-from hearth.worldmodel.nodes import LargeArticulatedObject, SmallObject
+from hearth.worldmodel.nodes import SmallObject
 from hearth.worldmodel.pose import Pose
 from hearth.worldmodel.search import SearchWeights, search_order
 from hearth.worldmodel.world import best_matches
@@ -73,7 +73,10 @@ class PlanSearch(Skill):
               Port("user_room", "string", required=False, default=None),
               Port("learned", "boolean", required=False, default=True),
               Port("max_places", "integer", required=False, default=6),
-              Port("exclude", "list", required=False, default=None))
+              Port("exclude", "list", required=False, default=None),
+              Port("among", "list", required=False, default=None,
+                   description="only these places (the first plan): planning again from "
+                               "where the robot is reorders them, never swaps one out"))
     OUTPUTS = (Port("places", "list", required=False), Port("count", "integer", required=False),
                Port("first", "dict", required=False, description="the cheapest place"))
 
@@ -84,6 +87,13 @@ class PlanSearch(Skill):
                               user_room=self.input("user_room") or None,
                               weights=SearchWeights(), learned=bool(self.input("learned")),
                               exclude=exclude)
+        among = self.input("among")
+        if among is not None:
+            # The budget is the places of the first plan: a re-plan from another position
+            # may change their order, but must not push one of them out for a place the
+            # first plan ranked below the budget (it would never be looked at).
+            keep = {place_id(p) for p in among}
+            places = [p for p in places if p.place in keep]
         places = places[: int(self.input("max_places") or len(places))]
         self.set_output("places", [p.as_dict() for p in places])
         self.set_output("count", len(places))
@@ -171,7 +181,8 @@ class RecordSearch(Skill):
 
 class UpdateObjectLocation(Skill):
     """Write where an object was seen: its new parent and its pose (world frame in,
-    parent frame in the map). Nothing changes when it is where the map said."""
+    parent frame in the map; seen in an open drawer, the drawer's frame: the map has it "in"
+    the drawer and it moves with it)."""
 
     NAME = "UpdateObjectLocation"
     DESCRIPTION = "write an object's observed place and pose into the map"
@@ -186,9 +197,18 @@ class UpdateObjectLocation(Skill):
         pid = place_id(place)
         relation = self.input("relation") or (place.get("relation") if isinstance(place, dict) else None) or "on"
         T_world_obj = as_pose(self.input("pose")).matrix()
-        T_world_parent = self.world.T_world(pid)
+        # Seen on a part's surface (in an open drawer): the map keeps it in that part's frame,
+        # so it moves with the drawer when the drawer is closed.
+        level = self.world.surface_near(pid, T_world_obj[:3, 3])
+        part = ""
+        if level is not None and level.part:
+            q = np.linalg.inv(level.T_world_surface) @ T_world_obj[:, 3]
+            if abs(q[0]) <= level.size_x / 2 + 0.05 and abs(q[1]) <= level.size_y / 2 + 0.05:
+                part = level.part
+        T_world_parent = self.world.T_world(part or pid)
         pose_parent = Pose.from_matrix(np.linalg.inv(T_world_parent) @ T_world_obj)
-        self.world.move_object(oid, pid, pose_parent, relation=relation, source=self.NAME)
+        self.world.move_object(oid, pid, pose_parent, relation=relation, source=self.NAME,
+                               part=part)
         where = self.world.describe_location(oid)
         self.set_output("location", where)
         self.feedback_message = f"{oid} is {where}"
@@ -215,30 +235,59 @@ class DescribeLocation(Skill):
         return S.SUCCESS
 
 
-class ClosedParts(Skill):
-    """The closed doors and drawers (with handles) of a place that must be opened to look in.
+class Uncovered(Skill):
+    """Succeed unless, by the map, a sliding door of the object's furniture stands in front
+    of it (``containers.covering_door``; objects "in" their furniture only). Looking in at an
+    angle through the half a search slid open, a camera can see an object behind the other
+    half, where no arm reaches: the search then slides the halves and looks again."""
 
-    Outputs an empty list for places without any (a table)."""
+    NAME = "Uncovered"
+    DESCRIPTION = "check that no sliding door stands in front of an object"
+    INPUTS = (Port("object_id", "node_id"),)
+    OUTPUTS = ()
+
+    def update(self) -> S:
+        from hearth.worldmodel.containers import covering_door
+        oid = self.input("object_id")
+        door = covering_door(self.world, oid) if self.world.get(oid).relation == "in" else None
+        if door is not None:
+            self.feedback_message = f"{oid} is behind {door}"
+            return S.FAILURE
+        self.feedback_message = f"no sliding door in front of {oid}"
+        return S.SUCCESS
+
+
+class ClosedParts(Skill):
+    """The closed doors and drawers (with handles) of a place that must be opened to look in
+    (hearth/worldmodel/containers.py): closed hinged doors, drawers that hold surfaces, and
+    of sliding doors sharing a track the one that uncovers where the object is believed;
+    the track's other doors are ``other_half``, to open (after closing the first) for a
+    second look.
+
+    Outputs empty lists for places without any (a table)."""
 
     NAME = "ClosedParts"
     DESCRIPTION = "list a container's closed doors and drawers"
     INPUTS = (Port("place", "any"),
+              Port("object_id", "node_id", required=False, default=None,
+                   description="the object looked for (a sliding door uncovering where it is "
+                               "believed is opened first)"),
               Port("open_threshold", "number", required=False, default=0.35,
-                   description="a door counts as open above this (rad or m)"))
-    OUTPUTS = (Port("parts", "list", required=False), Port("count", "integer", required=False))
+                   description="a door counts as open above this (rad)"))
+    OUTPUTS = (Port("parts", "list", required=False), Port("count", "integer", required=False),
+               Port("other_half", "list", required=False,
+                    description="sliding doors to open after closing the first of their track"))
 
     def update(self) -> S:
+        from hearth.worldmodel.containers import openings
         place = self.input("place")
         pid = place_id(place)
-        node = self.world.get(pid)
-        out = []
-        if isinstance(node, LargeArticulatedObject) and "container" in node.affordances:
-            thr = float(self.input("open_threshold"))
-            for p in node.parts:
-                if p.type == "door" and p.handles and p.joint.state < thr:
-                    out.append({"part": p.id, "handle": p.handles[0].id})
+        found = openings(self.world, pid, self.input("object_id"),
+                         float(self.input("open_threshold")))
+        out = found.first
         self.set_output("parts", out)
         self.set_output("count", len(out))
+        self.set_output("other_half", found.then)
         self.feedback_message = (f"{pid}: " + (", ".join(p["part"] for p in out) + " closed"
                                                     if out else "nothing to open"))
         return S.SUCCESS

@@ -240,6 +240,10 @@ def build() -> Apartment:
                         0.35, -0.2, top, "kitchen_table", description="sugar jar"),
                   cup("blue_cup", "blue", (0.1, 0.2, 0.8), -0.1, -0.2, top, "kitchen_table")])
     side_table = table("side_table", "side table", 1.4, 1.3, 0.8, 0.6, 0.72, color=(0.45, 0.3, 0.2))
+    # Where go_to_rest rests (hearth/worldmodel/rest.py): by the side table while the user
+    # is at home, by the kitchen table while they are out.
+    side_table.affordances.append("rest")
+    kitchen_table.affordances.append("rest_away")
     chair = LargeObject(
         id="chair", type="chair", name="kitchen chair", pose=Pose(3.9, 2.2, 0, 0, 0, math.pi),
         static=False,

@@ -85,7 +85,14 @@ def visual_mesh(v: Visual, base_dir: Optional[Path] = None) -> o3d.geometry.Tria
 
 
 def handle_visuals(h: Handle) -> list[Visual]:
-    """A bar along +z at the handle frame's origin and two standoffs back to the face (-x)."""
+    """A bar along +z at the handle frame's origin and two standoffs back to the face (-x).
+    A recessed pull: its hollow as seen, a dark inlay 1 mm thick on the face (the renderer
+    draws unions of solids, so the hollow itself is not cut out; its depth is not needed by
+    anything that reads it: the pull is where the door's registered frame says)."""
+    if h.handle_kind == "recessed":
+        return [Visual("box", Pose(0.0005, 0, 0), size=(0.001, 2 * h.radius, h.length),
+                       color=h.color, material="dark" if h.material == "dark" else "matte",
+                       name="recess")]
     leg = max(h.length / 2 - 2 * h.radius, h.radius)
     out = [Visual("cylinder", Pose(), radius=h.radius, length=h.length, color=h.color,
                   material=h.material, name="bar")]
@@ -210,8 +217,29 @@ def object_meshes(world, obj: LargeObject, T_world_object: Optional[np.ndarray] 
             _part_meshes(out, p, T, obj.id, library, base_dir, states)
     if children:
         for c in obj.children:
-            _emit(out, model_visuals(c.model, library), T @ c.pose.matrix(), c.id, c.id, base_dir)
+            T_obj_c = c.pose.matrix()
+            if c.part:      # in a drawer: moves with it (at the given states, too)
+                T_obj_c = part_in_object_T(obj, c.part, states) @ T_obj_c
+            _emit(out, model_visuals(c.model, library), T @ T_obj_c, c.id, c.id, base_dir)
     return out
+
+
+def part_in_object_T(obj, part_id: str, states: Optional[dict] = None) -> np.ndarray:
+    """``T_object_part`` of a (nested) part of ``obj`` at its current joint states, or at
+    ``states`` (part id -> joint state) where given. KeyError when it has no such part."""
+    def walk(parts, T):
+        for p in parts:
+            Tp = T @ part_T(p, states.get(p.id) if states else None)
+            if p.id == part_id:
+                return Tp
+            found = walk(p.parts, Tp)
+            if found is not None:
+                return found
+        return None
+    found = walk(getattr(obj, "parts", ()), np.eye(4))
+    if found is None:
+        raise KeyError(part_id)
+    return found
 
 
 def small_object_meshes(world, obj: SmallObject, T_world_object: Optional[np.ndarray] = None):

@@ -72,7 +72,10 @@ from hearth.worldmodel.pose import Pose
 #: 7 = a marker sits on its grip's top as built (rounded), not half a millimetre inside it;
 #: 8 = the knob panel's place and off mid-travel drawn from the designs' generator (the rest
 #:     of a seed's home as in version 4).
-GENERATOR_VERSION = 8
+#: 9 = a chest's top drawer has a floor (a part surface) that may hold a small object (drawn
+#:     from a generator of its own); half the bedroom wardrobes have two sliding doors on one
+#:     track with recessed pulls (issue 43).
+GENERATOR_VERSION = 9
 
 
 # -- rooms --------------------------------------------------------------------------------------
@@ -124,7 +127,7 @@ def _furniture_plan(ctx: _Ctx, kind: str) -> list[tuple[str, Callable[[], Piece]
         add("drawers", lambda: drawer_unit(c), 0.3)
         add("chair", lambda: chair(c), 0.3)
     elif kind == "bedroom":
-        add("wardrobe", lambda: cupboard(c, "wardrobe"), 0.85)
+        add("wardrobe", lambda: cupboard(c, "wardrobe", sliding=c.chance(0.5)), 0.85)
         add("drawers", lambda: drawer_unit(c), 0.7)
         add("table", lambda: table(c, "bedside"), 0.5)
         add("drawers", lambda: drawer_unit(c, "bedside"), 0.4)
@@ -342,6 +345,8 @@ def _turn_front(ctx: _Ctx, piece: Piece) -> None:
                    for p in obj.parking]
     obj.surfaces = [replace(s, pose=turn(s.pose)) for s in obj.surfaces]
     for ch in obj.children:
+        if ch.part:         # in the part's frame, which the joint origin turns
+            continue
         ch.pose = turn(ch.pose)
         ch.default_positions = [replace(d, pose=turn(d.pose)) if d.parent == obj.id else d
                                 for d in ch.default_positions]
@@ -377,7 +382,8 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
     library: dict[str, Model] = {}
     with tempfile.TemporaryDirectory(prefix="hearth-homegen-") as tmp:
         ctx = _Ctx(rng, config, _Ids(), _Meshes(Path(tmp)), library, knobs_left=config.max_knobs,
-                   design_rng=np.random.default_rng([int(seed), 0x6B6E6F62]))
+                   design_rng=np.random.default_rng([int(seed), 0x6B6E6F62]),
+                   drawer_rng=np.random.default_rng([int(seed), 0x64726177]))
         scratch = World(Apartment(id="scratch", library=library), base_dir=Path(tmp))
         n_rooms = ctx.i(*config.rooms)
         others = [k for k in ROOM_KINDS if k != "kitchen"]

@@ -221,10 +221,37 @@ def _hinged_door(ctx: _Ctx, pid: str, name: str, front_x: float, hinge_y: float,
     return Part(pid, "door", joint, name=name, model=Model([face]), handles=[handle])
 
 
-def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
+def _sliding_doors(ctx: _Ctx, oid: str, D: float, W: float, height: float, z0: float, color,
+                   t: float, handle_z: float) -> list[Part]:
+    """Two sliding doors on one track (a bypass wardrobe): each covers one half of the front
+    (overlapping 4 cm in the middle), the left one (+y) on the outer runner, the right one on
+    the inner; each slides towards the other half, over or behind the other door, so opening
+    one uncovers its own half and covers nothing new (they exclude each other:
+    ``Part.track``). A recessed pull near each door's outer edge. No random draw: the rest of
+    the home as a hinged wardrobe's."""
+    dw = _mm(W / 2 + 0.02)
+    travel = _mm(W / 2 - 0.02)
+    track = f"{oid}_track"
+    pull = (0.12, 0.12, 0.13)
+    out = []
+    for side, name, x in ((+1, "left", D / 2 + 1.5 * t + 0.006), (-1, "right", D / 2 + t / 2 + 0.002)):
+        pid = f"{oid}_door_{name}"
+        joint = Joint("prismatic", origin=Pose(_mm(x), _mm(side * W / 4), _mm(z0)),
+                      axis=(0.0, float(-side), 0.0), lower=0.0, upper=travel, state=0.0)
+        face = box(t, dw, height, 0, 0, height / 2, color=color, name="face")
+        handle = Handle(f"{pid}_pull", Pose(_mm(t / 2), _mm(side * (dw / 2 - 0.05)), _mm(handle_z)),
+                        radius=0.015, length=0.14, standoff=0.01, color=pull, material="matte",
+                        handle_kind="recessed")
+        out.append(Part(pid, "door", joint, name=f"{name} sliding door", model=Model([face]),
+                        handles=[handle], track=track))
+    return out
+
+
+def cupboard(ctx: _Ctx, kind: str = "cupboard", sliding: bool = False) -> Piece:
     """A cupboard with one door (hinged left or right) or two (hinged at the outer edges),
     1-3 shelves inside; ``kind``: cupboard (low, or tall with some probability), wardrobe
-    (tall), sideboard (low, wide), cabinet (wall-mounted)."""
+    (tall), sideboard (low, wide), cabinet (wall-mounted). ``sliding``: two sliding doors on
+    one track instead (``_sliding_doors``)."""
     cfg = ctx.cfg
     wall = kind == "cabinet"
     tall = kind == "wardrobe" or (kind == "cupboard" and ctx.chance(cfg.tall_cupboard_probability))
@@ -259,7 +286,9 @@ def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
     door_color = color if ctx.chance(0.7) else ctx.pick(PAINTS)
     vertical = ctx.chance(0.8)
     parts = []
-    if two:
+    if sliding:
+        parts = _sliding_doors(ctx, oid, D, W, door_h, plinth + 0.005, door_color, dt, handle_z)
+    elif two:
         dw = _mm(W / 2 - 0.004)
         parts.append(_hinged_door(ctx, f"{oid}_door_left", "left door", D / 2, W / 2, dw, door_h,
                                   plinth + 0.005, +1, door_color, dt, handle_z, vertical))
@@ -274,8 +303,9 @@ def cupboard(ctx: _Ctx, kind: str = "cupboard") -> Piece:
     obj = LargeArticulatedObject(
         id=oid, type=kind, name=ctx.ids.name(f"{ctx.room_name} {names[kind]}"), pose=Pose(),
         model=Model(v), affordances=["container", "openable"], surfaces=surfaces, parts=parts,
-        description=f"{'tall ' if tall else ''}{names[kind]}, {len(parts)} door{'s' if two else ''}")
-    front = D / 2 + dt + 0.002
+        description=f"{'tall ' if tall else ''}{names[kind]}, {len(parts)} "
+                    f"{'sliding ' if sliding else ''}door{'s' if two else ''}")
+    front = D / 2 + dt + 0.002 + (dt + 0.004 if sliding else 0.0)
     views = [View("face", (front, 0.0, lift + min(H / 2, 1.0)))]
     views += _surface_views(_lifted(surfaces, lift), headroom, D / 2, cfg, open_above)
     reach = [tuple(_handle_point(p, lift)) for p in parts]
@@ -295,9 +325,15 @@ def _handle_point(part: Part, lift: float = 0.0) -> np.ndarray:
     return np.array([o.x + h.x, o.y + h.y, lift + o.z + h.z])
 
 
+#: A top drawer gets a floor that may hold small objects when its floor is at most this high
+#: (m): the head camera (1.3 m up) looks into it from the parking position once it is open.
+DRAWER_FLOOR_MAX = 0.95
+
+
 def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
     """1-4 drawers of different heights (prismatic parts sliding out along +x, a bar handle
-    each); a surface on top when the unit is low."""
+    each); a surface on top when the unit is low; the top drawer's floor a surface of its
+    part (``DRAWER_FLOOR_MAX``)."""
     cfg = ctx.cfg
     D, W = _mm(ctx.u(0.4, 0.55)), _mm(ctx.u(0.4, 0.9))
     n = ctx.i(*cfg.drawers)
@@ -310,6 +346,7 @@ def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
     w = ctx.rng.uniform(0.6, 1.6, n)
     heights = [_mm(x) for x in room * w / w.sum()]
     parts, z = [], plinth + 0.005
+    drawer_headroom: dict[str, float] = {}
     front_t = _mm(ctx.u(0.018, 0.025))
     hcolor = ctx.pick([(0.75, 0.75, 0.78), (0.2, 0.2, 0.2), (0.8, 0.65, 0.3)])
     for i, dh in enumerate(heights):
@@ -327,10 +364,18 @@ def drawer_unit(ctx: _Ctx, kind: str = "drawers") -> Piece:
                         standoff=standoff, color=hcolor)
         joint = Joint("prismatic", origin=Pose(_mm(D / 2 + front_t / 2 + 0.002), 0.0, _mm(z)),
                       axis=(1.0, 0.0, 0.0), lower=0.0, upper=_mm(D * 0.75), state=0.0)
+        floor = []
+        if i == n - 1 and z + 0.036 <= DRAWER_FLOOR_MAX:
+            # the top drawer: looked into from above once open, so it may hold small objects
+            # (its floor, part frame: moves with the drawer; no random draw, the rest of the
+            # home as before)
+            floor = [Surface(f"drawer_{i + 1}_floor", Pose(_mm(-tray_d / 2 - front_t / 2), 0.0, 0.036),
+                             _mm(tray_d - 0.03), _mm(W - 0.09), "in")]
+            drawer_headroom[floor[0].id] = _mm(fh - 0.036 - 0.01)
         parts.append(Part(pid, "drawer", joint, name=f"drawer {i + 1} from the bottom",
-                          model=Model(model), handles=[handle]))
+                          model=Model(model), handles=[handle], surfaces=floor))
         z += dh
-    surfaces, headroom, open_above = [], {}, set()
+    surfaces, headroom, open_above = [], dict(drawer_headroom), set()
     if H <= 1.1:
         surfaces.append(Surface("top", Pose(0, 0, H), _mm(D - 0.04), _mm(W - 0.04)))
         headroom["top"], open_above = math.inf, {"top"}

@@ -3,6 +3,7 @@ their placement on, in and under the furniture placed (``small_objects``)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Optional
 
 from hearth.worldmodel.homegen_palette import CLOSE_HUES, COLOURS, STEEL
@@ -119,6 +120,9 @@ class _SmallPlacer:
                     out.append((pc, s))
                 elif want == "top" and o.type != "table" and s.id == "top":
                     out.append((pc, s))
+            if want == "drawer" and pc.parking:
+                for part in getattr(o, "parts", ()):
+                    out += [(pc, s) for s in part.surfaces]
             if want == "under" and o.type == "table" and o.surfaces[0].pose.z >= 0.6 \
                     and o.surfaces[0].size_x >= 0.5 and o.surfaces[0].size_y >= 0.5:
                 s = o.surfaces[0]
@@ -142,9 +146,9 @@ class _SmallPlacer:
                 return False
         return True
 
-    def place(self, kind: str, colour: str, where: str) -> Optional[SmallObject]:
+    def place(self, kind: str, colour: str, where: str, slots=None) -> Optional[SmallObject]:
         ctx = self.ctx
-        slots = self.slots(where)
+        slots = self.slots(where) if slots is None else slots
         if not slots:
             return None
         rgb = COLOURS[colour]
@@ -160,7 +164,9 @@ class _SmallPlacer:
                 continue
             # inside and on shelves, near the front half where a camera sees in
             lo_x = 0.0 if s.relation == "in" or pc.obj.type == "bookshelf" else -hx
-            if s.relation == "under":          # under a table: near an edge, seen from a side
+            if where == "drawer":              # away from the front panel, seen from above
+                lx, ly = ctx.u(-hx, 0.3 * hx), ctx.u(-hy, hy)
+            elif s.relation == "under":          # under a table: near an edge, seen from a side
                 lx = ctx.u(-hx, hx)
                 ly = ctx.pick([-1, 1]) * ctx.u(hy * 0.5, hy)
             else:
@@ -178,10 +184,11 @@ class _SmallPlacer:
             type_id = kind.replace(" ", "_")
             oid = ctx.ids.exact(f"{colour}_{type_id}")
             grasp = GraspPoint(Pose(0, 0, _mm(min(height * 0.55, 0.1))))
+            part = next((p.id for p in getattr(pc.obj, "parts", ()) if s in p.surfaces), "")
             obj = SmallObject(id=oid, type=kind, pose=pose, relation=s.relation, color=colour,
                               description=f"{colour} {desc}", grasp_points=[grasp],
                               default_positions=[DefaultPosition(pc.obj.id, s.relation, pose)],
-                              model=Model(visuals))
+                              model=Model(visuals), part=part)
             pc.obj.children.append(obj)
             q = _tokens(f"{colour} {kind}")
             self.words.append((q, q | _tokens(desc) | _tokens(oid)))
@@ -219,6 +226,34 @@ def small_objects(ctx: _Ctx, pieces: list[Piece]) -> list[SmallObject]:
             obj = placer.place(kind, colour, ctx.pick(["table", "top", "shelf"]))
         if obj is not None:
             out.append(obj)
+    out += drawer_objects(ctx, placer)
+    return out
+
+
+#: What goes in a drawer, and how often a drawer with a floor holds one.
+DRAWER_KINDS = ["pill box", "remote", "book", "box"]
+DRAWER_PROBABILITY = 0.6
+
+
+def drawer_objects(ctx: _Ctx, placer: "_SmallPlacer") -> list[SmallObject]:
+    """Small objects in the drawers that have a floor (``DRAWER_PROBABILITY`` each), low
+    enough to stay inside the closed drawer. Drawn from ``ctx.drawer_rng``, so the rest of a
+    seed's home is what it was without them."""
+    if ctx.drawer_rng is None:
+        return []
+    placer.ctx = replace(ctx, rng=ctx.drawer_rng)
+    out = []
+    try:
+        for slot in placer.slots("drawer"):
+            if not placer.ctx.chance(DRAWER_PROBABILITY):
+                continue
+            kind = placer.ctx.pick(DRAWER_KINDS)
+            colour = placer.colour_for(kind)
+            obj = placer.place(kind, colour, "drawer", slots=[slot]) if colour else None
+            if obj is not None:
+                out.append(obj)
+    finally:
+        placer.ctx = ctx
     return out
 
 

@@ -168,6 +168,8 @@ class _Ctx:
     #: knob designs are drawn from a generator of their own, so that varying them leaves the
     #: rest of a seed's home (layout, states, objects) as it was
     design_rng: Optional[np.random.Generator] = None
+    #: objects in drawers are drawn from a generator of their own too
+    drawer_rng: Optional[np.random.Generator] = None
 
     def u(self, lo: float, hi: float) -> float:
         return float(self.rng.uniform(lo, hi))

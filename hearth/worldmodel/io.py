@@ -218,7 +218,8 @@ class _Reader:
         return Handle(id=el.get("id"), pose=_pose_of(el), radius=float(el.get("radius", 0.01)),
                       length=float(el.get("length", 0.2)), standoff=float(el.get("standoff", 0.04)),
                       color=self.rgb(el, "color", (0.75, 0.75, 0.78)),
-                      material=el.get("material", "shiny"), line=el.sourceline)
+                      material=el.get("material", "shiny"), handle_kind=el.get("kind", "bar"),
+                      line=el.sourceline)
 
     def knob(self, el) -> Knob:
         states = [KnobState(s.get("name"), float(s.get("angle")), line=s.sourceline)
@@ -251,7 +252,14 @@ class _Reader:
                     joint=self.joint(el.find("joint")), model=self.model(el.find("model")),
                     handles=[self.handle(h) for h in el.findall("handle")],
                     knobs=[self.knob(k) for k in el.findall("knob")],
-                    parts=[self.part(p) for p in el.findall("part")], line=el.sourceline)
+                    parts=[self.part(p) for p in el.findall("part")],
+                    surfaces=[self.surface(s) for s in el.findall("surface")],
+                    track=el.get("track", ""), line=el.sourceline)
+
+    @staticmethod
+    def surface(s) -> Surface:
+        return Surface(s.get("id"), _pose_of(s), float(s.get("sizeX")), float(s.get("sizeY")),
+                       s.get("relation", "on"), line=s.sourceline)
 
     def small(self, el) -> SmallObject:
         return SmallObject(
@@ -263,7 +271,7 @@ class _Reader:
             default_positions=[DefaultPosition(d.get("parent"), d.get("relation", "on"),
                                                _pose_attrs(d), line=d.sourceline)
                                for d in el.findall("defaultPosition")],
-            model=self.model(el.find("model")), line=el.sourceline)
+            model=self.model(el.find("model")), part=el.get("part", ""), line=el.sourceline)
 
     def large(self, el):
         parking_el = el.find("parking")
@@ -278,9 +286,7 @@ class _Reader:
             default_parking=parking_el.get("default"),
             graspable=_b(el.get("graspable"), False), static=_b(el.get("static"), True),
             affordances=(el.get("affordances") or "").split(),
-            surfaces=[Surface(s.get("id"), _pose_of(s), float(s.get("sizeX")), float(s.get("sizeY")),
-                              s.get("relation", "on"), line=s.sourceline)
-                      for s in el.findall("surface")],
+            surfaces=[self.surface(s) for s in el.findall("surface")],
             children=[self.small(s) for s in el.findall("SmallObject")], line=el.sourceline)
         if el.tag == "LargeArticulatedObject":
             return LargeArticulatedObject(
@@ -461,6 +467,8 @@ def _write_model(parent, model: Model, tag: str = "model", extra: Optional[dict]
 def _write_handle(parent, h: Handle) -> None:
     el = etree.SubElement(parent, "handle", id=h.id, radius=_num(h.radius), length=_num(h.length),
                           standoff=_num(h.standoff), color=_vec(h.color), material=h.material)
+    if h.handle_kind != "bar":
+        el.set("kind", h.handle_kind)
     _set_pose(el, h.pose)
 
 
@@ -488,12 +496,22 @@ def _write_part(parent, p: Part) -> None:
     el = etree.SubElement(parent, "part", id=p.id, type=p.type)
     if p.name:
         el.set("name", p.name)
+    if p.track:
+        el.set("track", p.track)
     j = p.joint
     je = etree.SubElement(el, "joint", type=j.type, axis=_vec(j.axis), lower=_num(j.lower),
                           upper=_num(j.upper), state=_num(j.state))
     _set_pose(je, j.origin, "origin")
     _write_model(el, p.model)
+    _write_surfaces(el, p.surfaces)
     _write_fittings(el, p)
+
+
+def _write_surfaces(el, surfaces) -> None:
+    for s in surfaces:
+        se = etree.SubElement(el, "surface", id=s.id, sizeX=_num(s.size_x), sizeY=_num(s.size_y),
+                              relation=s.relation)
+        _set_pose(se, s.pose)
 
 
 def _write_fittings(el, node) -> None:
@@ -513,6 +531,8 @@ def _write_small(parent, s: SmallObject) -> None:
         el.set("name", s.name)
     if s.color:
         el.set("color", s.color)
+    if s.part:
+        el.set("part", s.part)
     if s.description:
         etree.SubElement(el, "description").text = s.description
     _set_pose(el, s.pose)
@@ -540,10 +560,7 @@ def _write_large(parent, o) -> None:
     for p in o.parking:
         etree.SubElement(pk, "position", id=p.id, x=_num(p.pose.x), y=_num(p.pose.y),
                          yaw=_num(p.pose.yaw))
-    for s in o.surfaces:
-        se = etree.SubElement(el, "surface", id=s.id, sizeX=_num(s.size_x), sizeY=_num(s.size_y),
-                              relation=s.relation)
-        _set_pose(se, s.pose)
+    _write_surfaces(el, o.surfaces)
     if isinstance(o, LargeArticulatedObject):
         _write_fittings(el, o)
     for c in o.children:

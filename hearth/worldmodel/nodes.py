@@ -99,6 +99,9 @@ class DefaultPosition:
 
 @dataclass
 class SmallObject:
+    """A small object. Its parent is a large object (the place a search plans over); with
+    ``part`` its pose is in the frame of that part of its parent (a drawer), so it moves
+    with the part's joint (docs/world-format.md, "Objects inside parts")."""
     id: str
     type: str
     pose: Pose
@@ -110,6 +113,7 @@ class SmallObject:
     grasp_points: list[GraspPoint] = field(default_factory=list)
     default_positions: list[DefaultPosition] = field(default_factory=list)
     model: Model = field(default_factory=Model)
+    part: str = ""
     line: Optional[int] = _line()
 
     kind = "SmallObject"
@@ -133,10 +137,17 @@ class Joint:
     line: Optional[int] = _line()
 
 
+#: What a hand pulls a door or drawer by: a ``bar`` standing off the face, or a ``recessed``
+#: pull (a finger hollow in a sliding door, flush with its face).
+HANDLE_KINDS = ("bar", "recessed")
+
+
 @dataclass
 class Handle:
-    """A bar handle. Frame: origin at the bar's centre, +x out of the face the handle is
-    mounted on, +z along the bar. ``standoff`` is the distance from the face to the bar axis."""
+    """A handle. Frame: origin at the handle's centre, +x out of the face it is mounted on,
+    +z along it. A ``bar``: ``standoff`` is the distance from the face to the bar axis. A
+    ``recessed`` pull: a hollow ``length`` long and ``2 * radius`` wide in the face, its
+    frame origin on the face (``standoff`` unused)."""
     id: str
     pose: Pose
     radius: float = 0.01
@@ -144,6 +155,7 @@ class Handle:
     standoff: float = 0.04
     color: RGB = (0.75, 0.75, 0.78)
     material: str = "shiny"
+    handle_kind: str = "bar"
     line: Optional[int] = _line()
 
     kind = "Handle"
@@ -229,7 +241,12 @@ class Knob:
 
 @dataclass
 class Part:
-    """A moving (or fixed) part of an articulated object: a door, a drawer, a panel."""
+    """A moving (or fixed) part of an articulated object: a door, a drawer, a panel.
+
+    ``surfaces`` (part frame) hold small objects that move with the part (a drawer's floor).
+    ``track``: parts of one object with the same track are sliding doors on one track: they
+    exclude each other (sliding one open slides it over the other; docs/world-format.md,
+    "Sliding doors")."""
     id: str
     type: str
     joint: Joint
@@ -238,6 +255,8 @@ class Part:
     handles: list[Handle] = field(default_factory=list)
     knobs: list[Knob] = field(default_factory=list)
     parts: list["Part"] = field(default_factory=list)
+    surfaces: list[Surface] = field(default_factory=list)
+    track: str = ""
     line: Optional[int] = _line()
 
     kind = "Part"

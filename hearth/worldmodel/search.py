@@ -70,11 +70,13 @@ class SearchPlace:
 
 def effort(place: LargeObject, w: SearchWeights) -> float:
     """What searching a place costs besides the drive, in metres: looking at each of its
-    surface levels, opening (and closing) its closed doors."""
-    doors = sum(1 for p in getattr(place, "parts", ()) if p.type == "door" and p.handles
-                and p.joint.state - p.joint.lower < 0.35)
-    return w.effort_m + w.effort_per_level_m * max(len(place.surfaces), 1) \
-        + w.effort_per_door_m * doors
+    surface levels (its drawers' too), opening (and closing) its closed doors and drawers
+    (sliding doors: each half, one after the other)."""
+    from hearth.worldmodel.containers import closed_to_open
+    from hearth.worldmodel.validate import all_parts
+    levels = len(place.surfaces) + sum(len(p.surfaces) for p in all_parts(place))
+    return w.effort_m + w.effort_per_level_m * max(levels, 1) \
+        + w.effort_per_door_m * closed_to_open(place)
 
 
 def effective_k1(world, w: SearchWeights) -> float:
@@ -94,8 +96,10 @@ def effective_k1(world, w: SearchWeights) -> float:
 
 
 def candidate_places(world) -> list[LargeObject]:
-    """Large objects that can hold small objects: those with surfaces or that hold some now."""
-    return [o for o in world.large_objects() if o.surfaces or o.children]
+    """Large objects that can hold small objects: those with surfaces (their own or their
+    parts', a drawer's floor) or that hold some now."""
+    from hearth.worldmodel.world import holds_small_objects
+    return [o for o in world.large_objects() if holds_small_objects(o)]
 
 
 def prior(world, obj: SmallObject, place: LargeObject, w: SearchWeights,

@@ -15,7 +15,9 @@ from typing import Iterator, Optional
 
 from hearth.util.files import file_inside
 from hearth.worldmodel.errors import WorldError
-from hearth.worldmodel.nodes import KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual
+from hearth.worldmodel.nodes import (
+    HANDLE_KINDS, KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual,
+)
 from hearth.worldmodel.pose import Pose
 
 #: Joint values are compared with this slack so that a state written as the limit itself
@@ -215,11 +217,7 @@ def _node_value_problems(node) -> Iterator[str]:
         for p in node.parking:
             yield from _text("parking position id", p.id, nid, optional=False)
             yield from _pose(f"parking position {p.id}", p.pose, nid)
-        for s in node.surfaces:
-            yield from _text("surface id", s.id, nid, optional=False)
-            yield from _pose(f"surface {s.id} pose", s.pose, nid)
-            yield from _positive(f"surface {s.id} sizeX", s.size_x, nid)
-            yield from _positive(f"surface {s.id} sizeY", s.size_y, nid)
+        yield from _surface_values(node.surfaces, nid)
         for a in node.affordances:
             if not isinstance(a, str) or not a or a.split() != [a]:
                 yield f"{nid}: affordance {a!r} is not one word"
@@ -227,6 +225,8 @@ def _node_value_problems(node) -> Iterator[str]:
                 yield from _text("affordance", a, nid)
     elif kind == "Part":
         j = node.joint
+        yield from _text("track", node.track, nid)
+        yield from _surface_values(node.surfaces, nid)
         yield from _pose("joint origin", j.origin, nid)
         for what in ("lower", "upper", "state"):
             yield from _coord(f"joint {what}", getattr(j, what), nid)
@@ -262,11 +262,20 @@ def _node_value_problems(node) -> Iterator[str]:
             yield f"{nid}: a fixed base needs a base"
     elif kind == "SmallObject":
         yield from _text("color", node.color, nid)
+        yield from _text("part", node.part, nid)
         for g in node.grasp_points:
             yield from _pose("grasp point", g.pose, nid)
         for d in node.default_positions:
             yield from _text("default position parent", d.parent, nid, optional=False)
             yield from _pose(f"default position on {d.parent}", d.pose, nid)
+
+
+def _surface_values(surfaces, nid: str) -> Iterator[str]:
+    for s in surfaces:
+        yield from _text("surface id", s.id, nid, optional=False)
+        yield from _pose(f"surface {s.id} pose", s.pose, nid)
+        yield from _positive(f"surface {s.id} sizeX", s.size_x, nid)
+        yield from _positive(f"surface {s.id} sizeY", s.size_y, nid)
 
 
 def _apartment_value_problems(apartment: Apartment) -> Iterator[str]:
@@ -334,14 +343,123 @@ def asset_problem(rel, base_dir: Optional[Path], kind: str = "mesh") -> Optional
 
 # -- the checks ------------------------------------------------------------------------------
 
+def all_parts(node) -> Iterator[Part]:
+    """Every part of an articulated object or part, depth first."""
+    for p in getattr(node, "parts", ()):
+        yield p
+        yield from all_parts(p)
+
+
 def _unique_surfaces(node, bad) -> None:
     """A surface is named by its object and its id (where an object stands, what a search
-    looks at): two of one object with one id could not be told apart."""
+    looks at): two of one object with one id could not be told apart, whether they are the
+    object's own or its parts' (a drawer's floor)."""
     seen: set[str] = set()
-    for srf in getattr(node, "surfaces", ()):
-        if srf.id in seen:
-            bad(f"{node.id}: duplicate surface id {srf.id!r}", srf)
-        seen.add(srf.id)
+    for owner in (node, *all_parts(node)):
+        for srf in getattr(owner, "surfaces", ()):
+            if srf.id in seen:
+                bad(f"{node.id}: duplicate surface id {srf.id!r}", srf)
+            seen.add(srf.id)
+
+
+#: Two closed sliding doors on one track that share more than this fraction of the narrower
+#: one's width along the track cover the same span: neither uncovers a half of its own when
+#: slid open (a bypass wardrobe's doors overlap by a few centimetres in the middle).
+TRACK_OVERLAP_FRACTION = 0.5
+
+
+def _rpy(pose: Pose) -> list[list[float]]:
+    """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` as rows (pose.py's convention), by hand: validating
+    does not import scipy (pose.py)."""
+    cr, sr = math.cos(pose.roll), math.sin(pose.roll)
+    cp, sp = math.cos(pose.pitch), math.sin(pose.pitch)
+    cy, sy = math.cos(pose.yaw), math.sin(pose.yaw)
+    return [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr]]
+
+
+def _apply(R, v) -> tuple[float, float, float]:
+    return tuple(sum(R[i][k] * v[k] for k in range(3)) for i in range(3))
+
+
+def _closed_span(door: Part) -> Optional[tuple[tuple, float, float]]:
+    """A sliding door's slide direction in its parent's frame (unit) and the interval its
+    primitive shapes (boxes, cylinders, spheres: their bounding boxes) cover along it with
+    the door closed (joint at its lower limit); None when it has no primitive shape (a mesh
+    is not read to validate)."""
+    j = door.joint
+    n = math.sqrt(sum(a * a for a in j.axis))
+    if n == 0:
+        return None
+    R0 = _rpy(j.origin)
+    axis = _apply(R0, tuple(a / n for a in j.axis))
+    offset = tuple(j.lower * a / n for a in j.axis)          # the slide, in the part frame
+    o = (j.origin.x, j.origin.y, j.origin.z)
+    along = []
+    for v in door.model.visuals:
+        if v.shape == "box":
+            h = tuple(s / 2 for s in v.size)
+        elif v.shape == "cylinder":
+            h = (v.radius, v.radius, v.length / 2)
+        elif v.shape == "sphere":
+            h = (v.radius,) * 3
+        else:
+            continue
+        Rv = _rpy(v.pose)
+        for corner in ((sx * h[0], sy * h[1], sz * h[2])
+                       for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)):
+            c = _apply(Rv, corner)
+            p_part = (c[0] + v.pose.x + offset[0], c[1] + v.pose.y + offset[1],
+                      c[2] + v.pose.z + offset[2])
+            p = _apply(R0, p_part)
+            along.append(sum(axis[i] * (p[i] + o[i]) for i in range(3)))
+    return (axis, min(along), max(along)) if along else None
+
+
+def _track_problems(obj, bad) -> None:
+    """Doors on one track exclude each other (docs/world-format.md, "Sliding doors"): a
+    track needs two or more, they slide along one line, and closed each covers a span of
+    its own."""
+    tracks: dict[str, list[tuple[object, Part]]] = {}
+
+    def walk(owner) -> None:
+        for p in owner.parts:
+            if p.track:
+                tracks.setdefault(p.track, []).append((owner, p))
+            walk(p)
+
+    walk(obj)
+    for track, doors in tracks.items():
+        if len(doors) == 1:
+            bad(f"{obj.id}: part {doors[0][1].id!r} is the only door on track {track!r} (doors "
+                f"on one track exclude each other: give the track two doors or drop it)",
+                doors[0][1])
+            continue
+        spans = {}
+        for owner, d in doors:
+            if d.joint.type == "prismatic":
+                span = _closed_span(d)
+                if span is not None:
+                    spans[d.id] = (owner, d, span)
+        seen = list(spans.values())
+        for i, (owner_a, a, (axis_a, lo_a, hi_a)) in enumerate(seen):
+            for owner_b, b, (axis_b, lo_b, hi_b) in seen[i + 1:]:
+                if owner_a is not owner_b:
+                    continue            # spans in different frames: not compared
+                dot = sum(x * y for x, y in zip(axis_a, axis_b))
+                if abs(dot) < 0.99:
+                    bad(f"{obj.id}: sliding doors {a.id!r} and {b.id!r} on track {track!r} "
+                        f"slide along different lines", b)
+                    continue
+                if dot < 0:             # opposite slides: measure b along a's direction
+                    lo_b, hi_b = -hi_b, -lo_b
+                shared = min(hi_a, hi_b) - max(lo_a, lo_b)
+                narrower = min(hi_a - lo_a, hi_b - lo_b)
+                if shared > TRACK_OVERLAP_FRACTION * narrower:
+                    bad(f"{obj.id}: sliding doors {a.id!r} and {b.id!r} on track {track!r} "
+                        f"overlap by {shared:.2f} m of {narrower:.2f} m when closed (each "
+                        f"must cover a span of its own)", b)
 
 
 def semantic_problems(apartment: Apartment, name: Optional[str],
@@ -463,6 +581,8 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 bad(f"{node.id}: duplicate parking position ids", node)
             _unique_surfaces(node, bad)
             check_model(node.model, node)
+            if kind == "LargeArticulatedObject":
+                _track_problems(node, bad)
         elif kind == "Part":
             j = node.joint
             if j.type != "fixed":
@@ -474,12 +594,21 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
                 elif not (j.lower - LIMIT_EPS <= j.state <= j.upper + LIMIT_EPS):
                     bad(f"part {node.id!r}: joint state {j.state} is outside its limits "
                         f"[{j.lower}, {j.upper}]", j)
-            _unique_surfaces(node, bad)
+            if node.track and j.type != "prismatic":
+                bad(f"part {node.id!r}: a part on a track (track {node.track!r}) slides: its "
+                    f"joint must be prismatic", node)
             check_model(node.model, node)
+        elif kind == "Handle":
+            if node.handle_kind not in HANDLE_KINDS:
+                bad(f"handle {node.id!r}: kind {node.handle_kind!r} is not one of "
+                    f"{', '.join(HANDLE_KINDS)}", node)
         elif kind == "Knob":
             check_knob(node)
         elif kind == "SmallObject":
             check_model(node.model, node)
+            if node.part and node.part not in {p.id for p in all_parts(parent)}:
+                bad(f"{node.id}: part {node.part!r} is not a part of its parent "
+                    f"{parent.id!r}", node)
             for d in node.default_positions:
                 if d.parent not in seen:
                     bad(f"{node.id}: default position names unknown parent {d.parent!r}", d)

@@ -23,7 +23,7 @@ from hearth.worldmodel.nodes import (
 )
 from hearth.worldmodel.frames import joint_T, knob_T, planar_of
 from hearth.worldmodel.pose import Pose, transform_points
-from hearth.worldmodel.validate import LIMIT_EPS, coord_problem, iter_nodes
+from hearth.worldmodel.validate import LIMIT_EPS, all_parts, coord_problem, iter_nodes
 
 STOPWORDS = frozenset({"the", "a", "an", "my", "me", "of", "please", "some", "your", "our", "this",
                        "that", "is", "where", "find", "bring", "get"})
@@ -70,13 +70,16 @@ class MapChange:
 @dataclass(frozen=True)
 class SurfaceLevel:
     """One supporting surface of a large object in the world frame: ``T_world_surface`` has
-    its origin at the centre of the top face, +z up; ``relation`` is on or in."""
+    its origin at the centre of the top face, +z up; ``relation`` is on or in. ``part``: the
+    part that carries it (a drawer's floor, which moves with the drawer), None for the
+    object's own."""
     place: str
     surface: str
     T_world_surface: np.ndarray
     relation: str
     size_x: float
     size_y: float
+    part: Optional[str] = None
 
     @property
     def name(self) -> str:
@@ -300,8 +303,12 @@ class World:
 
     def T_world(self, node_id: str) -> np.ndarray:
         """``T_world_node``: maps points in the node's frame to the world frame, through
-        the parent chain including joint states (a door at 30 degrees moves its handle)."""
+        the parent chain including joint states (a door at 30 degrees moves its handle; a
+        small object in a drawer moves with the drawer)."""
         with self.lock:
+            node = self.get(node_id)
+            if isinstance(node, SmallObject) and node.part:
+                return self.T_world(node.part) @ node.pose.matrix()
             T = np.eye(4)
             for n in reversed(self.chain(node_id)):
                 T = T @ self.local_T(n)
@@ -372,6 +379,11 @@ class World:
         T = self.T_world(obj.id)
         out = [SurfaceLevel(obj.id, s.id, T @ s.pose.matrix(), s.relation, s.size_x, s.size_y)
                for s in obj.surfaces]
+        for part in all_parts(obj):
+            if part.surfaces:
+                Tp = self.T_world(part.id)
+                out += [SurfaceLevel(obj.id, s.id, Tp @ s.pose.matrix(), s.relation, s.size_x,
+                                     s.size_y, part.id) for s in part.surfaces]
         out.sort(key=lambda lv: (-lv.T_world_surface[2, 3], lv.surface))
         return out
 
@@ -425,7 +437,7 @@ class World:
         point = np.asarray(point, dtype=float)[:3]
         best = None
         for obj in self.large_objects():
-            if not (obj.surfaces or obj.children):
+            if not holds_small_objects(obj):
                 continue
             lo, hi = self.bounds_world(obj.id)
             gap = np.maximum(0.0, np.maximum(lo - margin - point, point - hi - margin))
@@ -454,6 +466,12 @@ class World:
         parent = self.parent(node_id)
         if isinstance(node, SmallObject) and parent is not None:
             pname = parent.name or parent.type
+            if node.part and node.part in self:
+                part = self.get(node.part)
+                words = part.name or part.type
+                # "in drawer 3 from the bottom of ...", "in the top drawer of ..."
+                the = "" if any(ch.isdigit() for ch in words) else "the "
+                return f"{node.relation} {the}{words} of the {pname}"
             return f"{node.relation} the {pname}"
         room = self.room_of(node_id)
         return f"in the {room.name}"
@@ -483,9 +501,10 @@ class World:
                 cb(ch)
 
     def move_object(self, object_id: str, new_parent: str, pose: Pose, relation: str = "on",
-                    source: str = "") -> None:
+                    source: str = "", part: str = "") -> None:
         """Move a small object to ``new_parent`` (a large object) at ``pose`` (in the new
-        parent's frame)."""
+        parent's frame; with ``part``, a part of the new parent such as a drawer, in that
+        part's frame: the object then moves with the part)."""
         if relation not in ("on", "in", "under"):
             raise WorldError(f"relation must be on, in or under, not {relation!r}", node=object_id)
         with self.lock:
@@ -496,6 +515,8 @@ class World:
             target = self.get(new_parent)
             if not isinstance(target, LargeObject):
                 raise WorldError(f"new parent {new_parent!r} is not a large object", node=object_id)
+            if part and part not in {p.id for p in all_parts(target)}:
+                raise WorldError(f"{part!r} is not a part of {new_parent!r}", node=object_id)
             old_parent = self._parent[object_id]
             changes = []
             if old_parent is not target:
@@ -506,6 +527,9 @@ class World:
             if obj.relation != relation:
                 changes.append(self._record(object_id, "relation", obj.relation, relation, source))
                 obj.relation = relation
+            if obj.part != part:
+                changes.append(self._record(object_id, "part", obj.part, part, source))
+                obj.part = part
             changes.append(self._record(object_id, "pose", obj.pose, pose, source))
             obj.pose = pose
         self._notify(changes)
@@ -602,6 +626,12 @@ class World:
     def search_stats(self, object_key: str) -> dict[str, SearchStat]:
         with self.lock:
             return {s.place: s for s in self.apartment.search_stats if s.object == object_key}
+
+
+def holds_small_objects(obj) -> bool:
+    """Whether a large object can hold small objects: surfaces of its own or of its parts (a
+    drawer's floor), or some it holds now."""
+    return bool(obj.surfaces or obj.children or any(p.surfaces for p in all_parts(obj)))
 
 
 def _text(v: Any) -> str:

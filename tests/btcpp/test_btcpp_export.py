@@ -85,8 +85,12 @@ def test_tree_ports_are_the_parameters_with_types_and_defaults():
     presence = model.find("input_port[@name='presence']")
     assert presence.get("type") == "string" and presence.get("default") == "home"
     assert presence.get("runtime") == "true"
+    # a parameter passed on as a port is the blackboard entry of the same name (go_to_rest's
+    # place comes from the map unless the parameter names it: RestPlace, issue 43)
+    place = root.find(".//RestPlace[@name='place_near_user']")
+    assert place.get("place") == "{rest_near_user}"
     drive = root.find(".//NavigateTo[@name='drive_near_user']")
-    assert drive.get("target") == "{rest_near_user}"
+    assert drive.get("target") == "{near_target}"
 
 
 def test_subtree_outputs_through_a_parameter_are_inout_ports():

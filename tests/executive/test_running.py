@@ -309,7 +309,8 @@ def test_go_to_rest_follows_presence_change_mid_run(make_executive):
     ex = make_executive([S("NavigateTo", duration=3.0, halt_duration=0.3)], robot=robot,
                         skills=None)
     ex.skills = None
-    h = ex.submit("missions/go_to_rest.yaml", presence="home")
+    h = ex.submit("missions/go_to_rest.yaml", presence="home", rest_near_user="side_table",
+                  rest_out_of_the_way="kitchen_table")
     for _ in range(10):
         ex.tick()
     ex.set_parameter("presence", "away")
@@ -380,8 +381,9 @@ def test_test_mission_reports_never_ticked_nodes(mission_file, tmp_path, capsys)
     out = capsys.readouterr().out
     assert "never ticked: /follow_presence/choose_rest_place/user_home/near_user/drive_near_user" in out
     report = run_mission_case("missions/go_to_rest.yaml", load_mission_case(case))
-    # away: the near-user branch (5 nodes), its fall-back (3) and the away give-up never run
-    assert report.outcome == "succeeded" and len(report.never_ticked) == 8
+    # away: the near-user branch (its sequence, RestPlace, the drive, the announcement), its
+    # fall-back (sequence, force_success, the drive, the give-up) and the away give-up never run
+    assert report.outcome == "succeeded" and len(report.never_ticked) == 9
 
 
 # -- property: random trees load and either finish or are cancelled, every node terminated --

@@ -133,6 +133,26 @@ def test_plan_search_starts_at_the_believed_place_and_learns(demo_world):
     assert fixed.index("bathroom_cabinet") < fixed.index("bathroom_counter")
 
 
+def test_planning_again_keeps_to_the_places_of_the_first_plan(demo_world):
+    """The budget counts places in the plan: planning again from another position reorders
+    the first plan's places that are left and never brings in one it ranked below the budget."""
+    def plan(**inputs):
+        s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box", **inputs},
+                 outputs={"places": "/places"})
+        assert tick(s) == S.SUCCESS
+        return bb("/places")
+    everything = [p["place"] for p in plan()]
+    first = plan(max_places=2)
+    assert [p["place"] for p in first] == everything[:2]
+    left = plan(max_places=1, exclude=[first[0]], among=first)
+    assert [p["place"] for p in left] == [first[1]["place"]]
+    # Without the first plan the next cheapest place of the whole home would come next.
+    assert [p["place"] for p in plan(max_places=1, exclude=[first[0]])] == [everything[1]]
+    s = make(PlanSearch, demo_world, inputs={"object_id": "pill_box", "exclude": first,
+                                             "among": first})
+    assert tick(s) == S.FAILURE and s.feedback_message == "no place left to search"
+
+
 def test_record_search_and_update_location_write_the_map(demo_world):
     tick(make(RecordSearch, demo_world, inputs={"object_id": "blue_cup",
                                                 "place": {"place": "side_table"}, "found": True}))

@@ -366,13 +366,39 @@ def test_small_objects_stand_on_a_surface_of_their_parent_and_are_named_unambigu
     for s, w in worlds.items():
         for c in w.small_objects():
             parent = w.parent(c.id)
-            surf = [f for f in parent.surfaces if abs(f.pose.z - c.pose.z) < 1e-6]
+            holder = w.get(c.part) if c.part else parent      # in a drawer: its floor
+            surf = [f for f in holder.surfaces if abs(f.pose.z - c.pose.z) < 1e-6]
             assert surf, (s, c.id)
             local = np.linalg.inv(surf[0].pose.matrix()) @ np.append(c.pose.position, 1.0)
             assert abs(local[0]) <= surf[0].size_x / 2 and abs(local[1]) <= surf[0].size_y / 2
             assert c.relation == surf[0].relation
             assert c.grasp_points and c.default_positions[0].parent == parent.id
             assert w.find(f"{c.color} {c.type}")[0].node.id == c.id, (s, c.id)
+
+
+def test_some_objects_are_in_drawers_and_some_wardrobes_have_sliding_doors(worlds):
+    """Generator version 9 (issue 43): top drawers with a floor hold objects low enough for
+    them, and bypass wardrobes have two sliding doors on one track with recessed pulls."""
+    from hearth.worldmodel.containers import headroom
+    in_drawers = [(w, c) for w in worlds.values() for c in w.small_objects() if c.part]
+    assert len(in_drawers) >= 5
+    for w, c in in_drawers:
+        part = w.get(c.part)
+        assert part.joint.type == "prismatic" and c.relation == "in"
+        assert part.surfaces and _object_height(c) <= headroom(part, part.surfaces[0])
+    sliding = [o for w in worlds.values() for o in w.large_objects()
+               if any(p.track for p in getattr(o, "parts", ()))]
+    assert len(sliding) >= 3
+    for o in sliding:
+        doors = [p for p in o.parts if p.track]
+        assert len(doors) == 2 and len({p.track for p in doors}) == 1
+        assert all(p.handles[0].handle_kind == "recessed" for p in doors)
+        assert {p.joint.axis[1] for p in doors} == {-1.0, 1.0}     # towards each other
+
+
+def _object_height(c) -> float:
+    tops = [v.pose.z + (v.size[2] if v.shape == "box" else v.length) / 2 for v in c.model.visuals]
+    return max(tops)
 
 
 def test_small_objects_are_of_many_kinds_and_colours_some_close_in_hue(worlds):
