@@ -91,7 +91,8 @@ class RefineLocalisation(_PerceptionSkill):
                     description="earlier plus this view's estimate of the pose"))
 
     def perceive(self) -> str:
-        from hearth.perception.localisation import LocalisationConfig, refine_localisation
+        from hearth.perception.localisation import (LocalisationConfig, refine_localisation,
+                                                    visible_landmarks)
         earlier = list(self.input("earlier") or [])
         # written first: a view that raises leaves the earlier ones, never a stale list
         # from another place
@@ -99,8 +100,16 @@ class RefineLocalisation(_PerceptionSkill):
         depth, K, T_wc = capture(self.robot)
         T_wb = self.robot.base_pose().matrix()
         cfg = LocalisationConfig()
-        fix = refine_localisation(self.world, depth, K, T_wc, T_wb, cfg,
-                                  landmarks=self.input("landmarks"))
+        try:
+            fix = refine_localisation(self.world, depth, K, T_wc, T_wb, cfg,
+                                      landmarks=self.input("landmarks"))
+        except PerceptionError:
+            # a look that registered nothing still showed its landmarks: LookAtLandmark
+            # passes over them next time
+            ids = self.input("landmarks") or visible_landmarks(self.world, K, T_wc, cfg.max_range)
+            if ids:
+                self.set_output("views", earlier + [{"landmarks": list(ids)}])
+            raise
         # every view that was registered is kept, for a joint fix with the later ones; its
         # estimate of the pose (``evidence``) only where it is one
         mine = dict(fix.evidence or {"landmarks": list(fix.landmarks)})
