@@ -116,6 +116,9 @@ class LocalisationFix:
     #: (``contradiction``); None when the registration is no estimate at all (outside the
     #: searched range, ambiguous, or explaining the view worse than the believed pose).
     evidence: Optional[dict] = None
+    #: The views registered (``LocalisationView``; one for ``refine_localisation``), as
+    #: believed when the fix was made.
+    views: list = field(default_factory=list)
 
     @property
     def loose(self) -> bool:
@@ -135,6 +138,69 @@ def visible_landmarks(world, K, T_world_camera: np.ndarray, max_range: float = 4
     return [i for i in seen if i in fixed]
 
 
+@dataclass(frozen=True, eq=False)
+class LocalisationView:
+    """One depth image taken for a fix and the poses the robot believed when it took it
+    (``T_world_camera``, ``T_world_base``, 4x4), with the landmarks it was registered on.
+    A fix keeps its view (``LocalisationFix.view``) so that a later fix from the same base
+    pose can register every view together (``refine_localisation_views``)."""
+    depth: np.ndarray
+    K: object
+    T_world_camera: np.ndarray
+    T_world_base: np.ndarray
+    landmarks: tuple
+
+    def __repr__(self) -> str:       # it travels on the blackboard and into logs: no pixels
+        return f"<view of {', '.join(self.landmarks)}>"
+
+    def believed_at(self, T_world_base: np.ndarray) -> "LocalisationView":
+        """The same image as if taken while the robot believed it stood at ``T_world_base``
+        (the base has not moved; only the belief has, by a correction applied in between):
+        the camera keeps its pose relative to the base."""
+        T_new = np.asarray(T_world_base, dtype=float)
+        if np.array_equal(T_new, self.T_world_base):
+            return self
+        move = T_new @ np.linalg.inv(self.T_world_base)
+        return replace(self, T_world_camera=move @ self.T_world_camera, T_world_base=T_new)
+
+
+class _Agreement:
+    """``DepthAgreement`` over several views of one base pose: a correction's score is the
+    sum of its scores in every view (each view's model points against its own image)."""
+
+    def __init__(self, parts: list):
+        self.parts = parts
+
+    def __call__(self, Cs) -> np.ndarray:
+        return sum(a(Cs) for a in self.parts)
+
+    def against(self, C, Cs) -> tuple[np.ndarray, np.ndarray]:
+        pairs = [a.against(C, Cs) for a in self.parts]
+        return sum(p[0] for p in pairs), sum(p[1] for p in pairs)
+
+
+class _Reference:
+    """The landmarks' expected points of one or more views (a ``View`` each, world frame),
+    with the views they belong to: ICP registers against all of them at once, the depth
+    agreement scores each against its own image."""
+
+    def __init__(self, parts: list, views: list):
+        self.parts, self.views = parts, views
+        self.points = np.concatenate([p.points for p in parts])
+        self.normals = np.concatenate([p.normals for p in parts])
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def select(self, node_ids) -> "_Reference":
+        return _Reference([p.select(node_ids) for p in self.parts], self.views)
+
+    def agreement(self, max_points: int = 3000) -> _Agreement:
+        return _Agreement([DepthAgreement(p.points, v.depth, v.K, v.T_world_camera,
+                                          max_points=max_points)
+                           for p, v in zip(self.parts, self.views) if len(p)])
+
+
 @single_threaded_blas
 def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                         T_world_base: np.ndarray, cfg: LocalisationConfig = LocalisationConfig(),
@@ -145,23 +211,49 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     Raises PerceptionError when no landmark is in view, RegistrationFailed when the view
     does not overlap the landmarks enough.
     """
-    t0 = time.perf_counter()
     ids = landmarks if landmarks is not None else visible_landmarks(world, K, T_world_camera,
                                                                     cfg.max_range)
     if not ids:
         raise PerceptionError("no landmark in view")
-    meshes = []
-    for oid in ids:
-        meshes += object_meshes(world, world.get(oid), children=False)
-    if cfg.use_walls:
-        for room in world.rooms:
-            for v in room_visuals(room):
-                if v.name == "wall":
-                    meshes.append(LabelledMesh(room.id, room.id,
-                                               visual_mesh(v).transform(room.pose.matrix()),
-                                               tuple(v.color), v.material, v.name))
-    ref = render_reference(meshes, K, T_world_camera, scale=cfg.reference_scale,
-                           max_range=cfg.max_range)
+    view = LocalisationView(depth, K, np.asarray(T_world_camera, dtype=float),
+                            np.asarray(T_world_base, dtype=float), tuple(ids))
+    return refine_localisation_views(world, [view], cfg)
+
+
+@single_threaded_blas
+def refine_localisation_views(world, views: list, cfg: LocalisationConfig = LocalisationConfig()
+                              ) -> LocalisationFix:
+    """The base-pose correction from one or more views (``LocalisationView``) taken from one
+    base pose, the robot only turning its head between them, registered together: one
+    planar correction moves every view's observed points onto its landmarks, and every
+    check of the fix (convergence, the information matrix, the searched range, a second
+    basin, the ring) reads all views at once. Two flat fronts that each leave a direction
+    free (a cabinet, then a worktop at right angles to it) pin the pose down together.
+    The correction is about the belief of the last view (``views[-1].T_world_base``); a
+    correction applied between views is undone in the earlier ones
+    (``LocalisationView.believed_at``).
+
+    Raises RegistrationFailed when the views do not overlap their landmarks enough.
+    """
+    t0 = time.perf_counter()
+    T_world_base = np.asarray(views[-1].T_world_base, dtype=float)
+    views = [v.believed_at(T_world_base) for v in views]
+    ids = list(dict.fromkeys(i for v in views for i in v.landmarks))
+    refs = []
+    for v in views:
+        meshes = []
+        for oid in v.landmarks:
+            meshes += object_meshes(world, world.get(oid), children=False)
+        if cfg.use_walls:
+            for room in world.rooms:
+                for vis in room_visuals(room):
+                    if vis.name == "wall":
+                        meshes.append(LabelledMesh(room.id, room.id,
+                                                   visual_mesh(vis).transform(room.pose.matrix()),
+                                                   tuple(vis.color), vis.material, vis.name))
+        refs.append(render_reference(meshes, v.K, v.T_world_camera, scale=cfg.reference_scale,
+                                     max_range=cfg.max_range))
+    ref = _Reference(refs, views)
     # Doors, drawers and knobs may not be where the map has them (a door left ajar): the
     # whole objects are rendered (so a closed door hides what it hides) but only the fixed
     # bodies (and walls) are registered against, unless they show too little (a fridge seen
@@ -171,21 +263,24 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     if len(ref) < cfg.icp.min_points:
         raise RegistrationFailed(f"the landmarks {ids} would cover only {len(ref)} points")
     t1 = time.perf_counter()
-    obs = observed_view(depth, K, T_world_camera, cfg.stride)
-    lo, hi = ref.points.min(0), ref.points.max(0)
-    src = obs.points[crop_box(obs.points, lo, hi, cfg.margin)]
+    srcs = []
+    for v, r in zip(views, refs):
+        obs = observed_view(v.depth, v.K, v.T_world_camera, cfg.stride)
+        if len(r):
+            lo, hi = r.points.min(0), r.points.max(0)
+            srcs.append(obs.points[crop_box(obs.points, lo, hi, cfg.margin)])
+    src = np.concatenate(srcs)
     t2 = time.perf_counter()
-    base = np.asarray(T_world_base, dtype=float)[:3, 3]
+    base = T_world_base[:3, 3]
     try:
-        res, T0, alt = _register(bodies if not parts_used else ref, src, depth, K,
-                                 T_world_camera, base, cfg)
+        res, T0, alt = _register(bodies if not parts_used else ref, src, base, cfg)
     except RegistrationFailed:
         if parts_used:
             raise
         parts_used = True
-        res, T0, alt = _register(ref, src, depth, K, T_world_camera, base, cfg)
+        res, T0, alt = _register(ref, src, base, cfg)
     used = ref if parts_used else bodies
-    agree = DepthAgreement(used.points, depth, K, T_world_camera)
+    agree = used.agreement()
     if not parts_used and len(ref) > len(bodies) + cfg.icp.min_points:
         # Doors and drawers in view: where the fit on the bodies alone explains the view
         # worse than the believed pose (ICP pulled onto an open door beside a carcass side),
@@ -194,7 +289,7 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
         s_res, s_none = agree(np.stack([res.T, np.eye(4)]))
         if s_res < cfg.min_improvement * s_none:
             try:
-                res2, _, alt2 = _register(ref, src, depth, K, T_world_camera, base, cfg)
+                res2, _, alt2 = _register(ref, src, base, cfg)
             except RegistrationFailed:
                 res2 = None
             if res2 is not None and agree(res2.T[None])[0] > s_res:
@@ -206,7 +301,7 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                                                    base, cfg)
     t4 = time.perf_counter()
     C = res.T
-    T_new = C @ np.asarray(T_world_base, dtype=float)
+    T_new = C @ T_world_base
     dyaw = math.atan2(C[1, 0], C[0, 0])
     dx, dy = (T_new[:3, 3] - base)[:2]
     weakest = float(np.linalg.eigvalsh(_scaled(res.information, ref.points))[0]) \
@@ -219,8 +314,7 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
     s_fix, s_believed = agree(np.stack([C, np.eye(4)]))
     better = float(s_fix) >= cfg.min_improvement * float(s_believed)
     sharp = _sharpness(C, agree, used.points.mean(axis=0), cfg)
-    parts_through = _parts_through(ref, bodies, C, depth, K, T_world_camera) \
-        if not parts_used else 0.0
+    parts_through = _parts_through(ref, bodies, C) if not parts_used else 0.0
     ok = bool(res.converged) and weakest >= cfg.min_weakest \
         and inside and alt is None and better and sharp >= cfg.min_sharpness
     ring, ring_m = _ring_drop(C, agree, used.points.mean(axis=0), cfg,
@@ -248,10 +342,11 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
                    loose=bool(ok and ring < cfg.min_ring_drop),
                    parts_used=parts_used, doubts=doubts,
                    settle_mm=round(1000 * settle_m, 2) if math.isfinite(settle_m) else None,
-                   settle_deg=round(settle_deg, 3) if math.isfinite(settle_deg) else None)
+                   settle_deg=round(settle_deg, 3) if math.isfinite(settle_deg) else None,
+                   views=len(views))
     return LocalisationFix(ids, C, T_new, float(dx), float(dy), float(dyaw), ok, quality, res,
                            {"reference": 1000 * (t1 - t0), "observed": 1000 * (t2 - t1),
-                            "registration": 1000 * (t4 - t2)}, evidence)
+                            "registration": 1000 * (t4 - t2)}, evidence, views)
 
 
 def fix_evidence(landmarks, T_world_base: np.ndarray, target_points: np.ndarray,
@@ -289,13 +384,13 @@ def contradiction(earlier: dict, later: dict, min_weakest: float) -> float:
     return float(np.max(np.abs(vectors[:, pinned].T @ d)))
 
 
-def _register(ref, src, depth, K, T_world_camera, base, cfg):
+def _register(ref, src, base, cfg):
     """Coarse grid about the base (the believed-pose error is a rotation about the robot),
     then planar ICP from the best cells of up to ``cfg.starts`` distinct basins; the result
     that explains the depth image best (``DepthAgreement``) wins, polished by a small local
     search on that score. Returns (result, its start, a distinct result that fits about as
     well, or None: an ambiguous view)."""
-    coarse = DepthAgreement(ref.points, depth, K, T_world_camera, max_points=cfg.coarse_points)
+    coarse = ref.agreement(max_points=cfg.coarse_points)
     # Grids centred on no correction (the believed pose itself is a candidate): an odd
     # number of cells, e.g. yaw -8..8 in steps of 2 rather than -9..9, which misses 0.
     nx, na = int(cfg.max_xy / cfg.grid_xy + 1e-9), int(cfg.max_yaw_deg / cfg.grid_yaw_deg + 1e-9)
@@ -311,7 +406,7 @@ def _register(ref, src, depth, K, T_world_camera, base, cfg):
         if all(_distinct(cands[i], cands[k], base, 2 * cfg.grid_xy * 0.99,
                          2 * cfg.grid_yaw_deg * 0.99) for k in starts):
             starts.append(i)      # not a neighbour of a start: another basin
-    fine = DepthAgreement(ref.points, depth, K, T_world_camera)
+    fine = ref.agreement()
     results = []
     for k, i in enumerate(starts):
         try:
@@ -419,17 +514,20 @@ def _ring_drop(C: np.ndarray, agree, centre: np.ndarray, cfg,
     return float(1.0 - shares[k]), round(float(math.hypot(*moves[k][:2])), 3)
 
 
-def _parts_through(ref, bodies, C: np.ndarray, depth, K, T_world_camera) -> float:
+def _parts_through(ref, bodies, C: np.ndarray) -> float:
     """The share of the landmarks' doors and drawers (rendered as the map has them, not
     registered against) that the camera sees through at the fix ``C``, of those on a
     reading; 0 when no part is in view. A figure, not a gate: a fix on a carcass frame alone
     sat 3.3 cm off in depth with its closed doors seen through at 97 % (home 314), but a
     right fix saw through 84 % of doors open in the truth (home 7): docs/registration.md."""
-    body = {bodies.nodes[i] for i in np.unique(bodies.labels)}
-    keep = ~np.array([n in body for n in ref.nodes] + [True], dtype=bool)[ref.labels]
-    if keep.sum() < 30:
-        return 0.0
-    through, valid = DepthAgreement(ref.points[keep], depth, K, T_world_camera).seen_through(C)
+    through = valid = 0
+    for part, body_part, v in zip(ref.parts, bodies.parts, ref.views):
+        body = {body_part.nodes[i] for i in np.unique(body_part.labels)}
+        keep = ~np.array([n in body for n in part.nodes] + [True], dtype=bool)[part.labels]
+        if keep.sum() < 30:
+            continue
+        t, n = DepthAgreement(part.points[keep], v.depth, v.K, v.T_world_camera).seen_through(C)
+        through, valid = through + t, valid + n
     return through / valid if valid >= 30 else 0.0
 
 
@@ -466,5 +564,6 @@ def _scaled(info: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return S @ info @ S
 
 
-__all__ = ["LocalisationConfig", "LocalisationFix", "refine_localisation", "visible_landmarks",
+__all__ = ["LocalisationConfig", "LocalisationFix", "LocalisationView", "refine_localisation",
+           "refine_localisation_views", "visible_landmarks",
            "planar_params", "fix_evidence", "contradiction"]

@@ -332,29 +332,43 @@ class PlaceId(Skill):
 class LookAtLandmark(Skill):
     """Point the camera at the ``index``-th nearest landmark (a static large object, map
     order by distance from the believed base pose), so a localisation fix that found too
-    little overlap can be tried on another one."""
+    little overlap can be tried on another one. Only landmarks in the room the robot is in
+    (the localisation fix registers no other). ``seen``: RefineLocalisation's ``views``
+    output; the landmarks the views have shown least come first (nearest first among
+    them), so each look adds a landmark no view has shown while there is one, and then
+    looks again at one shown once."""
 
     NAME = "LookAtLandmark"
     DESCRIPTION = "point the camera at a nearby landmark"
     INPUTS = (Port("index", "integer", required=False, default=0),
-              Port("max_distance", "number", required=False, default=3.5))
+              Port("max_distance", "number", required=False, default=3.5),
+              Port("seen", "list", required=False, default=None,
+                   description="views whose landmarks to pass over (RefineLocalisation views)"))
     OUTPUTS = (Port("landmark", "node_id", required=False),)
 
     def update(self) -> S:
         from hearth.skills.map import robot_pose
         base = robot_pose(self.robot)
+        from hearth.worldmodel.frames import room_at
         near = []
+        shown: dict[str, int] = {}
+        for v in self.input("seen") or []:
+            for oid in (v.get("landmarks") or ()) if isinstance(v, dict) else ():
+                shown[oid] = shown.get(oid, 0) + 1
+        room = room_at(self.world, base.x, base.y)
         for obj in self.world.landmarks():
+            if room is not None and self.world.room_of(obj.id).id != room.id:
+                continue
             c = self.world.T_world(obj.id)[:2, 3]
             d = math.hypot(c[0] - base.x, c[1] - base.y)
             if d <= float(self.input("max_distance")):
-                near.append((d, obj.id))
+                near.append((shown.get(obj.id, 0), d, obj.id))
         near.sort()
         i = int(self.input("index"))
         if i >= len(near):
             self.feedback_message = f"no landmark number {i + 1} within reach of the camera"
             return S.FAILURE
-        oid = near[i][1]
+        oid = near[i][-1]
         self.robot.look_at(look_target(self.world, oid))
         self.set_output("landmark", oid)
         self.feedback_message = f"looking at the {self.world.label(oid)}"

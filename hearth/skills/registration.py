@@ -75,7 +75,10 @@ class RefineLocalisation(_PerceptionSkill):
     """Correct the robot's base pose on the landmarks in view (x, y, yaw). ``earlier``: what
     the views taken before from the same base pose said (their ``views`` output); a fix
     that one of them contradicts along a direction it pins down is not reported as a
-    correction (docs/registration.md, "Never a wrong corrected")."""
+    correction (docs/registration.md, "Never a wrong corrected"). When this view's own fix
+    is not one to report (not trusted, loose or contradicted), every view taken so far is
+    registered together; a joint fix that is trusted and pinned down is the correction
+    (docs/registration.md, "Views registered together")."""
 
     NAME = "RefineLocalisation"
     AUTONOMY = 0
@@ -89,7 +92,8 @@ class RefineLocalisation(_PerceptionSkill):
                     description="earlier plus this view's estimate of the pose"))
 
     def perceive(self) -> str:
-        from hearth.perception.localisation import LocalisationConfig, contradiction, refine_localisation
+        from hearth.perception.localisation import (LocalisationConfig, refine_localisation,
+                                                    visible_landmarks)
         earlier = list(self.input("earlier") or [])
         # written first: a view that raises leaves the earlier ones, never a stale list
         # from another place
@@ -97,18 +101,43 @@ class RefineLocalisation(_PerceptionSkill):
         depth, K, T_wc = capture(self.robot)
         T_wb = self.robot.base_pose().matrix()
         cfg = LocalisationConfig()
-        fix = refine_localisation(self.world, depth, K, T_wc, T_wb, cfg,
-                                  landmarks=self.input("landmarks"))
-        if fix.evidence is not None:
-            self.set_output("views", earlier + [fix.evidence])
+        try:
+            fix = refine_localisation(self.world, depth, K, T_wc, T_wb, cfg,
+                                      landmarks=self.input("landmarks"))
+        except PerceptionError:
+            # a look that registered nothing still showed its landmarks: LookAtLandmark
+            # passes over them next time
+            ids = self.input("landmarks") or visible_landmarks(self.world, K, T_wc, cfg.max_range)
+            if ids:
+                self.set_output("views", earlier + [{"landmarks": list(ids)}])
+            raise
+        # every view that was registered is kept, for a joint fix with the later ones; its
+        # estimate of the pose (``evidence``) only where it is one
+        mine = dict(fix.evidence or {"landmarks": list(fix.landmarks)})
+        if fix.views:
+            mine["view"] = fix.views[-1]
+        self.set_output("views", earlier + [mine])
         self.set_output("quality", fix.quality)
+        if not (fix.ok and not fix.loose
+                and _contradiction(earlier, fix, cfg)[0] <= cfg.max_contradiction_m):
+            joint = _joint_fix(self.world, earlier, fix, cfg)
+            if joint is not None:
+                self.robot.apply_correction(Pose.from_matrix(joint.T_world_base))
+                self.set_output("correction", dict(dx=joint.dx, dy=joint.dy, dyaw=joint.dyaw))
+                self.set_output("quality", joint.quality)
+                return Feedback(
+                    f"localisation corrected by {math.hypot(joint.dx, joint.dy) * 100:.1f} cm, "
+                    f"{math.degrees(joint.dyaw):.1f} deg on {', '.join(joint.landmarks)} "
+                    f"together ({len(joint.views)} views)",
+                    dx_cm=100 * joint.dx, dy_cm=100 * joint.dy, dyaw_deg=math.degrees(joint.dyaw),
+                    landmarks=list(joint.landmarks),
+                    views=len(joint.views))
         if not fix.ok:
             why = "; ".join(fix.quality.get("doubts") or ()) or "too weak"
             raise PerceptionError(Feedback(f"fix on {', '.join(fix.landmarks)} not trusted: {why} "
                                            f"(fitness {fix.quality['fitness']:.2f}); pose left "
                                            f"unchanged", fix.quality, landmarks=fix.landmarks))
-        against = max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier
-                       if fix.evidence is not None), key=lambda t: t[0], default=(0.0, None))
+        against = _contradiction(earlier, fix, cfg)
         if against[0] > cfg.max_contradiction_m:
             # Two views of one pose further apart than twice the error a fix may have: one
             # of them is wrong and neither says which (the trusted one was, at home 5; the
@@ -136,6 +165,31 @@ class RefineLocalisation(_PerceptionSkill):
                 f"{100 * fix.quality['ring_m']:.0f} cm away explains the view nearly as well "
                 f"(drop {fix.quality['ring_drop']:.3f})", fix.quality, **corrected))
         return Feedback(f"localisation corrected by {moved}", **corrected)
+
+
+def _contradiction(earlier, fix, cfg) -> tuple[float, dict | None]:
+    """The largest ``contradiction`` (m) of ``fix`` by an earlier view's estimate, and that
+    view; (0, None) without one."""
+    from hearth.perception.localisation import contradiction
+    return max(((contradiction(e, fix.evidence, cfg.min_weakest), e) for e in earlier
+                if fix.evidence is not None and "pose" in e),
+               key=lambda t: t[0], default=(0.0, None))
+
+
+def _joint_fix(world, earlier, fix, cfg):
+    """Every view registered so far from this base pose (``earlier``'s and ``fix``'s),
+    registered together (``refine_localisation_views``), when that fix is trusted and
+    pinned down; else None. Each view alone may leave a direction free (a flat front) that
+    another pins down; the joint fix answers to every view at once, ring included."""
+    from hearth.perception.localisation import refine_localisation_views
+    seen = [e["view"] for e in earlier if isinstance(e, dict) and e.get("view") is not None]
+    if not seen or not fix.views:
+        return None
+    try:
+        joint = refine_localisation_views(world, seen + list(fix.views), cfg)
+    except PerceptionError:
+        return None
+    return joint if joint.ok and not joint.loose else None
 
 
 class RegisterArticulated(_PerceptionSkill):
