@@ -11,10 +11,9 @@ import open3d as o3d
 import pytest
 
 from hearth.benchmarks import mapping_draft as md
-from hearth.perception.semantic_map import (
-    Fixture, LargeObjectClassifier, ObjectDraft, articulate, draft_geometry, label,
-    object_features, room_context,
-)
+from hearth.mapping.classify import LargeObjectClassifier, label, object_features, room_context
+from hearth.mapping.truth import label_of, truth_objects
+from hearth.perception.semantic_map import Fixture, ObjectDraft, articulate, draft_geometry
 from hearth.worldmodel.draft import draft_world, rename
 from hearth.worldmodel.errors import WorldError
 from hearth.worldmodel.homegen import HomeConfig, generate_home
@@ -56,7 +55,7 @@ def test_the_draft_finds_the_room_as_its_rectangle(home):
     world, _, _, _, _, d = home
     assert len(d.rooms) == len(world.rooms)
     drafted = World(draft_world(d, parking=False).apartment)
-    truth = md.truth_objects(world)
+    truth = truth_objects(world)
     assert truth
     ious = [max(md._iou(t, q) for q in md._room_polygons(drafted))
             for t in md._room_polygons(world)]
@@ -66,7 +65,7 @@ def test_the_draft_finds_the_room_as_its_rectangle(home):
 def test_the_draft_finds_every_large_object_with_its_box(home):
     world, _, _, _, _, d = home
     centres = np.array([(o.x, o.y) for o in d.objects])
-    for t in md.truth_objects(world):
+    for t in truth_objects(world):
         err = np.min(np.linalg.norm(centres - t.centre, axis=1))
         assert err < 0.05, f"{t.id}: nearest drafted box {100 * err:.1f} cm away"
 
@@ -77,9 +76,9 @@ def test_the_draft_world_validates_with_types_parts_and_parking(home):
     validates, with doors or drawers where handles were seen and parking positions (an
     object with none is listed, with its type, as left out)."""
     world, _, P, N, C, d = home
-    truth = md.truth_objects(world)
+    truth = truth_objects(world)
     X = [object_features(P, N, C, o, room_context(d.objects, o, d.rooms)) for o in d.objects]
-    y = [md._label_of(o, truth) for o in d.objects]
+    y = [label_of(o, truth) for o in d.objects]
     label(d, P, N, C, LargeObjectClassifier(n_estimators=50).fit(X, y))
     result = draft_world(d)
     data = checked_xml(result.apartment)            # raises if load_world would refuse it
