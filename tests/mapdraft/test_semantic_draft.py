@@ -163,3 +163,36 @@ def test_hearth_map_draft_writes_a_world_its_picture_and_what_it_could_not_label
     assert main(["map", "draft", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fused map" in err[0]
+
+
+def _parked(objects) -> dict:
+    """Type -> parking position ids of the drafted world of one 4 m x 4 m room."""
+    from hearth.perception.semantic_map import Draft, RoomDraft
+    room = RoomDraft(0.0, 0.0, 0.0, 4.0, 4.0, 16.0)
+    result = draft_world(Draft([room], objects))
+    checked_xml(result.apartment)
+    return {o.type: [p.id for p in o.parking] for r in result.apartment.rooms
+            for o in r.objects}
+
+
+def test_a_chair_whose_guessed_front_faces_its_table_is_parked_behind_it():
+    import math
+    table = ObjectDraft(0, 0.0, 0.0, 0.0, 1.2, 0.8, 0.0, 0.75, np.arange(1), type="table",
+                        confidence=0.9)
+    # the chair's +x (its guessed front) points at the table, 0.15 m away
+    chair = ObjectDraft(0, 0.0, 0.75, -math.pi / 2, 0.45, 0.45, 0.0, 0.9, np.arange(1),
+                        type="chair", confidence=0.9)
+    parked = _parked([table, chair])
+    assert parked["chair"] and not any(p.endswith("_front") for p in parked["chair"])
+    assert any(p.endswith("_back") for p in parked["chair"])
+
+
+def test_a_bookshelf_whose_guessed_front_is_its_narrow_end_is_parked_at_its_long_side():
+    import math
+    # 0.9 m long against the north wall in its west corner, its +x (turned by pi) at the
+    # west wall: no parking in front fits; its object +y is the room's -y, into the room
+    shelf = ObjectDraft(0, -1.5, 1.83, math.pi, 0.9, 0.3, 0.0, 1.6, np.arange(1),
+                        type="bookshelf", confidence=0.9, wall_distance=0.02)
+    parked = _parked([shelf])
+    assert parked["bookshelf"] and all(p.startswith("bookshelf_1_side_left")
+                                       for p in parked["bookshelf"])
