@@ -16,6 +16,11 @@ recording carries and the true home:
   ``floor_z_mm`` (median height of the fused floor);
 - cost: ``build_s`` (the build's wall time; target 300 s a home on a 2-core machine),
   ``tour_s``, ``tour_frames``, ``tour_path_m``;
+- the draft (the build's ``draft`` stage: the semantic draft of the TOUR's map, odometry and
+  pose graph, no true pose) scored as ``hearth bench mapping_draft`` scores a true-pose
+  draft (hearth/benchmarks/mapping_draft.py ``score_draft``): ``large_object_macro_f1``,
+  ``appliance_f1``, ``hinge_side_accuracy``, ``centre_err_cm_median``, ... pooled over the
+  worlds, with ``per_type``; each world's in ``per_world[...]["draft"]``;
 - ``drift_2pct`` (first world only): the same tour with 2 % drift of distance and of rotation,
   its ATE before and after the pose graph.
 
@@ -110,6 +115,12 @@ def tour_and_build(world, work: Path, width: int, seed: int, drift) -> dict:
     ply = work / "map/fused/map.ply"
     if ply.is_file():
         out |= map_accuracy(world, np.asarray(o3d.io.read_point_cloud(str(ply)).points))
+    drafted = work / "map/draft/world.xml"
+    if drafted.is_file():
+        from hearth.benchmarks.mapping_draft import score_draft
+        from hearth.worldmodel.io import load_world
+        out["draft_scores"] = score_draft(load_world(drafted), world)
+        out["draft_s"] = st.get("draft", {}).get("seconds")
     return out
 
 
@@ -129,8 +140,11 @@ def _world(spec: str):
 
 def run(args) -> dict:
     import sys
+    from hearth.benchmarks.mapping_draft import summarise
+    from hearth.mapping.classify import classifier
     from hearth.robot.tour import OdometryDrift
     specs = _worlds.world_specs(args, homes=2)
+    classifier(retrain=True)          # the draft stage's; trained once when missing or stale
     per_world, drift_check = {}, None
     for i, spec in enumerate(specs):
         world = _world(spec)
@@ -151,12 +165,20 @@ def run(args) -> dict:
                                       "rot_err_posegraph_deg", "map_err_mm_median",
                                       "loop_closures_kept")}
     rows = list(per_world.values())
+    drafts = []
+    for r in rows:
+        if "draft_scores" in r:
+            drafts.append(r.pop("draft_scores"))
+            r["draft"] = {k: v for k, v in summarise(drafts[-1:]).items() if k != "per_type"}
     out = {k if k.endswith("_median") else f"{k}_median": _median(rows, k) for k in (
         "ate_believed_m", "ate_odometry_m", "ate_posegraph_m", "rot_err_posegraph_deg",
         "ate_in_parts_odometry_m", "ate_in_parts_posegraph_m",
         "map_err_mm_median", "completeness", "floor_z_mm", "tour_frames", "tour_s",
         "tour_path_m")}
     out["build_s_median"] = _median(rows, "build_s")
+    if drafts:      # the draft of the tour's map against the true home, pooled over worlds
+        out |= {"draft_poses": "tour"} | summarise(drafts)
+        out["draft_s_median"] = _median(rows, "draft_s")
     out["targets"] = {"build_s_median": 300}
     out["worlds"] = specs
     out["per_world"] = per_world

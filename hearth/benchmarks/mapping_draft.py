@@ -1,8 +1,9 @@
 """The semantic draft of a home scored against its truth (issue 47, stages 2 and 3).
 
 For each generated home (``--homes N`` from ``--seed S``, or ``--world W``): its fused map
-FROM TRUE POSES (hearth/benchmarks/true_pose_map.py, cached), the draft
-(hearth/perception/semantic_map.py, the classifier trained on other generated homes), the draft
+FROM TRUE POSES (hearth/mapping/true_pose_map.py, cached), the draft
+(hearth/perception/semantic_map.py, the classifier of hearth/mapping/classify.py trained on
+other generated homes), the draft
 world (hearth/worldmodel/draft.py), and ``score_draft(draft_world, true_world)``:
 
 - rooms: each true room's best outline IoU with a drafted room (``room_iou_mean``), counts;
@@ -30,15 +31,11 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
 APPLIANCE_TYPES = ("oven", "cooker", "hob", "fridge")
-#: Training homes of the classifier: never the benchmark's seeds (100.. report, 1..99 tune).
-TRAIN_SEEDS = tuple(range(1000, 1019))
-CLASSIFIER_VERSION = 2
 
 
 def add_arguments(parser) -> None:
@@ -47,93 +44,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--world", action="append", default=None,
                         help="a world file to draft (repeatable; its true-pose map is fused)")
     parser.add_argument("--verbose", action="store_true", help="one line per home on stderr")
-
-
-# -- the truth, as the scoring sees it ----------------------------------------------------------
-
-@dataclass
-class _Obj:
-    id: str
-    type: str
-    centre: np.ndarray          # world x, y
-    yaw: Optional[float]        # the front's direction (world); None: no front
-    symmetry: int               # 1, 2 (rectangular table), 0 (no yaw scored)
-    size: tuple
-    handles: list               # (world xyz, part kind, hinge sign or 0)
-    knobs: list                 # world xyz
-
-
-def _body_points(world, obj, T_wo):
-    from hearth.worldmodel.geometry import object_meshes
-    skip = {h.id for h in getattr(obj, "handles", [])} | {k.id for k in getattr(obj, "knobs", [])}
-    for p in getattr(obj, "parts", []):
-        skip |= {h.id for h in p.handles} | {k.id for k in p.knobs}
-    meshes = [m for m in object_meshes(world, obj, T_world_object=T_wo, children=False)
-              if m.node not in skip]
-    return np.vstack([np.asarray(m.mesh.vertices) for m in meshes])
-
-
-def _front_in_object(obj) -> Optional[float]:
-    """The direction of the object's front in its own frame (generated homes turn some
-    objects' contents inside their frame): away from a carcass's back board, towards an
-    appliance's knobs, out along a drawer's axis; None for tables and chairs."""
-    from hearth.worldmodel.nodes import LargeArticulatedObject
-    if isinstance(obj, LargeArticulatedObject) and obj.knobs:
-        m = np.mean([k.pose.position[:2] for k in obj.knobs], axis=0)
-        return _snap(math.atan2(m[1], m[0]))
-    backs = [v for v in obj.model.visuals if v.name == "back"]
-    if backs:
-        return _snap(math.atan2(-backs[0].pose.y, -backs[0].pose.x))
-    return None
-
-
-def _snap(a: float) -> float:
-    return round(a / (math.pi / 2)) * (math.pi / 2)
-
-
-def truth_objects(world, drafted: bool = False) -> list[_Obj]:
-    """Every large object of ``world`` as the scoring sees it; ``drafted``: a draft world
-    (hearth/worldmodel/draft.py), whose objects face their +x."""
-    from hearth.worldmodel.geometry import part_T
-    from hearth.worldmodel.nodes import LargeArticulatedObject
-    out = []
-    for room in world.rooms:
-        T_wr = room.pose.matrix()
-        for o in room.objects:
-            T_wo = T_wr @ o.pose.matrix()
-            pts = _body_points(world, o, T_wo)
-            yaw_w = math.atan2(T_wo[1, 0], T_wo[0, 0])
-            front = 0.0 if drafted else _front_in_object(o)
-            if o.type == "table":
-                round_top = any(v.shape == "cylinder" and v.name == "top" for v in o.model.visuals)
-                sym, front = (0, None) if round_top else (2, 0.0)
-            elif o.type == "chair":
-                sym, front = 0, None
-            else:
-                sym = 1
-            a = yaw_w + (front or 0.0)
-            c, s = math.cos(a), math.sin(a)
-            uv = pts[:, :2] @ np.array([[c, -s], [s, c]])
-            lo, hi = uv.min(0), uv.max(0)
-            mid = (lo + hi) / 2
-            centre = np.array([c * mid[0] - s * mid[1], s * mid[0] + c * mid[1]])
-            handles, knobs = [], []
-            if isinstance(o, LargeArticulatedObject):
-                for p in o.parts:
-                    T_wp = T_wo @ part_T(p, 0.0)
-                    hinge = p.joint.type == "revolute" and abs(p.joint.axis[2]) > 0.9
-                    for h in p.handles:
-                        hp = (T_wp @ np.append(h.pose.position, 1.0))[:3]
-                        sign = 0
-                        if hinge:
-                            hinge_w = (T_wo @ np.append(p.joint.origin.position, 1.0))[:3]
-                            lateral = np.array([-s, c])     # the front's left, seen from behind
-                            sign = 1 if float((hinge_w[:2] - hp[:2]) @ lateral) > 0 else -1
-                        handles.append((hp, p.type, sign))
-                knobs = [(T_wo @ np.append(k.pose.position, 1.0))[:3] for k in o.knobs]
-            out.append(_Obj(o.id, o.type, centre, None if front is None else a, sym,
-                            tuple(hi - lo), handles, knobs))
-    return out
 
 
 # -- scoring ------------------------------------------------------------------------------------
@@ -164,6 +74,7 @@ def _yaw_err(a: float, b: float, sym: int) -> float:
 def score_draft(draft_world, true_world) -> dict:
     """The draft against the truth (see the module docstring): a dict of figures and the
     lists they are medians of."""
+    from hearth.mapping.truth import truth_objects
     truth = truth_objects(true_world)
     draft = truth_objects(draft_world, drafted=True)
     # rooms
@@ -276,74 +187,16 @@ def summarise(scores: list[dict]) -> dict:
         per_type=per_type)
 
 
-# -- the classifier -----------------------------------------------------------------------------
-
-def _label_of(obj, truth: list[_Obj]) -> str:
-    """The true type under a drafted object's centre (within 25 cm), else 'none'."""
-    c = np.array([obj.x, obj.y])
-    best = min(truth, key=lambda t: np.linalg.norm(t.centre - c), default=None)
-    if best is None or np.linalg.norm(best.centre - c) > 0.25:
-        return "none"
-    return best.type
-
-
-def training_samples(seeds=TRAIN_SEEDS, progress=None):
-    """(X, y) of the drafted objects of generated homes ``seeds`` (their true-pose maps)."""
-    from hearth.perception.semantic_map import draft_geometry, object_features, room_context
-    from hearth.worldmodel.homegen import HomeConfig
-    from hearth.benchmarks.true_pose_map import cached_fused
-    X, y = [], []
-    for i, seed in enumerate(seeds):
-        world, pcd = cached_fused(seed, HomeConfig(rooms=(2, 3)))
-        P, N, C = np.asarray(pcd.points), np.asarray(pcd.normals), np.asarray(pcd.colors)
-        d = draft_geometry(P, N)
-        truth = truth_objects(world)
-        for o in d.objects:
-            X.append(object_features(P, N, C, o, room_context(d.objects, o, d.rooms)))
-            y.append(_label_of(o, truth))
-        if progress:
-            progress(f"training home {seed}: {len(d.objects)} objects ({i + 1}/{len(seeds)})")
-    return np.array(X), y
-
-
-def _configuration() -> dict:
-    from dataclasses import asdict
-    from hearth.perception.semantic_map import FEATURES, DraftConfig
-    from hearth.worldmodel.homegen import GENERATOR_VERSION
-    from hearth.benchmarks.true_pose_map import TruePoseMapConfig
-    return dict(version=CLASSIFIER_VERSION, seeds=list(TRAIN_SEEDS), features=list(FEATURES),
-                draft=asdict(DraftConfig()), fusion=asdict(TruePoseMapConfig()),
-                generator=GENERATOR_VERSION, rooms=[2, 3])
-
-
-def classifier(retrain: bool = True, progress=None):
-    """The large-object classifier from the model store (``mapdraft.joblib``), trained now
-    on the true-pose maps of ``TRAIN_SEEDS`` when missing or stale."""
-    from hearth.perception.semantic_map import LargeObjectClassifier
-    from hearth.worldmodel import model_store
-
-    def train():
-        X, y = training_samples(progress=progress)
-        return LargeObjectClassifier().fit(X, y)
-    try:
-        clf, info = model_store.load_or_train("mapdraft", _configuration(), train,
-                                              retrain=retrain)
-    except model_store.ModelUnavailable as err:
-        from hearth.perception.errors import PerceptionError
-        raise PerceptionError(f"large-object classifier: {err}; run `hearth bench "
-                              "mapping_draft` once to train it") from None
-    return clf
-
-
 # -- the benchmark ------------------------------------------------------------------------------
 
 def run(args) -> dict:
     import sys
-    from hearth.perception.semantic_map import draft_geometry, label
+    from hearth.mapping.classify import TRAIN_SEEDS, classifier, label
+    from hearth.perception.semantic_map import draft_geometry
     from hearth.worldmodel.draft import draft_world
     from hearth.worldmodel.homegen import HomeConfig
     from hearth.worldmodel.world import World
-    from hearth.benchmarks.true_pose_map import cached_fused, fused_from_true_poses
+    from hearth.mapping.true_pose_map import cached_fused, fused_from_true_poses
     verbose = getattr(args, "verbose", False)
     say = (lambda m: print(f"mapping_draft: {m}", file=sys.stderr, flush=True)) if verbose else None
     clf = classifier(progress=say)

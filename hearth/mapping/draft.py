@@ -46,7 +46,8 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
     """Run the draft on ``map_dir``'s fused map and write it to ``out_dir`` (see the module
     docstring); a summary dict (paths, counts, seconds, unlabelled lines)."""
     from hearth.perception.errors import PerceptionError
-    from hearth.perception.semantic_map import articulate, draft_geometry, label
+    from hearth.mapping.classify import classifier as get, label
+    from hearth.perception.semantic_map import articulate, draft_geometry
     from hearth.worldmodel.draft import draft_world, draw_draft
     from hearth.worldmodel.io import atomic_write, checked_xml
     from hearth.worldmodel.topdown import save_png
@@ -61,7 +62,6 @@ def draft_from_fused(map_dir, out_dir, classifier=None,
     failed = []
     if classifier is None:
         try:
-            from hearth.benchmarks.mapping_draft import classifier as get
             classifier = get(retrain=False)
         except PerceptionError as err:
             failed.append(f"no object types: {err}")

@@ -15,6 +15,13 @@ DARK_MEAN = 8.0
 MIN_DEPTH_SHARE = 0.02
 
 
+class BlindFrame(MappingError):
+    """A frame whose depth camera saw (almost) nothing: the build skips it with a warning.
+    A tour has them where the camera faced a wall or a wardrobe nearer than the depth
+    camera's range (a Kinect-class camera reads nothing nearer than ~0.45 m); a dark frame,
+    by contrast, stops the build (the lights were off: the whole tour is suspect)."""
+
+
 def open_tour(path, topics=None):
     """The recording at ``path``, checked for what a map needs: captures, and (a bag) no depth
     image left without its colour image or its pose."""
@@ -43,7 +50,8 @@ def frame_file(rec, i: int) -> str:
 
 
 def read_frame(rec, i: int):
-    """Capture ``i`` as a Frame, refused when it is dark or blind (one line naming it)."""
+    """Capture ``i`` as a Frame, refused when it is dark (``MappingError``) or blind
+    (``BlindFrame``; one line naming it)."""
     f = rec.frame(i)
     mean = float(np.asarray(f.color).mean())
     if mean < DARK_MEAN:
@@ -52,8 +60,8 @@ def read_frame(rec, i: int):
                            "drop the frame", file=frame_file(rec, i))
     valid = float(np.mean(np.asarray(f.depth) > 0))
     if valid < MIN_DEPTH_SHARE:
-        raise MappingError(f"frame {i} has depth readings in {valid:.1%} of its pixels: the "
-                           "depth camera saw nothing", file=frame_file(rec, i))
+        raise BlindFrame(f"frame {i} has depth readings in {valid:.1%} of its pixels: the "
+                         "depth camera saw nothing", file=frame_file(rec, i))
     return f
 
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hearth.mapping import MappingError
 from hearth.mapping.build import BuildContext, Stage, StageFailed, register_stage
 from hearth.perception import mapping as pm
 
@@ -59,17 +60,28 @@ def _truth_figures(ctx: BuildContext, keyframes, T_world_camera, key: str) -> di
 # -- odometry ------------------------------------------------------------------------------------
 
 def run_odometry(ctx: BuildContext) -> dict:
-    from hearth.mapping.inputs import base_camera, read_frame
+    from hearth.mapping.inputs import BlindFrame, base_camera, read_frame
     cfg = config(ctx)
     rec = ctx.recording
     B, C = base_camera(rec)
     kf = pm.select_keyframes(B @ C, cfg.keyframes)
-    clouds = []
+    clouds, kept, blind = [], [], []
     for n, i in enumerate(kf):
-        f = read_frame(rec, i)
+        try:
+            f = read_frame(rec, i)
+        except BlindFrame as err:       # nothing to register or fuse: the next one is used
+            ctx.warn(f"{err}; skipped")
+            blind.append(i)
+            continue
+        kept.append(i)
         clouds.append(pm.keyframe_cloud(f.depth, rec.intrinsics, C[i], cfg.cloud))
         if (n + 1) % 100 == 0:
             ctx.progress(f"  {n + 1}/{len(kf)} keyframes read")
+    if not kept:
+        raise MappingError(f"every keyframe ({len(kf)}) is blind: the depth camera saw "
+                           "nothing in the whole tour",
+                           file=str(getattr(rec, "dir", None) or getattr(rec, "path", "")))
+    kf = kept
     edges = pm.odometry(clouds, B[kf], cfg.registration, cfg.prior)
     T_odo = np.stack([pm.floor_pose(T) for T in pm.chain(B[kf[0]], edges)])
     registered = sum(e.ok for e in edges)
@@ -89,7 +101,8 @@ def run_odometry(ctx: BuildContext) -> dict:
                         points=np.concatenate([c.points for c in clouds]).astype(np.float32),
                         normals=np.concatenate([c.normals for c in clouds]).astype(np.float32),
                         sizes=sizes)
-    return dict(captures=len(rec.captures), keyframes=len(kf), pairs=len(edges),
+    return dict(captures=len(rec.captures), keyframes=len(kf), blind_skipped=blind,
+                pairs=len(edges),
                 registered=int(registered), points_per_keyframe=int(np.median(sizes))) \
         | _truth_figures(ctx, kf, B[kf] @ C[kf], "believed") \
         | _truth_figures(ctx, kf, T_odo @ C[kf], "odometry")

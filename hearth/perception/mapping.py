@@ -452,6 +452,9 @@ class FusionOptions:
     depth_max: float = 3.5        #: metres
     width: int = 320              #: integration resolution (the camera scaled to it)
     weight_threshold: float = 2.0  #: a surface must be seen by this many frames' worth
+    trunc_voxels: float = 8.0     #: the TSDF's truncation in voxels (Open3D's default)
+    min_valid_pixels: int = 0     #: a frame with fewer depth readings in range is skipped
+    mesh: bool = True             #: also extract the triangle mesh
 
 
 @dataclass
@@ -489,28 +492,37 @@ def fuse(frames: Iterable[tuple[np.ndarray, np.ndarray]], T_world_camera: np.nda
         if factor < 1.0:
             color = cv2.resize(color, (Ks.width, Ks.height), interpolation=cv2.INTER_AREA)
             depth = cv2.resize(depth, (Ks.width, Ks.height), interpolation=cv2.INTER_NEAREST)
+        if options.min_valid_pixels and np.count_nonzero(
+                (depth > 0) & (depth < options.depth_max)) < options.min_valid_pixels:
+            continue
         d = o3d.t.geometry.Image(np.ascontiguousarray(depth, dtype=np.float32))
         c = o3d.t.geometry.Image(np.ascontiguousarray(color, dtype=np.float32) / 255.0)
         extr = o3c.Tensor(np.linalg.inv(T), o3c.float64)
-        blocks = vbg.compute_unique_block_coordinates(d, intr, extr, 1.0, options.depth_max)
-        vbg.integrate(blocks, d, c, intr, intr, extr, 1.0, options.depth_max)
+        blocks = vbg.compute_unique_block_coordinates(d, intr, extr, 1.0, options.depth_max,
+                                                      options.trunc_voxels)
+        vbg.integrate(blocks, d, c, intr, intr, extr, 1.0, options.depth_max,
+                      options.trunc_voxels)
         n += 1
     if n == 0:
         z = np.zeros((0, 3))
         return FusedMap(z, z, z, z, np.zeros((0, 3), int), z, 0)
     pcd = vbg.extract_point_cloud(weight_threshold=options.weight_threshold)
-    mesh = vbg.extract_triangle_mesh(weight_threshold=options.weight_threshold)
+    mesh = vbg.extract_triangle_mesh(weight_threshold=options.weight_threshold) \
+        if options.mesh else None
 
     def arr(tmap, key, shape):
         return tmap[key].numpy().astype(float) if key in tmap else np.zeros(shape)
 
     P = arr(pcd.point, "positions", (0, 3))
-    V = arr(mesh.vertex, "positions", (0, 3))
-    F = mesh.triangle["indices"].numpy().astype(np.int64) if "indices" in mesh.triangle \
-        else np.zeros((0, 3), np.int64)
+    if mesh is None:
+        V, F, VC = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3))
+    else:
+        V = arr(mesh.vertex, "positions", (0, 3))
+        F = mesh.triangle["indices"].numpy().astype(np.int64) if "indices" in mesh.triangle \
+            else np.zeros((0, 3), np.int64)
+        VC = np.clip(arr(mesh.vertex, "colors", V.shape), 0, 1)
     return FusedMap(P, np.clip(arr(pcd.point, "colors", P.shape), 0, 1),
-                    arr(pcd.point, "normals", P.shape), V, F,
-                    np.clip(arr(mesh.vertex, "colors", V.shape), 0, 1), n)
+                    arr(pcd.point, "normals", P.shape), V, F, VC, n)
 
 
 # -- scoring -------------------------------------------------------------------------------------

@@ -19,9 +19,8 @@ The stages, each a function:
    elongated, thin one is a bar handle (its axis vertical or horizontal), a small round one a
    knob (radius and depth measured). The front is the side with the most fixtures, else the
    side away from the nearest wall, else the one showing the most horizontal levels.
-4. ``object_features`` and ``LargeObjectClassifier``: a random forest over the box, the
-   horizontal levels, the fixtures and the colours labels each object with the types the
-   home generator makes (trained on generated homes, as Rusu trained on simulated kitchens).
+4. The types: hearth/mapping/classify.py (features of each object, a classifier trained on
+   generated homes, as Rusu trained on simulated kitchens).
 5. ``articulate``: parts from the fixtures and the type: a drawer unit's handles each give a
    drawer; an oven's or cooker's horizontal handle a door hinged at the bottom; any other
    handle a door hinged on the edge away from its handle (two handles side by side: two
@@ -34,8 +33,6 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
-
-from sklearn.base import BaseEstimator, ClassifierMixin
 
 from hearth.perception.errors import PerceptionError
 
@@ -548,78 +545,6 @@ def _turn(obj: ObjectDraft, side: int) -> None:
             f.side = (f.side - side) % 4
 
 
-# -- stage 4: features and the classifier -------------------------------------------------------
-
-FEATURES = ("height", "z0", "long", "short", "front", "side", "area", "fill", "n_levels",
-            "top_level_frac", "n_handles", "n_vertical", "n_horizontal", "n_knobs_front",
-            "n_knobs_top", "handle_z_max", "handle_len_max", "wall_distance", "r", "g", "b",
-            "top_dark", "colour_std", "front_flat", "hv_ratio",
-            # the room around it (Rusu's CRF looks at neighbours; this is the cheap part)
-            "room_area", "room_objects", "room_knobbed", "room_tall")
-
-
-def room_context(draft_objects: list, obj: "ObjectDraft", rooms: list) -> list[float]:
-    """The room features of ``obj``: its room's area, how many other objects stand in it,
-    how many of those carry two knobs or more, how many are over 1.5 m tall."""
-    others = [o for o in draft_objects if o.room == obj.room and o is not obj]
-    room = rooms[obj.room]
-    return [room.size_x * room.size_y, len(others),
-            sum(1 for o in others if sum(f.kind == "knob" for f in o.fixtures) >= 2),
-            sum(1 for o in others if o.z1 > 1.5)]
-
-
-def object_features(points_map: np.ndarray, normals_map: np.ndarray, colors: np.ndarray,
-                    obj: ObjectDraft, context: list[float]) -> np.ndarray:
-    """The feature vector (``FEATURES``) of an object draft with its front chosen;
-    ``context``: its ``room_context``."""
-    P, N, C = (np.asarray(a, float)[obj.index] for a in (points_map, normals_map, colors))
-    handles = [f for f in obj.fixtures if f.kind == "handle" and f.side == 0]
-    knobs_f = [f for f in obj.fixtures if f.kind == "knob" and f.side == 0]
-    knobs_t = [f for f in obj.fixtures if f.kind == "knob" and f.side == 4]
-    horiz = N[:, 2] > 0.9
-    top = P[:, 2] > obj.z1 - 0.03
-    loc = obj.to_local(P[:, :2])
-    front_pts = np.abs(loc[:, 0] - obj.size_x / 2) < 0.04
-    front_flat = float(np.mean(np.abs(loc[front_pts, 0] - obj.size_x / 2) < 0.01)) if front_pts.any() else 0.0
-    top_c = C[top].mean(0) if top.any() else C.mean(0)
-    return np.array([
-        obj.z1, obj.z0, max(obj.size_x, obj.size_y), min(obj.size_x, obj.size_y), obj.size_x,
-        obj.size_y, obj.size_x * obj.size_y, obj.fill, len(obj.levels),
-        float(np.mean(top[horiz])) if horiz.any() else 0.0,
-        len(handles), sum(f.vertical for f in handles), sum(not f.vertical for f in handles),
-        len(knobs_f), len(knobs_t),
-        max((f.v for f in handles), default=0.0), max((f.length for f in handles), default=0.0),
-        min(obj.wall_distance, 2.0), *C.mean(0), float(top_c.mean()), float(C.std(0).mean()),
-        front_flat, float(horiz.mean()), *context])
-
-
-class LargeObjectClassifier(ClassifierMixin, BaseEstimator):
-    """A random forest over ``object_features`` (scikit-learn's shape: the constructor
-    stores parameters, ``fit`` returns self, ``predict`` answers types, ``predict_proba``
-    per ``classes_``)."""
-
-    def __init__(self, n_estimators: int = 300, min_samples_leaf: int = 1, random_state: int = 0):
-        self.n_estimators = n_estimators
-        self.min_samples_leaf = min_samples_leaf
-        self.random_state = random_state
-
-    def fit(self, X, y) -> "LargeObjectClassifier":
-        from sklearn.ensemble import RandomForestClassifier
-        self.forest_ = RandomForestClassifier(
-            n_estimators=self.n_estimators, min_samples_leaf=self.min_samples_leaf,
-            class_weight="balanced", random_state=self.random_state).fit(np.asarray(X), list(y))
-        self.classes_ = self.forest_.classes_
-        return self
-
-    def predict_proba(self, X) -> np.ndarray:
-        from sklearn.utils.validation import check_is_fitted
-        check_is_fitted(self, "forest_")
-        return self.forest_.predict_proba(np.atleast_2d(np.asarray(X, float)))
-
-    def predict(self, X) -> np.ndarray:
-        return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
-
-
 # -- stage 5: parts -----------------------------------------------------------------------------
 
 def articulate(obj: ObjectDraft) -> list[PartDraft]:
@@ -686,23 +611,3 @@ def draft_geometry(points_map, normals_map, cfg: DraftConfig = DraftConfig()) ->
         obj.fixtures = find_fixtures(points_map, obj, cfg)
         choose_front(obj, rooms[obj.room])
     return Draft(rooms, objects)
-
-
-def label(draft: Draft, points_map, normals_map, colors, classifier: LargeObjectClassifier,
-          min_confidence: float = 0.35) -> Draft:
-    """Stages 4-5: each object's type (``classifier``) and parts; an object the forest is
-    unsure of (top probability under ``min_confidence``) keeps its best type and is listed in
-    ``unlabelled``."""
-    if not draft.objects:
-        return draft
-    X = np.array([object_features(points_map, normals_map, colors, o,
-                                  room_context(draft.objects, o, draft.rooms))
-                  for o in draft.objects])
-    proba = classifier.predict_proba(X)
-    for o, p in zip(draft.objects, proba):
-        k = int(np.argmax(p))
-        o.type, o.confidence = str(classifier.classes_[k]), float(p[k])
-        if o.confidence < min_confidence:
-            draft.unlabelled.append((o, f"type unsure: {o.type} at {o.confidence:.2f}"))
-        o.parts = articulate(o)
-    return draft

@@ -230,7 +230,13 @@ def propose_parking(room: Room, obj: LargeObject, config=None) -> None:
         views = [View("top", (0.0, 0.0, z_top))]
         reach = [(0.0, 0.0, z_top)]
     elif obj.type == "chair":
-        cands = [("front", sx / 2 + d, 0.0) for d in (0.6, 0.8)]
+        # a chair has no fixtures to say where its front is, and at a table its side looking
+        # into the room is often the table's: the generator parks in front and behind, the
+        # draft tries every side
+        cands = []
+        for d in (0.6, 0.8):
+            cands += [("front", sx / 2 + d, 0.0), ("back", -(sx / 2 + d), 0.0),
+                      ("left", 0.0, sy / 2 + d), ("right", 0.0, -(sy / 2 + d))]
         views, reach = [], []
     else:
         lo = cfg.parking_distance[0]
@@ -240,11 +246,24 @@ def propose_parking(room: Room, obj: LargeObject, config=None) -> None:
         views = [View("face", (sx / 2, 0.0, body.pose.z - sz / 2 + min(sz / 2, 1.0)))]
         reach = _reach_points(obj)
     keep: dict[str, ParkingPosition] = {}
-    for name, x, y in cands:
+    cands = [(name, x, y, views) for name, x, y in cands]
+    if obj.type not in ("table", "chair") and not reach:
+        # no handle and no knob: its front (+x) is a guess (the side that looks into the
+        # room) and can be a narrow end against furniture; its other sides come after it,
+        # each with its own face to see
+        mid = body.pose.z - sz / 2 + min(sz / 2, 1.0)
+        for name, sign, axis in (("back", -1, 0), ("side_left", 1, 1), ("side_right", -1, 1)):
+            half = (sx, sy)[axis] / 2
+            normal = (float(sign * (axis == 0)), float(sign * (axis == 1)), 0.0)
+            view = View("face", (normal[0] * half, normal[1] * half, mid), normal=normal)
+            for d in (cfg.parking_distance[0] + k * 0.15 for k in range(4)):
+                x, y = normal[0] * (half + d), normal[1] * (half + d)
+                cands.append((name, x, y, [view]))
+    for name, x, y, views in cands:
         pid = f"{obj.id}_{name}"
         if pid in keep:
             continue
-        yaw = math.atan2(-y, -x) if obj.type != "chair" else math.pi
+        yaw = math.atan2(-y, -x)          # facing the object
         pose = Pose.planar(_mm(x), _mm(y), round(yaw, 5))
         if not all(sees(cfg, pose, v) for v in views):
             continue

@@ -11,10 +11,9 @@ import open3d as o3d
 import pytest
 
 from hearth.benchmarks import mapping_draft as md
-from hearth.perception.semantic_map import (
-    Fixture, LargeObjectClassifier, ObjectDraft, articulate, draft_geometry, label,
-    object_features, room_context,
-)
+from hearth.mapping.classify import LargeObjectClassifier, label, object_features, room_context
+from hearth.mapping.truth import label_of, truth_objects
+from hearth.perception.semantic_map import Fixture, ObjectDraft, articulate, draft_geometry
 from hearth.worldmodel.draft import draft_world, rename
 from hearth.worldmodel.errors import WorldError
 from hearth.worldmodel.homegen import HomeConfig, generate_home
@@ -56,7 +55,7 @@ def test_the_draft_finds_the_room_as_its_rectangle(home):
     world, _, _, _, _, d = home
     assert len(d.rooms) == len(world.rooms)
     drafted = World(draft_world(d, parking=False).apartment)
-    truth = md.truth_objects(world)
+    truth = truth_objects(world)
     assert truth
     ious = [max(md._iou(t, q) for q in md._room_polygons(drafted))
             for t in md._room_polygons(world)]
@@ -66,7 +65,7 @@ def test_the_draft_finds_the_room_as_its_rectangle(home):
 def test_the_draft_finds_every_large_object_with_its_box(home):
     world, _, _, _, _, d = home
     centres = np.array([(o.x, o.y) for o in d.objects])
-    for t in md.truth_objects(world):
+    for t in truth_objects(world):
         err = np.min(np.linalg.norm(centres - t.centre, axis=1))
         assert err < 0.05, f"{t.id}: nearest drafted box {100 * err:.1f} cm away"
 
@@ -77,9 +76,9 @@ def test_the_draft_world_validates_with_types_parts_and_parking(home):
     validates, with doors or drawers where handles were seen and parking positions (an
     object with none is listed, with its type, as left out)."""
     world, _, P, N, C, d = home
-    truth = md.truth_objects(world)
+    truth = truth_objects(world)
     X = [object_features(P, N, C, o, room_context(d.objects, o, d.rooms)) for o in d.objects]
-    y = [md._label_of(o, truth) for o in d.objects]
+    y = [label_of(o, truth) for o in d.objects]
     label(d, P, N, C, LargeObjectClassifier(n_estimators=50).fit(X, y))
     result = draft_world(d)
     data = checked_xml(result.apartment)            # raises if load_world would refuse it
@@ -164,3 +163,36 @@ def test_hearth_map_draft_writes_a_world_its_picture_and_what_it_could_not_label
     assert main(["map", "draft", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fused map" in err[0]
+
+
+def _parked(objects) -> dict:
+    """Type -> parking position ids of the drafted world of one 4 m x 4 m room."""
+    from hearth.perception.semantic_map import Draft, RoomDraft
+    room = RoomDraft(0.0, 0.0, 0.0, 4.0, 4.0, 16.0)
+    result = draft_world(Draft([room], objects))
+    checked_xml(result.apartment)
+    return {o.type: [p.id for p in o.parking] for r in result.apartment.rooms
+            for o in r.objects}
+
+
+def test_a_chair_whose_guessed_front_faces_its_table_is_parked_behind_it():
+    import math
+    table = ObjectDraft(0, 0.0, 0.0, 0.0, 1.2, 0.8, 0.0, 0.75, np.arange(1), type="table",
+                        confidence=0.9)
+    # the chair's +x (its guessed front) points at the table, 0.15 m away
+    chair = ObjectDraft(0, 0.0, 0.75, -math.pi / 2, 0.45, 0.45, 0.0, 0.9, np.arange(1),
+                        type="chair", confidence=0.9)
+    parked = _parked([table, chair])
+    assert parked["chair"] and not any(p.endswith("_front") for p in parked["chair"])
+    assert any(p.endswith("_back") for p in parked["chair"])
+
+
+def test_a_bookshelf_whose_guessed_front_is_its_narrow_end_is_parked_at_its_long_side():
+    import math
+    # 0.9 m long against the north wall in its west corner, its +x (turned by pi) at the
+    # west wall: no parking in front fits; its object +y is the room's -y, into the room
+    shelf = ObjectDraft(0, -1.5, 1.83, math.pi, 0.9, 0.3, 0.0, 1.6, np.arange(1),
+                        type="bookshelf", confidence=0.9, wall_distance=0.02)
+    parked = _parked([shelf])
+    assert parked["bookshelf"] and all(p.startswith("bookshelf_1_side_left")
+                                       for p in parked["bookshelf"])

@@ -136,3 +136,20 @@ def test_a_tour_recorded_as_a_ros2_bag_builds_with_its_truth(home, tmp_path):
     odo = result.stages["odometry"]
     assert result.failed == [] and odo["captures"] == summary.frames
     assert odo["ate_odometry_m"] < 0.05          # the bag's /hearth/truth was read
+
+
+def test_a_blind_frame_is_skipped_with_a_warning_naming_it(tour, tmp_path, capsys):
+    """A view nearer than the depth camera's range (a wall faced at 0.3 m) reads nothing:
+    the build goes on without it and says so."""
+    rec, r = _copy(tour, tmp_path)
+    depth = rec / r.captures[4].depth
+    cv2.imwrite(str(depth), np.zeros((120, 160), np.uint16))
+    out = tmp_path / "m"
+    assert main(["map", "build", str(rec), "--out", str(out), "--quiet",
+                 "--stages", "odometry"]) == 0
+    report = json.loads((out / "build.json").read_text())
+    assert report["stages"]["odometry"]["blind_skipped"] == [4]
+    assert any("frame 4 has depth readings in 0.0%" in w and w.endswith("skipped")
+               for w in report["warnings"])
+    keyframes = json.loads((out / "odometry/keyframes.json").read_text())["keyframes"]
+    assert 4 not in keyframes and 3 in keyframes and 5 in keyframes

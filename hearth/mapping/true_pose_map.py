@@ -1,9 +1,12 @@
-"""A fused map of a generated home FROM TRUE POSES: the stand-in for the tour's metric map.
+"""A fused map of a generated home FROM TRUE POSES: the stand-in for the tour's metric map,
+on which the large-object classifier is trained (hearth/mapping/classify.py) and the draft
+benchmark runs (``hearth bench mapping_draft``).
 
 ``fused_from_true_poses(world)`` renders RGB-D views of the truth with the simulated camera
-(hearth/robot/sim.py, Kinect-class noise) at *true* camera poses and fuses them with open3d's
-TSDF (the tensor VoxelBlockGrid) into a coloured point cloud with normals in the map frame (z up, floor at
-z = 0, metres): the same thing ``hearth map build`` writes as DIR/fused/map.ply from a tour.
+(hearth/robot/sim.py, Kinect-class noise) at *true* camera poses and fuses them with the
+metric map's own TSDF fusion (``hearth.perception.mapping.fuse``: open3d's VoxelBlockGrid) at
+1 cm into a coloured point cloud with normals in the map frame (z up, floor at z = 0,
+metres): the same thing ``hearth map build`` writes as DIR/fused/map.ply from a tour.
 No odometry, no pose graph: figures drafted from it say ``"poses": "true"``; swap in the
 tour's map to measure the whole chain.
 
@@ -74,40 +77,36 @@ def _view_poses(world, cfg: TruePoseMapConfig, few: bool = False) -> list[np.nda
 def fused_from_true_poses(world, cfg: TruePoseMapConfig = TruePoseMapConfig(), progress=None,
                           few: bool = False):
     """(open3d PointCloud with colours and normals, number of views) of ``world`` rendered at
-    true poses and fused (see the module docstring); ``few``: from each object's first
-    parking position only and one place per room (a quick map for tests)."""
+    true poses and fused by the metric map's TSDF fusion (``hearth.perception.mapping.fuse``,
+    open3d's VoxelBlockGrid) at 1 cm; ``few``: from each object's first parking position only
+    and one place per room (a quick map for tests)."""
     import open3d as o3d
-    import open3d.core as o3c
     from hearth.robot.noise import KinectNoise
     from hearth.robot.sim import render_view, world_scene
     from hearth.perception.camera import Intrinsics
+    from hearth.perception.mapping import FusionOptions, fuse
     K = Intrinsics.kinect().scaled(cfg.scale)
     scene = world_scene(world)
     rng = np.random.default_rng(cfg.seed)
-    # open3d's tensor TSDF (VoxelBlockGrid): the legacy ScalableTSDFVolume of open3d-cpu 0.20
-    # extracts no points at all here (even from one synthetic sloped plane).
-    vbg = o3d.t.geometry.VoxelBlockGrid(
-        attr_names=("tsdf", "weight", "color"),
-        attr_dtypes=(o3c.float32, o3c.float32, o3c.float32), attr_channels=((1), (1), (3)),
-        voxel_size=cfg.voxel, block_resolution=16, block_count=60000)
-    K_t = o3c.Tensor(K.matrix())
     poses = _view_poses(world, cfg, few)
-    trunc_voxels = cfg.sdf_trunc / cfg.voxel
-    for i, T in enumerate(poses):
-        f = render_view(world, K, T, rng=rng, noise=KinectNoise() if cfg.noise else None,
-                        scene=scene)
-        valid = (f.depth > 0) & (f.depth < cfg.depth_trunc)
-        if valid.sum() < 100:           # a view of nothing in range (a dark frame): skipped
-            continue
-        depth = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(f.depth, dtype=np.float32)))
-        color = o3d.t.geometry.Image(o3c.Tensor(np.ascontiguousarray(f.color, dtype=np.float32) / 255.0))
-        ext = o3c.Tensor(np.linalg.inv(T))
-        blocks = vbg.compute_unique_block_coordinates(depth, K_t, ext, 1.0, cfg.depth_trunc,
-                                                      trunc_voxels)
-        vbg.integrate(blocks, depth, color, K_t, K_t, ext, 1.0, cfg.depth_trunc, trunc_voxels)
-        if progress:
-            progress(i + 1, len(poses))
-    pcd = vbg.extract_point_cloud(weight_threshold=1.0).to_legacy()
+
+    def frames():
+        for i, T in enumerate(poses):
+            f = render_view(world, K, T, rng=rng, noise=KinectNoise() if cfg.noise else None,
+                            scene=scene)
+            if progress:
+                progress(i + 1, len(poses))
+            yield f.color, f.depth
+
+    options = FusionOptions(voxel=cfg.voxel, block_count=60000, depth_max=cfg.depth_trunc,
+                            width=K.width, weight_threshold=1.0,
+                            trunc_voxels=cfg.sdf_trunc / cfg.voxel,
+                            min_valid_pixels=100,      # a view of nothing in range: skipped
+                            mesh=False)
+    fused = fuse(frames(), np.array(poses), K, options)
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(fused.points))
+    pcd.colors = o3d.utility.Vector3dVector(fused.colors)
+    pcd.normals = o3d.utility.Vector3dVector(fused.normals)
     return pcd, len(poses)
 
 
