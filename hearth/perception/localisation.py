@@ -155,7 +155,7 @@ def refine_localisation(world, depth: np.ndarray, K, T_world_camera: np.ndarray,
         meshes += object_meshes(world, world.get(oid), children=False)
     if cfg.use_walls:
         for room in world.rooms:
-            for v in room_visuals(room):
+            for v in room_visuals(room, world):
                 if v.name == "wall":
                     meshes.append(LabelledMesh(room.id, room.id,
                                                visual_mesh(v).transform(room.pose.matrix()),

@@ -101,7 +101,7 @@ def room_corners_inset(room, inset: float) -> tuple[float, float]:
     cs = room_corners(room)
     i = int(np.argmin(cs[:, 0] - 1e-3 * cs[:, 1]))
     c = cs[i]
-    a, b = cs[(i + 1) % 4] - c, cs[(i - 1) % 4] - c
+    a, b = cs[(i + 1) % len(cs)] - c, cs[(i - 1) % len(cs)] - c
     p = c + inset * a / np.linalg.norm(a) + inset * b / np.linalg.norm(b)
     # Text sits above its origin: start from the lower of the two ways into the room.
     return float(p[0]), float(p[1])
