@@ -1,7 +1,7 @@
 """Knob detection, angle and state on held-out rendered views of the knobs of the demo home
 (unless ``--no-demo``), of world files and of generated homes (``--world W``, repeatable:
 a file, ``demo`` or ``home:SEED``; ``--homes N``: ``home:SEED`` for seeds ``--seed`` ..
-``--seed + N - 1``, hearth/worldmodel/homegen.py, knob designs varied, see ``KNOB_FAMILIES``), with
+``--seed + N - 1``, hearth/worldmodel/homegen.py, knob designs varied, see ``KNOB_FAMILIES`` in homegen_knobs.py), with
 the reader made for each world (its time: ``per_home[].load_or_train_s``, ``train_s_max``).
 
 ``--renderer mujoco`` draws the held-out frames with MuJoCo (hearth/robot/mujoco_render.py,
@@ -111,12 +111,12 @@ def design_of(knob) -> str:
 def family_of(knob) -> str:
     """A knob's design family for the held-out protocol: its grip's type, "plain" for the
     format-1 knob. The type is the name of the grip's first visual where the generator named
-    it by type (``hearth.worldmodel.homegen.GRIP_TYPES``), else that visual's primitive kind
+    it by type (``hearth.worldmodel.homegen_knobs.GRIP_TYPES``), else that visual's primitive kind
     ("box", "cylinder", "mesh"); a knob without a grip is named by its marker ("marker:...")
     or base."""
     if not knob.described:
         return "plain"
-    from hearth.worldmodel.homegen import GRIP_TYPES
+    from hearth.worldmodel.homegen_knobs import GRIP_TYPES
     for role in ("grip", "marker", "base"):
         m = getattr(knob, role)
         if m is not None and m.visuals:

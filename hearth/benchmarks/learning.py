@@ -56,7 +56,7 @@ def add_arguments(parser) -> None:
 def colour_name(rgb) -> str:
     """The nearest of the generator's colour words (hearth.perception.object_learning.colour_name)."""
     from hearth.perception.object_learning import colour_name as name
-    from hearth.worldmodel.homegen import COLOURS
+    from hearth.worldmodel.homegen_palette import COLOURS
     return name(rgb, COLOURS)
 
 

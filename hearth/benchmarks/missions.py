@@ -33,7 +33,7 @@ every mission figure, and make the command exit 1.
 first engine's, and ``engines`` gives each one's ``scenarios_per_s``, ``total_wall_s`` and
 ``startup_s`` (until its first result), ``ray_over_local`` the ratio of their wall times, and
 ``same_results`` whether every case gave the same result on both (all but
-``hearth.executive.suite.VARYING``), with the keys of those that did not in ``differing``.
+``hearth.executive.suite_worker.VARYING``), with the keys of those that did not in ``differing``.
 """
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def worlds_of(args) -> list[str]:
 
 
 def run(args) -> dict:
-    from hearth.executive import suite
+    from hearth.executive import suite_worker
     from hearth.executive.scenarios import suite_cases, summarise
 
     n = args.scenarios or (2 if args.quick else 4)
@@ -105,7 +105,7 @@ def run(args) -> dict:
                                           / runs["local"]["total_wall_s"], 3)
         a, b = (runs[e]["results"] for e in engines[:2])
         differing = [x["key"] for x, y in zip(a, b)
-                     if suite.comparable(x) != suite.comparable(y)]
+                     if suite_worker.comparable(x) != suite_worker.comparable(y)]
         out["same_results"] = not differing
         out["differing"] = differing
     out.update(summarise(results))

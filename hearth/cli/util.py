@@ -19,7 +19,7 @@ DEFAULT_WORLD = demo_world_path()
 
 def parse_params(mission: Mission, pairs: list[str] | None) -> dict[str, Any]:
     """``["presence=away", ...]`` -> typed values for ``mission``'s parameters."""
-    from hearth.executive.missionfile import parse_param_text
+    from hearth.executive.missionfile_types import parse_param_text
 
     out: dict[str, Any] = {}
     for pair in pairs or []:

@@ -29,9 +29,9 @@ default) drawn from the same placement distribution, walking the learned search 
 the object's true place, as ``RecordSearch`` would (map level: no rendering), so the run can
 compare the learned order (``learned=True``) with the fixed order from the map's prior.
 
-:func:`run_suite` runs cases on an engine of hearth/executive/suite.py: worker processes on this
-machine (started with **spawn**: open3d's OpenMP thread pool deadlocks in forked children,
-open3d issues #1552, #6096, #7133) or Ray tasks, each with a time limit.
+hearth/executive/suite.py runs cases on an engine (``suite.run_suite``): worker processes on
+this machine (started with **spawn**: open3d's OpenMP thread pool deadlocks in forked
+children, open3d issues #1552, #6096, #7133) or Ray tasks, each with a time limit.
 """
 from __future__ import annotations
 
@@ -451,21 +451,6 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
                       wrong_success=wrong)
 
 
-def run_suite(cases: list[Case], jobs: int = 1,
-              progress: Optional[Callable[[dict], None]] = None, engine: str = "local",
-              address: Optional[str] = None, timeout: Optional[float] = None) -> list[dict]:
-    """Run the cases on an engine of hearth/executive/suite.py (``local``: ``jobs`` spawned worker
-    processes; ``ray``: one Ray task each, ``address`` the cluster) with a time limit per
-    case (``timeout`` seconds, default ``suite.DEFAULT_TIMEOUT_S``); ``progress`` gets each
-    result as it arrives. The results in the order of ``cases``; a case that raised, hung or
-    crashed its worker has outcome "error" (``error``: exception | timeout | crashed)."""
-    from hearth.executive import suite
-    eng = suite.make_engine(engine, jobs=jobs, address=address,
-                            timeout=timeout or suite.DEFAULT_TIMEOUT_S)
-    got = suite.run_cases(cases, eng, on_result=progress)
-    return [got[suite.case_key(c)] for c in cases]
-
-
 # ---------------------------------------------------------------------------------------
 # The suite and its summary
 # ---------------------------------------------------------------------------------------
@@ -557,7 +542,7 @@ def summarise(results: list[dict]) -> dict:
     (the demo home only, when run), ``per_world`` (success per world and mission) and
     ``slowest`` (the five slowest cases by wall time)."""
     out: dict[str, Any] = {}
-    # A case the engine could not deliver (hearth.executive.suite.failure "engine") says nothing of
+    # A case the engine could not deliver (hearth.executive.suite_worker.failure "engine") says nothing of
     # the mission: it is listed apart and left out of every figure below.
     out["engine_errors"] = [dict(world=r.get("world"), mission=r["mission"], seed=r["seed"],
                                  target=r.get("target"), reason=r["reason"])

@@ -49,9 +49,10 @@ def use_code(root: str) -> None:
 
 
 def boot(fingerprint: str, code_zip: bytes, call: bytes, *args):   # pragma: no cover - Ray
-    """Run ``hearth.executive.suite.<function>(*call_args, *args)`` from the shipped code;
-    ``call`` is the pickled ``(function name, call_args)``."""
+    """Run ``function(*call_args, *args)`` from the shipped code; ``call`` is the pickled
+    ``(function, call_args)``. A module-level function pickles by reference (its module and
+    name), so unpickling it here, after ``use_code``, imports it from the shipped code: this
+    module needs to know nothing of the suite it boots."""
     use_code(unpack_code(fingerprint, code_zip))
-    name, call_args = pickle.loads(call)
-    import hearth.executive.suite as suite
-    return getattr(suite, name)(*call_args, *args)
+    function, call_args = pickle.loads(call)
+    return function(*call_args, *args)

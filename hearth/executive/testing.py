@@ -38,7 +38,9 @@ from typing import Any, ClassVar
 from py_trees import common
 
 from hearth.executive.errors import MissionError
-from hearth.executive.missionfile import LineDict, LineList, NodeSpec, load_yaml, plain
+from hearth.executive.missionfile import NodeSpec
+from hearth.executive.missionfile_types import plain
+from hearth.executive.missionfile_yaml import LineDict, LineList, load_yaml
 from hearth.executive.tree import SkillFactory, default_factory
 from hearth.skills.base import Bindings, Port, Skill
 

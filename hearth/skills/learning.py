@@ -140,7 +140,7 @@ class LearnObject(Skill):
         from hearth.perception.errors import PerceptionError
         from hearth.perception.object_learning import build_model, hue_name
         from hearth.worldmodel.errors import WorldError
-        from hearth.worldmodel.homegen import COLOURS
+        from hearth.worldmodel.homegen_palette import COLOURS
         from hearth.worldmodel.learned import add_learned_object
         name = str(self.input("object_name"))
         try:

@@ -211,7 +211,8 @@ def propose_parking(room: Room, obj: LargeObject, config=None) -> None:
     """Parking positions of ``obj`` (room frame footprints of every object in ``room``),
     kept as the home generator keeps them (see the module docstring); sets ``parking`` and
     ``default_parking``."""
-    from hearth.worldmodel.homegen import HomeConfig, View, sees
+    from hearth.worldmodel.homegen_config import HomeConfig
+    from hearth.worldmodel.homegen_pieces import View, sees
     from hearth.worldmodel.homegen_geometry import disc_clear
     cfg = config or HomeConfig()
     body = obj.model.visuals[0]

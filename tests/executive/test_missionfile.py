@@ -5,8 +5,8 @@ from hypothesis import given, settings, strategies as st
 
 from hearth.cli.main import main
 from hearth.executive.errors import MissionValidationError
-from hearth.executive.missionfile import (check_value, load_mission, parse_expression, parse_param_text,
-                                   validate_file)
+from hearth.executive.missionfile import check_value, load_mission, parse_expression, validate_file
+from hearth.executive.missionfile_types import parse_param_text
 from hearth.executive.testing import test_skills
 from hearth.executive.errors import MissionError
 

@@ -7,7 +7,7 @@ from dataclasses import asdict
 import pytest
 
 import standins
-from hearth.executive import suite
+from hearth.executive import suite, suite_bundles, suite_ray, suite_report, suite_worker
 from hearth.executive.scenarios import Case, suite_cases
 
 
@@ -15,27 +15,27 @@ MESH_KNOBS = "home:4"     # a generated home whose oven knobs are mesh files
 
 
 def test_a_world_travels_with_its_knob_meshes_and_loads_where_it_arrives(tmp_path):
-    bundle = suite.world_bundle(MESH_KNOBS)
+    bundle = suite_bundles.world_bundle(MESH_KNOBS)
     knob_meshes = [name for name in bundle if name.startswith("meshes/knob-")]
     assert knob_meshes, sorted(bundle)
-    world = suite.arrived_world(bundle, suite.bundle_fingerprint(bundle), tmp_path)
-    assert world.knobs() and all((tmp_path / suite.bundle_fingerprint(bundle) / n).is_file()
+    world = suite_bundles.arrived_world(bundle, suite_bundles.bundle_fingerprint(bundle), tmp_path)
+    assert world.knobs() and all((tmp_path / suite_bundles.bundle_fingerprint(bundle) / n).is_file()
                                  for n in knob_meshes)
 
 
 def test_a_world_that_arrives_without_a_mesh_is_an_engine_error_kept_out_of_the_figures(
         tmp_path, ray_instance, monkeypatch):
-    monkeypatch.setitem(suite._WORKER, "worlds", {})     # nothing this process unpacked before
-    bundle = suite.world_bundle(MESH_KNOBS)
-    fp = suite.bundle_fingerprint(bundle)
+    monkeypatch.setitem(suite_worker._WORKER, "worlds", {})     # nothing this process unpacked before
+    bundle = suite_bundles.world_bundle(MESH_KNOBS)
+    fp = suite_bundles.bundle_fingerprint(bundle)
     lost = dict(bundle)
     del lost[next(n for n in bundle if n.startswith("meshes/knob-"))]
     with pytest.raises(suite.SuiteError, match="contents differ"):
-        suite.arrived_world(lost, fp, tmp_path)
+        suite_bundles.arrived_world(lost, fp, tmp_path)
     # the same loss on a Ray worker: an engine error, not a mission's failure
     import ray
     case = suite_cases(1, missions=("refine_localisation",), worlds=(MESH_KNOBS,))[0]
-    task = ray.remote(suite._ray_case).remote(asdict(case), suite.case_key(case), None, 60.0,
+    task = ray.remote(suite_ray._ray_case).remote(asdict(case), suite.case_key(case), None, 60.0,
                                               fp, lost)
     res = ray.get(task)
     assert res["error"] == "engine" and "did not arrive whole" in res["reason"]
@@ -74,7 +74,7 @@ def test_ray_engine_gives_every_scenario_the_local_engines_result(ray_instance):
     assert [r["outcome"] for r in local] == [r["outcome"] for r in on_ray]
     assert not any(r.get("error") for r in local + on_ray), [r["reason"] for r in on_ray]
     for a, b in zip(local, on_ray):
-        assert suite.comparable(a) == suite.comparable(b), (a["key"], a["mission"])
+        assert suite_worker.comparable(a) == suite_worker.comparable(b), (a["key"], a["mission"])
     assert {r["engine"] for r in on_ray} == {"ray"}
     shipped = {r["code"] for r in on_ray}
     assert all("hearth-code-" in p for p in shipped), shipped
@@ -99,9 +99,9 @@ def check_misbehaving(results: dict, cases: list[Case]) -> dict:
     assert "standins.py" in by["hang"]["traceback"], by["hang"]["traceback"]
     real = [results[suite.case_key(c)] for c in cases if not c.params]
     assert [r["outcome"] for r in real] == ["succeeded", "succeeded"], [r["reason"] for r in real]
-    rep = suite.report(list(results.values()), cases)
+    rep = suite_report.report(list(results.values()), cases)
     assert rep["problem_counts"] == {"exception": 1, "crashed": 1, "timeout": 1}
-    text = suite.render_text(rep)
+    text = suite_report.render_text(rep)
     assert "forced crash of a stand-in scenario" in text and "timed out after 15 s" in text
     return by
 
@@ -134,4 +134,4 @@ def test_ray_engine_without_ray_says_in_one_line_what_to_install(monkeypatch, ca
         suite.make_engine("ray")
     assert main(["suite", "--engine", "ray", "--homes", "0", "--out", "unused"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [suite.RAY_MISSING]
+    assert err == [suite_worker.RAY_MISSING]

@@ -13,9 +13,8 @@ from hearth.cli.main import main
 from hearth.worldmodel import load_world, save_world, to_xml, validate_file
 from hearth.worldmodel.frames import room_contains, room_corners, to_room
 from hearth.worldmodel.geometry import object_meshes
-from hearth.worldmodel.homegen import (
-    CLOSE_HUES, HomeConfig, HomeGenError, generate_home, make_home,
-)
+from hearth.worldmodel.homegen import HomeConfig, HomeGenError, generate_home, make_home
+from hearth.worldmodel.homegen_palette import CLOSE_HUES
 from hearth.worldmodel.nodes import LargeArticulatedObject
 
 SEEDS = range(50)

@@ -97,7 +97,7 @@ def set_parameter(ex: Executive, mission, text: str) -> str:
     """``NAME=VALUE`` for a runtime parameter of ``mission``, read per its declared type and
     set on the executive; what to print (the change, or why not)."""
     from hearth.executive.errors import MissionError
-    from hearth.executive.missionfile import parse_param_text
+    from hearth.executive.missionfile_types import parse_param_text
     name, sep, value = text.partition("=")
     name = name.strip()
     runtime = mission.runtime_parameters()

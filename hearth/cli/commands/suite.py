@@ -54,7 +54,7 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    from hearth.executive import suite
+    from hearth.executive import suite, suite_report
     from hearth.executive.scenarios import suite_cases
     from hearth.benchmarks.missions import worlds_of
 
@@ -102,10 +102,10 @@ def _run(args) -> int:
     progress.finish()
     wall = time.perf_counter() - t0
     ran = progress.done - progress.start_done
-    rep = suite.report([r for k, r in results.results.items() if k in keys], cases)
+    rep = suite_report.report([r for k, r in results.results.items() if k in keys], cases)
     rep.update(engine=engine.describe(), ran=ran, resumed=len(done), wall_s=round(wall, 1),
                scenarios_per_s=round(ran / wall, 3) if ran and wall > 0 else None)
-    png = suite.render_png(rep, out / "summary.png")
+    png = suite_report.render_png(rep, out / "summary.png")
     rep["files"] = {"results": str(results.path), "report": str(out / "report.json"),
                     "summary_png": str(png)}
     from hearth.worldmodel.io import atomic_write
@@ -114,7 +114,7 @@ def _run(args) -> int:
     if args.json:
         print(json.dumps(rep, sort_keys=True, default=str))
     else:
-        print(suite.headline(rep, ran, wall, len(done)))
-        print(suite.render_text(rep))
+        print(suite_report.headline(rep, ran, wall, len(done)))
+        print(suite_report.render_text(rep))
         print(f"\nWrote {results.path}, {out / 'report.json'}, {png}")
     return 1 if rep["problems"] else 0

@@ -16,7 +16,7 @@ from typing import Any
 
 from hearth.executive.command.vocabulary import SLOT_CLASSES, Template, normalise, strip_courtesy
 from hearth.executive.errors import MissionError
-from hearth.executive.missionfile import parse_param_text
+from hearth.executive.missionfile_types import parse_param_text
 
 _STOP = {"the", "a", "an", "my", "me", "of", "please", "some", "your", "our", "this", "that"}
 

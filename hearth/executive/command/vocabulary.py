@@ -35,7 +35,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 from hearth.executive.errors import MissionError
-from hearth.executive.missionfile import LineDict, LineList, Mission, load_yaml, plain
+from hearth.executive.missionfile import Mission
+from hearth.executive.missionfile_types import plain
+from hearth.executive.missionfile_yaml import LineDict, LineList, load_yaml
 
 #: slot class -> the map node kinds its words may name
 SLOT_CLASSES: dict[str, tuple[str, ...]] = {
