@@ -101,6 +101,8 @@ class NavGrid:
         self.free = floor & (self.clearance >= config.robot_radius - 1e-9)
         self._build_graph()
         self._fields: dict = {}
+        #: What callers work out once per grid (the search's longest path, ...).
+        self.memo: dict = {}
 
     # -- cells -----------------------------------------------------------------------
     @property
