@@ -197,6 +197,17 @@ class NavGrid:
                 return (int(rr[i]), int(cc[i]))
         return None
 
+    def region_at(self, x: float, y: float) -> int:
+        """A label of the free floor's connected region the robot at (x, y) is in (joined to
+        the grid as a path's start is), 0 when it cannot stand there: two places with the
+        same label are joined by a path. Labelled 4-connected, which is the graph's
+        connectivity (a diagonal step needs both side cells free)."""
+        if "regions" not in self.memo:
+            from scipy import ndimage
+            self.memo["regions"] = ndimage.label(self.free)[0]
+        s = self._snap(x, y)
+        return 0 if s is None else int(self.memo["regions"][s])
+
     def _why_not(self, x: float, y: float, what: str) -> str:
         r, c = self.cell(x, y)
         where = f"the {what} ({x:.2f}, {y:.2f})"
@@ -349,22 +360,32 @@ def build_grid(world, config: NavConfig = NavConfig()) -> Optional[NavGrid]:
         return None
     floors = [transform_xy(T_world_room(r), room_outline(r)) for r in rooms]
     doors = [transform_xy(T_world_room(r), doorway_rect(d)) for r in rooms for d in r.doorways]
-    pts = np.vstack(floors + doors)
+    walls_known = bool(doors) or len(rooms) == 1
+    return grid_from_polygons(floors + doors, _footprints(world), config, walls_known)
+
+
+def grid_from_polygons(floors, obstacles=(), config: NavConfig = NavConfig(),
+                       walls_known: bool = True) -> NavGrid:
+    """The occupancy grid of floor polygons (``floors``: (K, 2) arrays, any one frame, the
+    grid's) less ``obstacles`` ((name, (K, 2) polygon) pairs). With ``walls_known`` False
+    the whole extent of the floors is floor. The home generator grids a room this way while
+    it places the furniture, from the footprints it keeps."""
+    floors = [np.asarray(f, float) for f in floors]
+    pts = np.vstack(floors)
     res = config.resolution
     lo = pts.min(0) - config.margin_m
     hi = pts.max(0) + config.margin_m
     W, H = int(math.ceil((hi[0] - lo[0]) / res)), int(math.ceil((hi[1] - lo[1]) / res))
-    walls_known = bool(doors) or len(rooms) == 1
     label = np.full((H, W), -1, dtype=np.int32)
     if walls_known:
-        for poly in floors + doors:
+        for poly in floors:
             _fill(label, poly, lo, res, 0)
     else:
         label[1:-1, 1:-1] = 0
     names = [""]
-    for oid, hull in _footprints(world):
+    for oid, hull in obstacles:
         names.append(oid)
-        _fill(label, hull, lo, res, len(names) - 1)
+        _fill(label, np.asarray(hull, float), lo, res, len(names) - 1)
     return NavGrid(lo, res, label == 0, label, names, config, walls_known)
 
 
