@@ -24,7 +24,11 @@ localisation: the residual error. ``--order fixed`` runs the fetch cases with th
 search order only (its figures are then the main ones), ``--order learned`` with the
 learned one only, ``both`` (default) each achievable case twice. Then the same per mission
 for the generated homes alone (``generated``) and the demo home alone (``demo``),
-``per_world`` success rates, and the ``slowest`` cases. Wall times are inflated when other
+``per_world`` success rates, the ``slowest`` cases, and ``navigation``: the simulated
+robot's drives of 0.5 m or more (it follows paths on the map's occupancy grid,
+docs/navigation.md), ``path_over_straight_median`` / ``_p90`` (path length over the
+straight line), ``path_m_median``, ``straight_m_median``, ``drives``, and the goals it had
+no path to, ``refused_drives`` with ``refused_reasons`` counted by kind. Wall times are inflated when other
 work shares the CPU.
 
 ``--verbose`` (or ``HEARTH_BENCH_VERBOSE=1``) prints one line per case on stderr as it

@@ -104,6 +104,10 @@ class CaseResult:
     #: where a fetch case's object stands in truth when the mission starts: "drawer" (in a
     #: drawer), "sliding" (behind a sliding door of a track), "" elsewhere
     where: str = ""
+    #: Every drive of the simulated robot: [path length, straight line] in metres.
+    drives: list = field(default_factory=list)
+    #: Why the simulated robot refused each drive it had no path for (docs/navigation.md).
+    refused_drives: list = field(default_factory=list)
 
 
 # ---------------------------------------------------------------------------------------
@@ -485,7 +489,8 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
                       residual_cm=residual, said=said, map_changes=changes,
                       log_path=str(res.log_path) if res.log_path else None, world=case.world,
                       target=target, target_type=getattr(node, "type", "") or "",
-                      wrong_success=wrong, where=where)
+                      wrong_success=wrong, where=where, drives=_drives(sim),
+                      refused_drives=_refused_drives(sim))
 
 
 # ---------------------------------------------------------------------------------------
@@ -530,6 +535,50 @@ def suite_cases(n: int, seed: int = 0, missions=NAMED, warmup: int = 20,
                 else:
                     cases.append(Case(m, s, achievable, world=w, target=target))
     return cases
+
+
+def _drives(sim) -> list:
+    """[path_m, straight_m] of each drive the simulated robot made (its action log)."""
+    if sim is None:
+        return []
+    return [[e["path_m"], e["straight_m"]] for e in sim.log
+            if e.get("action") == "navigate_to" and "path_m" in e]
+
+
+def _refused_drives(sim) -> list:
+    """The reasons of the drives the simulated robot refused (no path, outside the home)."""
+    if sim is None:
+        return []
+    return [e["refused"] for e in sim.log
+            if e.get("action") == "navigate_to" and e.get("refused")]
+
+
+def _reason_kind(reason: str) -> str:
+    """A refusal's reason with its coordinates and distances left out, so alike ones count
+    together ("no path to (x, y): the goal (x, y) is inside wardrobe_1")."""
+    reason = re.sub(r"\(-?[\d.]+, -?[\d.]+\)", "(x, y)", reason)
+    return re.sub(r"-?\d+\.\d+ m\b", "d m", reason)
+
+
+def navigation_summary(results: list[dict]) -> dict:
+    """Path length against the straight line over every drive of 0.5 m or more:
+    ``path_over_straight_median`` (and the 90th percentile), ``path_m_median``, ``drives``;
+    ``refused_drives`` (goals the robot had no path to, each refused where it stood) and
+    ``refused_reasons`` (their reasons, counted by kind)."""
+    d = [r for res in results for r in (res.get("drives") or []) if r[1] >= 0.5]
+    refused = [x for res in results for x in (res.get("refused_drives") or [])]
+    kinds: dict = {}
+    for x in refused:
+        kinds[_reason_kind(x)] = kinds.get(_reason_kind(x), 0) + 1
+    out = {"refused_drives": len(refused), "refused_reasons": kinds}
+    if not d:
+        return {"drives": 0, **out}
+    ratio = np.array([p / s for p, s in d])
+    return {**out, "drives": len(d),
+            "path_over_straight_median": round(float(np.median(ratio)), 3),
+            "path_over_straight_p90": round(float(np.percentile(ratio, 90)), 3),
+            "path_m_median": round(float(np.median([p for p, _ in d])), 3),
+            "straight_m_median": round(float(np.median([s for _, s in d])), 3)}
 
 
 def _mean(xs) -> Optional[float]:
@@ -620,6 +669,7 @@ def summarise(results: list[dict]) -> dict:
                         for m in missions if any(r["mission"] == m for r in rw)}
     out["per_world"] = per_world
     out["wrong_success_total"] = sum(bool(r.get("wrong_success")) for r in results)
+    out["navigation"] = navigation_summary(results)
     out["slowest"] = [dict(mission=r["mission"], world=r.get("world"), seed=r["seed"],
                            target=r.get("target"), wall_time_s=r["wall_time_s"],
                            outcome=r["outcome"])

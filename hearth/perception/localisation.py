@@ -246,7 +246,7 @@ def refine_localisation_views(world, views: list, cfg: LocalisationConfig = Loca
             meshes += object_meshes(world, world.get(oid), children=False)
         if cfg.use_walls:
             for room in world.rooms:
-                for vis in room_visuals(room):
+                for vis in room_visuals(room, world):
                     if vis.name == "wall":
                         meshes.append(LabelledMesh(room.id, room.id,
                                                    visual_mesh(vis).transform(room.pose.matrix()),

@@ -236,9 +236,12 @@ def render_random(seed: int, K: Intrinsics | None = None, look_up: float = 0.0,
 def home_views(world, rng: np.random.Generator, n: int) -> list[np.ndarray]:
     """``T_world_camera`` of ``n`` head-camera views (1.2-1.4 m up) of a home: at the parking
     positions of its large objects (drawn at random), sometimes stepped back up to 0.8 m when
-    that stays in the room, looking at the object (0.1-1.0 m high) or, one in five, at a
+    that stays in the room on free floor (not inside a piece of furniture, whose inside
+    gives a view with no depth at all: hearth/worldmodel/navigation.py), looking at the object (0.1-1.0 m high) or, one in five, at a
     random point of the room."""
     from hearth.worldmodel.frames import room_contains
+    from hearth.worldmodel.navigation import nav_grid
+    grid = nav_grid(world)
     objs = [o for o in world.large_objects() if o.parking]
     out = []
     for _ in range(n if objs else 0):
@@ -247,7 +250,8 @@ def home_views(world, rng: np.random.Generator, n: int) -> list[np.ndarray]:
         room = world.room_of(o.id)
         back = rng.uniform(0.0, 0.8) if rng.random() < 0.6 else 0.0
         x, y = pose.x - back * math.cos(pose.yaw), pose.y - back * math.sin(pose.yaw)
-        if not room_contains(room, x, y, margin=-0.2):
+        if not room_contains(room, x, y, margin=-0.2) or (grid is not None
+                                                          and not grid.is_free(x, y)):
             x, y = pose.x, pose.y
         if rng.random() < 0.2 and room.bounds is not None:
             x0, y0, x1, y1 = room.bounds

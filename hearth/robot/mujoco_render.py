@@ -229,7 +229,7 @@ def world_to_mjcf(world, width: int = 640, height: int = 480) -> MJCF:
     for room in world.apartment.rooms:
         T_room = room.pose.matrix()
         bodies.append(f'<body {_pose_attrs(T_room)}>'
-                      + w.geoms(room_visuals(room), np.eye(4), room.id, room.id) + "</body>")
+                      + w.geoms(room_visuals(room, world), np.eye(4), room.id, room.id) + "</body>")
         for s in room.switches:
             bodies.append(f'<body {_pose_attrs(T_room @ s.pose.matrix())}>'
                           + w.geoms([Visual("box", Pose(), size=(0.02, 0.08, 0.08),

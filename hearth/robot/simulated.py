@@ -17,8 +17,12 @@ an arm whose actions change the truth, on a (simulated) clock.
 - Battery (robot/battery.py): drains standing, more while the base drives and the arm
   moves, and charges on a charger's dock (``dock()`` at a map ``Charger``'s dock pose,
   ``undock()``; driving off a dock undocks first). A flat battery refuses to move anything.
+- Driving follows the shortest path on the truth's occupancy grid (walls with their
+  doorways, furniture footprints, the robot's radius: hearth/worldmodel/navigation.py); a
+  goal with no path is refused with the reason ("no path to (x, y): the goal ... is inside
+  the wardrobe"), and the robot stays where it is.
 - Time: every action takes simulated time on the injected clock (driving: path length over
-  speed plus turning over turn speed; arm motions: approach time plus joint travel over joint
+  speed plus turning, to the goal's heading and at the path's corners, over turn speed; arm motions: approach time plus joint travel over joint
   speed). Actions are evaluated lazily from the clock, so a SimClock runs as fast as the CPU
   allows; nothing here sleeps.
 """
@@ -40,6 +44,7 @@ from hearth.robot.sim import (HEAD, Frame, HeadMount, PanTiltHead, SpokenAndLogg
                               render_view)
 from hearth.worldmodel.nodes import LargeArticulatedObject, LargeObject, Part, SmallObject
 from hearth.worldmodel.frames import room_at
+from hearth.worldmodel.navigation import NoPath, nav_grid
 from hearth.worldmodel.pose import Pose, wrap_angle
 
 #: Where a held object is carried, in the base frame (in front of the robot, below the camera).
@@ -160,21 +165,39 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         if flat:
             return flat
         start = self._true
-        dist = start.planar_distance(goal_true)
-        turn = abs(wrap_angle(goal_true.yaw - start.yaw))
+        # The base follows the shortest path on the truth's occupancy grid (walls, doorways,
+        # furniture, the robot's radius: hearth/worldmodel/navigation.py); with none, it
+        # does not move and says what stands in the way.
+        grid = nav_grid(self.truth)
+        if grid is not None:
+            try:
+                path = grid.path((start.x, start.y), (goal_true.x, goal_true.y))
+            except NoPath as err:
+                return self._refuse("navigate_to", f"no path to ({goal.x:.2f}, {goal.y:.2f}): "
+                                                   f"{err.reason}", goal=goal.as_dict())
+            points, straight = path.points, path.straight
+        else:
+            points = np.array([[start.x, start.y], [goal_true.x, goal_true.y]])
+            straight = start.planar_distance(goal_true)
+        legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        dist = float(legs.sum())
+        # Turning: from the start heading to the goal's, plus every corner of the path.
+        turn = abs(wrap_angle(goal_true.yaw - start.yaw)) + _corner_turns(points, legs)
         # Driving off a dock backs off it first (and charging stops).
         off_dock = self.undock_time if self.battery.docked is not None else 0.0
         self.battery.docked = None
         drive = dist / self.speed + turn / self.turn_speed
         duration = off_dock + drive
+        cum = np.concatenate([[0.0], np.cumsum(legs)])
 
         def at(f: float) -> None:
             g = 0.0 if duration <= 0 else max(f * duration - off_dock, 0.0) / max(drive, 1e-9)
-            self._true = _interpolate(start, goal_true, g)
+            self._true = _along(points, cum, start, goal_true, min(max(g, 0.0), 1.0))
 
         act = TimedAction("navigate_to", self.clock, duration, on_done=self._believed,
                           on_progress=at, on_cancel=at)
-        return self._start("base", act, goal=goal.as_dict())
+        return self._start("base", act, goal=goal.as_dict(), path_m=round(dist, 3),
+                           straight_m=round(straight, 3))
 
     # -- sensing ---------------------------------------------------------------------------
     def capture(self) -> Frame:
@@ -585,10 +608,31 @@ def _planar(T) -> Pose:
     return as_base_pose(T)
 
 
-def _interpolate(a: Pose, b: Pose, f: float) -> Pose:
-    f = min(max(f, 0.0), 1.0)
-    return Pose.planar(a.x + (b.x - a.x) * f, a.y + (b.y - a.y) * f,
-                       wrap_angle(a.yaw + wrap_angle(b.yaw - a.yaw) * f))
+def _corner_turns(points: np.ndarray, legs: np.ndarray) -> float:
+    """Sum of the heading changes (rad) at a path's corners (legs under 5 cm, the moves on
+    and off the grid, do not count)."""
+    d = np.diff(points, axis=0)[legs > 0.05]
+    if len(d) < 2:
+        return 0.0
+    h = np.arctan2(d[:, 1], d[:, 0])
+    return float(sum(abs(wrap_angle(b - a)) for a, b in zip(h[:-1], h[1:])))
+
+
+def _along(points: np.ndarray, cum: np.ndarray, a: Pose, b: Pose, f: float) -> Pose:
+    """The base pose a fraction ``f`` of the way along a path (by length); the heading turns
+    evenly from ``a``'s to ``b``'s."""
+    yaw = wrap_angle(a.yaw + wrap_angle(b.yaw - a.yaw) * f)
+    if f >= 1.0:
+        return Pose.planar(b.x, b.y, b.yaw)
+    total = cum[-1]
+    if total <= 0:
+        return Pose.planar(a.x, a.y, yaw)
+    s = f * total
+    i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(points) - 2))
+    seg = cum[i + 1] - cum[i]
+    g = 0.0 if seg <= 0 else (s - cum[i]) / seg
+    x, y = points[i] + g * (points[i + 1] - points[i])
+    return Pose.planar(float(x), float(y), yaw)
 
 
 def _first_parking(world) -> Pose:

@@ -10,6 +10,7 @@ from hearth.skills.base import Port, Skill
 from hearth.skills.values import as_pose
 from hearth.worldmodel.errors import WorldError
 from hearth.worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
+from hearth.worldmodel.search import travel
 
 
 #: ``parking: another``: the nearest parking position other than the one the robot is at.
@@ -40,13 +41,20 @@ def _knob_distance(distance) -> float:
 
 
 def parkings_by_distance(world, robot, target: str, beyond: float = -1.0, near=None) -> list:
-    """``(metres from the robot, id, world pose)`` of ``target``'s parking positions
-    further than ``beyond`` from the robot, nearest first; with ``near`` (a pose, as
-    ``as_pose`` takes it), the metres from it instead of from the robot."""
+    """``(metres of path from the robot, id, world pose)`` of ``target``'s parking positions
+    further than ``beyond`` (straight line) from the robot, nearest first; with ``near`` (a
+    pose, as ``as_pose`` takes it), the metres from it instead of from the robot."""
     here = as_pose(near) if near is not None else robot.base_pose()
-    found = ((math.hypot(pose.x - here.x, pose.y - here.y), p.id, pose)
-             for p, pose in world.parking_positions(target))
-    return sorted((f for f in found if f[0] > beyond), key=lambda f: f[:2])
+    # Metres of path on the map's occupancy grid (docs/navigation.md); a parking position no
+    # path reaches is left out while another is reachable (else the drive says why not).
+    length_to, _on_grid = travel(world, here)
+    found = [(length_to(pose.x, pose.y), p.id, pose) for p, pose in world.parking_positions(target)
+             if math.hypot(pose.x - here.x, pose.y - here.y) > beyond]
+    reachable = [f for f in found if math.isfinite(f[0])]
+    if not reachable:
+        reachable = [(math.hypot(pose.x - here.x, pose.y - here.y), pid, pose)
+                     for _d, pid, pose in found]
+    return sorted(reachable, key=lambda f: f[:2])
 
 
 class NavigateTo(RobotActionSkill):

@@ -14,7 +14,7 @@ _EXPORTS = {
     "hearth.worldmodel.errors": ("UnknownNode", "WorldError", "WorldValidationError"),
     "hearth.worldmodel.io": ("load_world", "parse_world", "save_world", "to_xml", "validate_file"),
     "hearth.worldmodel.nodes": (
-        "Apartment", "Charger", "DefaultPosition", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
+        "Apartment", "Charger", "DefaultPosition", "Doorway", "GraspPoint", "Handle", "Joint", "Knob", "KnobState",
         "LargeArticulatedObject", "LargeObject", "Model", "ParkingPosition", "Part", "Room",
         "SmallObject", "Surface", "Switch", "Visual",
     ),

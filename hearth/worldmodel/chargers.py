@@ -5,7 +5,8 @@ Deterministic from the map alone (no random numbers), so a home's furniture and 
 those it had: the first room (a generated home's kitchen) is walked wall by wall, every
 0.1 m, for a spot whose dock pose (``DOCK_DISTANCE`` in front of the wall, the robot backed
 onto the charger) leaves ``CLEARANCE`` to every large object's footprint and ``AWAY`` to
-every parking position; the next room is tried when none is free.
+every parking position, on the room's floor and ``DOORWAY_AWAY`` from every doorway; the
+next room is tried when none is free.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from hearth.worldmodel.frames import T_world_room, transform_xy
 from hearth.worldmodel.nodes import Charger
+from hearth.worldmodel.outline import outline_contains, room_openings, room_outline
 from hearth.worldmodel.pose import Pose
 
 #: How far from its charger (m) the robot stands docked.
@@ -24,6 +26,8 @@ DOCK_DISTANCE = 0.4
 CLEARANCE = 0.35
 #: Distance (m) kept from every parking position, so the docked robot is in nobody's way.
 AWAY = 0.7
+#: Distance (m) from the dock pose to the centre of any doorway.
+DOORWAY_AWAY = 1.3
 
 
 def place_charger(world) -> Optional[Charger]:
@@ -37,8 +41,16 @@ def place_charger(world) -> Optional[Charger]:
         if room.bounds is None:
             continue
         T = T_world_room(room)
+        floor = room_outline(room)
+        doors = [np.mean(rect, axis=0) for rect in room_openings(world, room)]
         for (cx, cy, yaw) in _wall_spots(room.bounds):
             dx, dy = cx + DOCK_DISTANCE * math.cos(yaw), cy + DOCK_DISTANCE * math.sin(yaw)
+            # On this room's floor (an L-shaped room's bounds hold floor it lacks) and out
+            # of every doorway's way.
+            if not (outline_contains(floor, cx, cy) and outline_contains(floor, dx, dy, -0.3)):
+                continue
+            if any(math.hypot(dx - d[0], dy - d[1]) < DOORWAY_AWAY for d in doors):
+                continue
             wx, wy = transform_xy(T, [(dx, dy)])[0]
             if any(_box_distance(b, wx, wy) < CLEARANCE for b in boxes):
                 continue

@@ -15,6 +15,7 @@ from typing import Any, Iterable, Optional
 
 import numpy as np
 
+from hearth.worldmodel.outline import outline_contains, room_outline
 from hearth.worldmodel.pose import Pose, rotation_about_axis, translation_along_axis
 
 # -- planar transforms --------------------------------------------------------------------
@@ -142,13 +143,14 @@ def to_room(room, points_world) -> np.ndarray:
 
 
 def room_contains(room, x: float, y: float, margin: float = 0.0) -> bool:
-    """Whether the world floor point (x, y) lies within the room's bounds grown by ``margin``
-    (negative: shrunk). A room without bounds contains nothing."""
-    if room.bounds is None:
+    """Whether the world floor point (x, y) lies on the room's floor (its outline, or its
+    bounds) grown by ``margin`` (negative: shrunk; see ``outline.outline_contains``). A room
+    without bounds or outline contains nothing."""
+    poly = room_outline(room)
+    if not poly:
         return False
-    x0, y0, x1, y1 = room.bounds
     q = to_room(room, np.array([[x, y]], dtype=float))[0]
-    return bool(x0 - margin <= q[0] <= x1 + margin and y0 - margin <= q[1] <= y1 + margin)
+    return outline_contains(poly, float(q[0]), float(q[1]), margin)
 
 
 def room_at(rooms: Iterable, x: float, y: float, margin: float = 0.0):
@@ -161,10 +163,9 @@ def room_at(rooms: Iterable, x: float, y: float, margin: float = 0.0):
 
 
 def room_corners(room) -> np.ndarray:
-    """(4, 2) world x, y of the corners of the room's bounds, counter-clockwise from
-    (xmin, ymin) in the room frame."""
-    x0, y0, x1, y1 = room.bounds
-    return transform_xy(T_world_room(room), [(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+    """(N, 2) world x, y of the corners of the room's floor, counter-clockwise in the room
+    frame: its outline's, or the four of its bounds from (xmin, ymin)."""
+    return transform_xy(T_world_room(room), room_outline(room))
 
 
 def _rooms(rooms) -> list:

@@ -7,6 +7,7 @@ angles can be overridden without touching the map (to render a hypothesis).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -19,6 +20,7 @@ from hearth.worldmodel.nodes import (
     Handle, Knob, LargeArticulatedObject, LargeObject, Model, Part, Room, SmallObject, Visual,
 )
 from hearth.worldmodel.frames import joint_T, knob_T, rotation_about_axis
+from hearth.worldmodel.outline import outline_contains, room_openings, room_outline, segment_clip
 from hearth.worldmodel.pose import Pose
 
 WALL_HEIGHT = 2.5
@@ -148,23 +150,133 @@ def knob_visuals(k: Knob, library: Optional[dict] = None, angle: Optional[float]
     return out
 
 
-def room_visuals(room: Room) -> list[Visual]:
-    """Floor, four walls and a ceiling from the room's bounds (none without bounds)."""
-    if room.bounds is None:
+#: Height of a doorway's opening (m); the wall above it (the lintel) is drawn.
+DOORWAY_HEIGHT = 2.05
+
+
+def room_visuals(room: Room, home=None) -> list[Visual]:
+    """Floor, walls and a ceiling of a room (room frame; none without bounds or outline).
+
+    A rectangle (bounds) gives four walls as before. An outline gives one wall per side,
+    outside the floor, lengthened at convex corners to close them. The walls are open where
+    a doorway of ``home`` (an Apartment or a World; None: no openings) crosses them, with a
+    lintel above ``DOORWAY_HEIGHT``. The floor and ceiling of a rectilinear outline are boxes
+    over its cells; of any other outline, one box over its bounding box."""
+    poly = room_outline(room)
+    if not poly:
         return []
-    x0, y0, x1, y1 = room.bounds
-    cx, cy, w, d = (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0
     t, H = WALL_THICKNESS, WALL_HEIGHT
     floor = (0.62, 0.58, 0.52)
     wall = (0.88, 0.87, 0.83)
-    return [
-        Visual("box", Pose(cx, cy, -t / 2), size=(w, d, t), color=floor, name="floor"),
-        Visual("box", Pose(cx, cy, H + t / 2), size=(w, d, t), color=(0.95, 0.95, 0.95), name="ceiling"),
-        Visual("box", Pose(x0 - t / 2, cy, H / 2), size=(t, d, H), color=wall, name="wall"),
-        Visual("box", Pose(x1 + t / 2, cy, H / 2), size=(t, d, H), color=wall, name="wall"),
-        Visual("box", Pose(cx, y0 - t / 2, H / 2), size=(w + 2 * t, t, H), color=wall, name="wall"),
-        Visual("box", Pose(cx, y1 + t / 2, H / 2), size=(w + 2 * t, t, H), color=wall, name="wall"),
-    ]
+    openings = room_openings(home, room) if home is not None else []
+    if room.outline is None and not openings:     # format 1: exactly the four boxes it had
+        x0, y0, x1, y1 = room.bounds
+        cx, cy, w, d = (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0
+        return [
+            Visual("box", Pose(cx, cy, -t / 2), size=(w, d, t), color=floor, name="floor"),
+            Visual("box", Pose(cx, cy, H + t / 2), size=(w, d, t), color=(0.95, 0.95, 0.95), name="ceiling"),
+            Visual("box", Pose(x0 - t / 2, cy, H / 2), size=(t, d, H), color=wall, name="wall"),
+            Visual("box", Pose(x1 + t / 2, cy, H / 2), size=(t, d, H), color=wall, name="wall"),
+            Visual("box", Pose(cx, y0 - t / 2, H / 2), size=(w + 2 * t, t, H), color=wall, name="wall"),
+            Visual("box", Pose(cx, y1 + t / 2, H / 2), size=(w + 2 * t, t, H), color=wall, name="wall"),
+        ]
+    out = []
+    for (cx, cy, w, d) in _floor_cells(poly):
+        out.append(Visual("box", Pose(cx, cy, -t / 2), size=(w, d, t), color=floor, name="floor"))
+        out.append(Visual("box", Pose(cx, cy, H + t / 2), size=(w, d, t), color=(0.95, 0.95, 0.95),
+                          name="ceiling"))
+    for a, b, yaw, length in wall_segments(poly, openings):
+        c = ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2)
+        out.append(Visual("box", Pose(c[0], c[1], H / 2, 0, 0, yaw), size=(length, t, H),
+                          color=wall, name="wall"))
+    for a, b, yaw, length in wall_segments(poly, openings, lintels=True):
+        c = ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2)
+        out.append(Visual("box", Pose(c[0], c[1], (DOORWAY_HEIGHT + H) / 2, 0, 0, yaw),
+                          size=(length, t, H - DOORWAY_HEIGHT), color=wall, name="wall"))
+    return out
+
+
+def wall_segments(poly, openings=(), lintels: bool = False, thickness: float = WALL_THICKNESS):
+    """The walls of a counter-clockwise floor polygon (room frame) as (a, b, yaw, length):
+    the centre line of each wall box from a to b, ``thickness`` thick, outside the floor,
+    lengthened by the thickness at convex corners; cut where an opening (a convex polygon in
+    the same frame) crosses it. ``lintels``: the cut-out pieces instead (what stands above a
+    doorway)."""
+    n = len(poly)
+    t = thickness
+    out = []
+    for i in range(n):
+        a, b = np.asarray(poly[i], float), np.asarray(poly[(i + 1) % n], float)
+        prev, nxt = np.asarray(poly[i - 1], float), np.asarray(poly[(i + 2) % n], float)
+        e = b - a
+        L = float(np.linalg.norm(e))
+        if L < 1e-9:
+            continue
+        u = e / L
+        nrm = np.array([u[1], -u[0]])           # outward for a counter-clockwise polygon
+
+        def convex(p, q, r):
+            return (q[0] - p[0]) * (r[1] - q[1]) - (q[1] - p[1]) * (r[0] - q[0]) > 0
+        s0 = -t if convex(prev, a, b) else 0.0
+        s1 = L + t if convex(a, b, nxt) else L
+        cuts = []
+        for op in openings:
+            for off in (0.0, t / 2, t):
+                p0 = a + u * s0 + nrm * off
+                p1 = a + u * s1 + nrm * off
+                c = segment_clip(tuple(p0), tuple(p1), op)
+                if c is not None and c[1] > c[0]:
+                    cuts.append((s0 + c[0] * (s1 - s0), s0 + c[1] * (s1 - s0)))
+        cuts.sort()
+        merged = []
+        for c in cuts:
+            if merged and c[0] <= merged[-1][1]:
+                merged[-1] = (merged[-1][0], max(merged[-1][1], c[1]))
+            else:
+                merged.append(c)
+        if lintels:
+            pieces = merged
+        else:
+            pieces, at = [], s0
+            for c0, c1 in merged:
+                if c0 > at:
+                    pieces.append((at, c0))
+                at = max(at, c1)
+            if s1 > at:
+                pieces.append((at, s1))
+        yaw = math.atan2(u[1], u[0])
+        for p0, p1 in pieces:
+            if p1 - p0 < 1e-4:
+                continue
+            out.append((tuple(a + u * p0 + nrm * t / 2), tuple(a + u * p1 + nrm * t / 2), yaw,
+                        p1 - p0))
+    return out
+
+
+def _floor_cells(poly) -> list[tuple[float, float, float, float]]:
+    """Boxes (cx, cy, w, d) covering a rectilinear polygon exactly (the grid its corners'
+    coordinates make, cells inside kept, merged along rows); one bounding box for any other
+    polygon."""
+    xs = sorted({round(p[0], 9) for p in poly})
+    ys = sorted({round(p[1], 9) for p in poly})
+    n = len(poly)
+    rectilinear = all(abs(poly[i][0] - poly[(i + 1) % n][0]) < 1e-9
+                      or abs(poly[i][1] - poly[(i + 1) % n][1]) < 1e-9 for i in range(n))
+    if not rectilinear:
+        return [((xs[0] + xs[-1]) / 2, (ys[0] + ys[-1]) / 2, xs[-1] - xs[0], ys[-1] - ys[0])]
+    out = []
+    for j in range(len(ys) - 1):
+        run = None
+        for i in range(len(xs) - 1):
+            inside = outline_contains(poly, (xs[i] + xs[i + 1]) / 2, (ys[j] + ys[j + 1]) / 2)
+            if inside and run is None:
+                run = xs[i]
+            if not inside and run is not None:
+                out.append(((run + xs[i]) / 2, (ys[j] + ys[j + 1]) / 2, xs[i] - run, ys[j + 1] - ys[j]))
+                run = None
+        if run is not None:
+            out.append(((run + xs[-1]) / 2, (ys[j] + ys[j + 1]) / 2, xs[-1] - run, ys[j + 1] - ys[j]))
+    return out
 
 
 def model_visuals(model: Model, library: dict) -> list[Visual]:
@@ -258,7 +370,7 @@ def scene_meshes(world, room_ids: Optional[list[str]] = None, states: Optional[d
             continue
         T_room = room.pose.matrix()
         if include_rooms:
-            _emit(out, room_visuals(room), T_room, room.id, room.id, world.base_dir)
+            _emit(out, room_visuals(room, world), T_room, room.id, room.id, world.base_dir)
         for s in room.switches:
             _emit(out, [Visual("box", Pose(), size=(0.02, 0.08, 0.08), color=(0.95, 0.95, 0.9))],
                   T_room @ s.pose.matrix(), s.id, room.id, world.base_dir)

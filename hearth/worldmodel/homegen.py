@@ -40,13 +40,14 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Optional
 
 import numpy as np
 
 from hearth.worldmodel.frames import planar_T, transform_xy
+from hearth.worldmodel.outline import outline_contains
 from hearth.worldmodel.homegen_config import HomeConfig, HomeGenError
 from hearth.worldmodel.homegen_furniture import (
     appliance, bookshelf, chair, cupboard, drawer_unit, fridge, table,
@@ -59,7 +60,7 @@ from hearth.worldmodel.homegen_pieces import (
     _clean, _Ctx, _deg, _Ids, _keep_visible, _level_compose, _Meshes, _mm, Piece,
 )
 from hearth.worldmodel.nodes import (
-    Apartment, LargeArticulatedObject, Model, ParkingPosition, Room, Switch,
+    Apartment, Doorway, LargeArticulatedObject, Model, ParkingPosition, Room, Switch,
 )
 from hearth.worldmodel.pose import Pose
 
@@ -74,8 +75,13 @@ from hearth.worldmodel.pose import Pose
 #:     of a seed's home as in version 4).
 #: 9 = a chest's top drawer has a floor (a part surface) that may hold a small object (drawn
 #:     from a generator of its own); half the bedroom wardrobes have two sliding doors on one
-#:     track with recessed pulls (issue 43).
-GENERATOR_VERSION = 9
+#:     track with recessed pulls (issue 43, drawers).
+#: 10 = rooms joined by doorways (sides facing across the gap between them), some through a
+#:     corridor, some L-shaped; the home turned as a whole; furniture leaves every doorway and
+#:     parking position reachable (issue 43, rooms). 9 and 10 were made on two branches at the
+#:     same time (each without the other's change); the home cache is kept per version, so
+#: 11 = both together.
+GENERATOR_VERSION = 11
 
 
 # -- rooms --------------------------------------------------------------------------------------
@@ -155,10 +161,17 @@ def _furniture_plan(ctx: _Ctx, kind: str) -> list[tuple[str, Callable[[], Piece]
 class _Layout:
     """Free floor of one room while its furniture is placed (room frame, metres)."""
 
-    def __init__(self, ctx: _Ctx, bounds):
+    def __init__(self, ctx: _Ctx, bounds, floor: Optional[np.ndarray] = None,
+                 missing: list[np.ndarray] = (), doors: list[np.ndarray] = ()):
         self.ctx = ctx
         self.bounds = bounds
-        self.hulls: list[np.ndarray] = []
+        self.floor = _floor_poly(bounds, None) if floor is None else np.asarray(floor, float)
+        # Footprints, and the corner an L-shaped room lacks (``missing``): no furniture and
+        # no parking position there.
+        self.hulls: list[np.ndarray] = [np.asarray(k, float) for k in missing]
+        # The approach to each doorway (``doors``): no furniture, but the robot may park
+        # there (it is in nobody's way but its own).
+        self.doors: list[np.ndarray] = list(doors)
         self.parkings: list[tuple[float, float]] = []
 
     def parking_free(self, x: float, y: float, extra: list[np.ndarray] = ()) -> bool:
@@ -207,13 +220,17 @@ class _Layout:
             poly = transform_polygon(T, hull)
             if not polygon_inside_rect(poly, self.bounds, 0.0):
                 continue
-            if any(polygons_overlap(poly, h, 0.03) for h in self.hulls):
+            if any(polygons_overlap(poly, h, 0.03) for h in (*self.hulls, *self.doors)):
                 continue
             r = ctx.cfg.robot_radius
             if not all(disc_clear(p, poly, r + 0.02) for p in self.parkings):
                 continue
             keep = [pk for pk in piece.parking
                     if self.parking_free(*transform_xy(T, [(pk.pose.x, pk.pose.y)])[0], [poly])]
+            if keep:
+                joined = self.joined(poly, [tuple(transform_xy(T, [(pk.pose.x, pk.pose.y)])[0])
+                                            for pk in keep])
+                keep = [pk for pk, j in zip(keep, joined or ()) if j]
             if not keep:
                 continue
             piece.parking = keep
@@ -221,6 +238,26 @@ class _Layout:
             self.parkings += [tuple(transform_xy(T, [(pk.pose.x, pk.pose.y)])[0]) for pk in keep]
             return pose
         return None
+
+
+    def joined(self, poly: np.ndarray, parkings: list) -> Optional[list[bool]]:
+        """With a piece of footprint ``poly`` placed too: which of ``parkings`` (room frame
+        x, y) the robot reaches from the doorways and the parking positions kept so far
+        (the room's occupancy grid, hearth/worldmodel/navigation.py), or None when the piece
+        would cut one of those off from the others. A piece may stand clear of every
+        doorway's approach and still wall one off with its neighbours."""
+        from hearth.worldmodel.navigation import NavConfig, grid_from_polygons
+        # A cell wider than the robot: a gap just wide enough on this room's grid may close
+        # on the home's, whose cells are turned with the home (and drawn from the meshes).
+        grid = grid_from_polygons([self.floor], [("", h) for h in (*self.hulls, poly)],
+                                  NavConfig(robot_radius=self.ctx.cfg.robot_radius + 0.05))
+        anchors = [np.mean(d, axis=0) for d in self.doors] + list(self.parkings)
+        regions = {grid.region_at(*a) for a in anchors}
+        if 0 in regions or len(regions) > 1:
+            return None
+        here = [grid.region_at(*p) for p in parkings]
+        region = next(iter(regions)) if regions else next((r for r in here if r), 0)
+        return [r != 0 and r == region for r in here]
 
 
 def _hull(piece: Piece, scratch) -> np.ndarray:
@@ -231,41 +268,212 @@ def _hull(piece: Piece, scratch) -> np.ndarray:
     return convex_hull_xy(pts)
 
 
-def _room_polygon(room_bounds, pose: tuple[float, float, float]) -> np.ndarray:
-    x0, y0, x1, y1 = room_bounds
-    return transform_polygon(planar_T(*pose), np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)]))
+def _outline(ctx: _Ctx, bounds) -> Optional[list[tuple[float, float]]]:
+    """An L-shaped floor inside ``bounds`` (a corner cut out, never the (xmin, ymin) one
+    where the light switch is), or None for a rectangle."""
+    x0, y0, x1, y1 = bounds
+    w, d = x1 - x0, y1 - y0
+    if min(w, d) < 3.2 or not ctx.chance(ctx.cfg.l_shaped_probability):
+        return None
+    nw, nd = _mm(w * ctx.u(0.3, 0.45)), _mm(d * ctx.u(0.3, 0.45))
+    corner = ctx.i(1, 3)
+    if corner == 1:        # (xmax, ymin)
+        poly = [(x0, y0), (x1 - nw, y0), (x1 - nw, y0 + nd), (x1, y0 + nd), (x1, y1), (x0, y1)]
+    elif corner == 2:      # (xmax, ymax)
+        poly = [(x0, y0), (x1, y0), (x1, y1 - nd), (x1 - nw, y1 - nd), (x1 - nw, y1), (x0, y1)]
+    else:                  # (xmin, ymax)
+        poly = [(x0, y0), (x1, y0), (x1, y1), (x0 + nw, y1), (x0 + nw, y1 - nd), (x0, y1 - nd)]
+    return [(_mm(x), _mm(y)) for x, y in poly]
 
 
-def _place_room(ctx: _Ctx, bounds, placed: list[np.ndarray]) -> tuple[float, float, float]:
-    """A world pose (x, y, yaw) for a room with ``bounds`` (room frame) beside the rooms
-    placed so far, ``room_gap`` clear of each; turned by any angle with the configured
-    probability, else by a multiple of 90 degrees."""
+def _floor_poly(bounds, outline) -> np.ndarray:
+    if outline is not None:
+        return np.array(outline, float)
+    x0, y0, x1, y1 = bounds
+    return np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], float)
+
+
+def _notch(bounds, outline) -> list[np.ndarray]:
+    """The corner an L-shaped floor lacks, as a rectangle of its bounds (room frame)."""
+    if outline is None:
+        return []
+    x0, y0, x1, y1 = bounds
+    P = np.array(outline, float)
+    xs = sorted(set(P[:, 0]))
+    ys = sorted(set(P[:, 1]))
+    for i in range(len(xs) - 1):
+        for j in range(len(ys) - 1):
+            cx, cy = (xs[i] + xs[i + 1]) / 2, (ys[j] + ys[j + 1]) / 2
+            if not outline_contains([tuple(p) for p in P], cx, cy):
+                return [np.array([(xs[i], ys[j]), (xs[i + 1], ys[j]), (xs[i + 1], ys[j + 1]),
+                                  (xs[i], ys[j + 1])])]
+    return []
+
+
+@dataclass
+class _Placed:
+    """A room placed so far: its node, world pose (x, y, yaw), floor polygon in its frame,
+    convex hull of the floor in the world, and its layout (None for a corridor)."""
+    room: Room
+    pose: tuple[float, float, float]
+    floor: np.ndarray
+    hull_world: np.ndarray
+    layout: Optional["_Layout"]
+    #: Where a later room's doorway may go (furnished rooms keep the floor in front of them
+    #: free): (centre, u along the side, n outward, side length, keep-out) in the room's frame.
+    slots: list = None
+    #: The keep-outs of its doorways and slots (room frame), whose middles (0.45 m inside)
+    #: the furniture leaves joined by floor the robot can drive on.
+    door_keeps: list = None
+
+
+def _outer_edges(floor: np.ndarray, margin: float, door: float):
+    """Sides of a floor polygon on its bounding box, long enough for a door ``margin`` from
+    each corner: (a, u, n, length) with u along the side, n its outward normal."""
+    lo, hi = floor.min(0), floor.max(0)
+    n_ = len(floor)
+    for i in range(n_):
+        a, b = floor[i], floor[(i + 1) % n_]
+        e = b - a
+        L = float(np.linalg.norm(e))
+        if L < door + 2 * margin:
+            continue
+        on_box = (abs(a[0] - b[0]) < 1e-9 and (abs(a[0] - lo[0]) < 1e-9 or abs(a[0] - hi[0]) < 1e-9)) \
+            or (abs(a[1] - b[1]) < 1e-9 and (abs(a[1] - lo[1]) < 1e-9 or abs(a[1] - hi[1]) < 1e-9))
+        if on_box:
+            u = e / L
+            yield a, u, np.array([u[1], -u[0]]), L
+
+
+def _keep_out(centre, u, inward, width: float, depth: float = 0.9) -> np.ndarray:
+    """The floor in front of a doorway that furniture leaves free (room frame): the door's
+    width and 0.35 m each side, ``depth`` into the room."""
+    h = width / 2 + 0.35
+    c = np.asarray(centre, float)
+    return np.array([c - u * h, c + u * h, c + u * h + inward * depth, c - u * h + inward * depth])
+
+
+def _attach(ctx: _Ctx, floor: np.ndarray, placed: list[_Placed], hosts: list[int],
+            corridor: bool):
+    """Where a room with ``floor`` (its frame) goes: beside one of the placed rooms
+    ``hosts``, a side of it facing a side of the host ``room_gap`` away, joined by a doorway.
+    Returns (host index, world pose, doorway pose in the host's frame, door width, keep-out
+    in the host's frame, keep-out in the new room's frame, the host's slot index or None)
+    or None. Nothing is changed until ``_join``."""
     cfg = ctx.cfg
-    turned = ctx.chance(cfg.turned_room_probability)
-    for attempt in range(60):
-        yaw = ctx.u(-math.pi, math.pi) if turned else ctx.pick([0.0, 0.5, 1.0, -0.5]) * math.pi
-        if not placed:
-            return (_mm(ctx.u(-3, 3)), _mm(ctx.u(-3, 3)), _deg(yaw))
-        # beside a placed room: its centre plus a direction, far enough to clear it
-        other = placed[int(ctx.rng.integers(len(placed)))]
-        c = other.mean(0)
-        a = ctx.u(-math.pi, math.pi)
-        dirv = np.array([math.cos(a), math.sin(a)])
-        poly0 = _room_polygon(bounds, (0.0, 0.0, _deg(yaw)))
-        centre0 = poly0.mean(0)
-        # Closer than half their smaller sides the two rooms overlap whatever the direction.
-        start = 0.5 * (min(bounds[2] - bounds[0], bounds[3] - bounds[1])
-                       + min(np.ptp(other, axis=0)) * 0.7)
-        for dist in np.arange(start, start + 14.0, 0.25):
-            cxy = c + dirv * dist
-            pose = (_mm(cxy[0] - centre0[0]), _mm(cxy[1] - centre0[1]), _deg(yaw))
-            poly = poly0 + (pose[0], pose[1])
-            if not any(polygons_overlap(poly, q, cfg.room_gap) for q in placed):
-                return pose
-    # Nothing beside the others: far to the right of everything.
-    x_max = max(q[:, 0].max() for q in placed)
-    poly0 = _room_polygon(bounds, (0.0, 0.0, 0.0))
-    return (_mm(x_max + cfg.room_gap + 1.0 - poly0[:, 0].min()), 0.0, 0.0)
+    g = cfg.room_gap
+    for _ in range(60):
+        hi = hosts[int(ctx.rng.integers(len(hosts)))]
+        host = placed[hi]
+        width = _mm(ctx.u(*cfg.door_width))
+        m_host = 0.15 if host.layout is None else 0.4
+        m_new = 0.15 if corridor else 0.4
+        edges = list(_outer_edges(host.floor, m_host, width))
+        if not edges:
+            continue
+        if host.slots is not None:           # a furnished room: a doorway slot it kept free
+            if not host.slots:
+                continue
+            si = int(ctx.rng.integers(len(host.slots)))
+            P_slot, u, n, L, _k = host.slots[si]
+            a = P_slot - u * (m_host + width / 2)    # so that s_host below is the slot's centre
+            L_host = None
+        else:
+            si = None
+            a, u, n, L = edges[int(ctx.rng.integers(len(edges)))]
+            L_host = L
+        q = ctx.i(0, 3)
+        R = np.array([[math.cos(q * math.pi / 2), -math.sin(q * math.pi / 2)],
+                      [math.sin(q * math.pi / 2), math.cos(q * math.pi / 2)]])
+        R = np.round(R)
+        mine = [(b, v, k, Lb) for b, v, k, Lb in _outer_edges(floor, m_new, width)
+                if np.allclose(R @ k, -n)]
+        if not mine:
+            continue
+        b, v, k, Lb = mine[int(ctx.rng.integers(len(mine)))]
+        s_host = m_host + width / 2 if L_host is None else \
+            ctx.u(m_host + width / 2, max(L - m_host - width / 2, m_host + width / 2))
+        s_new = ctx.u(m_new + width / 2, max(Lb - m_new - width / 2, m_new + width / 2))
+        P_host = a + u * s_host                        # door centre on the host's floor edge
+        P_new = b + v * s_new                          # and on the new room's, its frame
+        t = P_host + n * g - R @ P_new                 # new room frame -> host frame
+        T_host = planar_T(*host.pose)
+        T_new = T_host @ planar_T(float(t[0]), float(t[1]), q * math.pi / 2)
+        x, y = _mm(T_new[0, 3]), _mm(T_new[1, 3])
+        yaw = _deg(math.atan2(T_new[1, 0], T_new[0, 0]))
+        hull = convex_hull_xy(transform_polygon(planar_T(x, y, yaw), floor))
+        if any(polygons_overlap(hull, p.hull_world, g - (0.02 if i == hi else 0.0))
+               for i, p in enumerate(placed)):
+            continue
+        keep_host = _keep_out(P_host, u, -n, width)
+        keep_new = _keep_out(P_new, v, -k, width)
+        door = Pose(_mm(P_host[0] + n[0] * g / 2), _mm(P_host[1] + n[1] * g / 2), 0, 0, 0,
+                    _deg(math.atan2(n[1], n[0])))
+        return hi, (x, y, yaw), door, width, keep_host, keep_new, si
+    return None
+
+
+def _door_slots(ctx: _Ctx, floor: np.ndarray, n: int = 2):
+    """Up to ``n`` places on different outer sides of a floor where later rooms' doorways
+    may go, and their keep-outs (room frame): reserved before the furniture is placed."""
+    width = ctx.cfg.door_width[1]
+    edges = list(_outer_edges(floor, 0.4, width))
+    order = ctx.rng.permutation(len(edges))[:n] if edges else []
+    slots, keeps = [], []
+    for i in order:
+        a, u, nrm, L = edges[int(i)]
+        s_ = ctx.u(0.4 + width / 2, max(L - 0.4 - width / 2, 0.4 + width / 2))
+        P = a + u * s_
+        keeps.append(_keep_out(P, u, -nrm, width))
+        slots.append((P, u, nrm, L, keeps[-1]))
+    return slots, keeps
+
+
+def _first_pose(ctx: _Ctx) -> tuple[float, float, float]:
+    """The first room's world pose: the home turned by any angle with the configured
+    probability, else by a multiple of 90 degrees (the others are turned with it, by
+    multiples of 90 degrees: their sides face each other across the doorways)."""
+    turned = ctx.chance(ctx.cfg.turned_room_probability)
+    yaw = ctx.u(-math.pi, math.pi) if turned else ctx.pick([0.0, 0.5, 1.0, -0.5]) * math.pi
+    return (_mm(ctx.u(-3, 3)), _mm(ctx.u(-3, 3)), _deg(yaw))
+
+
+def _join(ctx: _Ctx, placed: list[_Placed], hi: int, new_id: str, door: Pose, width: float,
+          keep_host: np.ndarray, slot: Optional[int] = None) -> None:
+    """The doorway from placed room ``hi`` to the new room, written in the host room: its
+    passage spans the gap between the two floors and 5 cm into each."""
+    host = placed[hi]
+    host.room.doorways.append(Doorway(ctx.ids.exact(f"door_{host.room.id}_{new_id}"), door,
+                                      width, _mm(ctx.cfg.room_gap + 0.1), new_id))
+    if slot is not None:
+        # The slot's keep-out (as wide as the widest door) stays in the layout; the slot is
+        # taken.
+        host.slots.pop(slot)
+    elif host.layout is not None:
+        host.layout.doors.append(keep_host)
+
+
+def _corridor(ctx: _Ctx, placed: list[_Placed]) -> Optional[int]:
+    """A corridor (a bare room, long and narrow) joined to a placed room; its index in
+    ``placed``, or None when none fits."""
+    cfg = ctx.cfg
+    for _ in range(6):
+        w, L = _mm(ctx.u(*cfg.corridor_width)), _mm(ctx.u(*cfg.corridor_length))
+        floor = _floor_poly((0.0, 0.0, L, w), None)
+        hosts = [i for i, p in enumerate(placed) if p.layout is not None]
+        at = _attach(ctx, floor, placed, hosts, corridor=True)
+        if at is None:
+            continue
+        hi, pose, door, width, keep_host, _keep_new, slot = at
+        rid = ctx.ids.new("corridor")
+        room = Room(rid, ctx.ids.name(rid.replace("_", " ")),
+                    pose=Pose(pose[0], pose[1], 0, 0, 0, pose[2]),
+                    bounds=(0.0, 0.0, L, w))
+        _join(ctx, placed, hi, rid, door, width, keep_host, slot)
+        placed.append(_Placed(room, pose, floor, convex_hull_xy(
+            transform_polygon(planar_T(*pose), floor)), None))
+        return len(placed) - 1
+    return None
 
 
 def _build_and_place(ctx: _Ctx, build: Callable[[], Piece], layout: "_Layout", scratch,
@@ -287,18 +495,41 @@ def _build_and_place(ctx: _Ctx, build: Callable[[], Piece], layout: "_Layout", s
     return None
 
 
-def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed_rooms: list[np.ndarray]):
-    """A room of ``kind`` with its furniture: (Room, pieces, layout). A room whose required
-    furniture (the kitchen's appliance) does not fit is drawn again, larger."""
+def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed: list[_Placed], later: int = 1):
+    """A room of ``kind`` with its furniture, placed beside the rooms so far (directly, or
+    through a new corridor) and joined to one by a doorway: (Room, pieces, layout). A room
+    whose required furniture (the kitchen's appliance) does not fit is drawn again, larger.
+    ``later``: how many rooms are still to come (none: no doorway slots are kept; a home of
+    one room is a rectangle drawn exactly as in version 8, which the one-room homes of the
+    mapping tests and benchmarks are)."""
     (w0, w1), (d0, d1) = ROOM_KINDS[kind]
     ctx.room_name = kind
+    hosts = [i for i, p in enumerate(placed) if p.layout is not None]
+    corridors = sum(p.layout is None for p in placed)
+    if placed and corridors < 2 and ctx.chance(ctx.cfg.corridor_probability):
+        c = _corridor(ctx, placed)
+        if c is not None:
+            hosts = [c]
     grow = 1.0
-    for attempt in range(8):
+    for attempt in range(12):
         w, d = _mm(ctx.u(w0, w1) * grow), _mm(ctx.u(d0, d1) * grow)
         bx = _mm(ctx.pick([0.0, ctx.u(-2.0, 1.0)]))
         by = _mm(ctx.pick([0.0, ctx.u(-2.0, 1.0)]))
         bounds = (bx, by, _mm(bx + w), _mm(by + d))
-        layout = _Layout(ctx, bounds)
+        outline = _outline(ctx, bounds) if placed or later else None
+        floor = _floor_poly(bounds, outline)
+        missing = _notch(bounds, outline)
+        at = None
+        if placed:
+            at = _attach(ctx, floor, placed, hosts, corridor=False)
+            if at is None:
+                hosts = [i for i, p in enumerate(placed)]     # beside any room, then
+                grow *= 0.92
+                continue
+        slots, slot_keeps = _door_slots(ctx, floor, 3 if not placed else 2) if later \
+            else ([], [])
+        door_keeps = ([at[5]] if at is not None else []) + slot_keeps
+        layout = _Layout(ctx, bounds, floor, missing, door_keeps)
         pieces, ok = [], True
         knobs_before = ctx.knobs_left
         ids_before = set(ctx.ids.used), set(ctx.ids.names)
@@ -316,14 +547,29 @@ def _room(ctx: _Ctx, kind: str, rid: str, scratch, placed_rooms: list[np.ndarray
         grow *= 1.12
     else:  # pragma: no cover - the kitchen grows until its appliance fits
         raise HomeGenError(f"could not lay out the {kind}")
-    rpose = _place_room(ctx, bounds, placed_rooms)
-    placed_rooms.append(_room_polygon(bounds, rpose))
+    rpose = _first_pose(ctx) if at is None else at[1]
     sw = Switch(f"{rid}_light", ctx.pick(["rotational", "prismatic"]),
                 Pose(_mm(bounds[0] + 0.02), _mm(ctx.u(bounds[1] + 0.2, bounds[1] + 0.6)),
                      _mm(ctx.u(1.05, 1.3))), name=f"{kind} light")
-    room = Room(rid, kind, pose=Pose(rpose[0], rpose[1], 0, 0, 0, rpose[2]), bounds=bounds,
+    room = Room(rid, kind, pose=Pose(rpose[0], rpose[1], 0, 0, 0, rpose[2]),
+                bounds=None if outline is not None else bounds, outline=outline,
                 switches=[sw], objects=[p.obj for p in pieces])
+    if at is not None:
+        _join(ctx, placed, at[0], rid, at[2], at[3], at[4], at[6])
+    placed.append(_Placed(room, rpose, floor, convex_hull_xy(
+        transform_polygon(planar_T(*rpose), floor)), layout, slots, door_keeps))
     return room, pieces, layout
+
+
+def _release_slots(placed: list[_Placed]) -> None:
+    """Give the floor of doorway slots no room was joined to back to the furniture."""
+    for p in placed:
+        for slot in p.slots or ():
+            keep = slot[4]
+            p.layout.doors = [h for h in p.layout.doors if h is not keep]
+            p.door_keeps = [k for k in p.door_keeps if k is not keep]
+        if p.slots:
+            p.slots.clear()
 
 
 def _turn_front(ctx: _Ctx, piece: Piece) -> None:
@@ -388,14 +634,15 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
         n_rooms = ctx.i(*config.rooms)
         others = [k for k in ROOM_KINDS if k != "kitchen"]
         kinds = ["kitchen"] + [others[i] for i in rng.permutation(len(others))[:n_rooms - 1]]
-        rooms, pieces, layouts, placed = [], [], [], []
-        for kind in kinds:
+        pieces, placed = [], []
+        for i, kind in enumerate(kinds):
             rid = ctx.ids.exact(kind.replace(" ", "_"))
-            room, ps, layout = _room(ctx, kind, rid, scratch, placed)
-            rooms.append(room)
+            _room_node, ps, _layout = _room(ctx, kind, rid, scratch, placed, len(kinds) - 1 - i)
             pieces += ps
-            layouts.append(layout)
-        _ensure_table(ctx, rooms, pieces, layouts, scratch)
+        _release_slots(placed)
+        _ensure_table(ctx, placed, pieces, scratch)
+        rooms = [p.room for p in placed]            # corridors among them, in order made
+        pieces = _reachable(rooms, pieces, library, Path(tmp), _door_middle(placed[0]))
     small_objects(ctx, pieces)
     for pc in pieces:
         if ctx.chance(config.front_turn_probability):
@@ -411,17 +658,67 @@ def generate_home(seed: int, config: HomeConfig = HomeConfig(), mesh_dir=None):
     return world
 
 
-def _ensure_table(ctx: _Ctx, rooms, pieces, layouts, scratch) -> None:
+def _door_middle(p: _Placed) -> Optional[tuple[float, float]]:
+    """World x, y of the middle of the room's first doorway keep-out (None: it has none)."""
+    if not p.door_keeps:
+        return None
+    return tuple(transform_xy(planar_T(*p.pose), [np.mean(p.door_keeps[0], axis=0)])[0])
+
+
+def _reachable(rooms, pieces, library, base_dir, start=None) -> list[Piece]:
+    """Keep the parking positions the robot can drive to from ``start`` (world x, y: the
+    approach to the kitchen's first doorway), else from the first room's first free parking
+    position, on the occupancy grid of hearth/worldmodel/navigation.py; a piece left with
+    none is taken out of the home. Returns the pieces kept."""
+    from hearth.worldmodel.navigation import NoPath, nav_grid
+    from hearth.worldmodel.world import World
+    world = World(Apartment(id="scratch", rooms=rooms, library=library), base_dir=base_dir)
+    grid = nav_grid(world)
+    field = None
+    if start is not None:
+        try:
+            field = grid.distances_from(*start)
+        except NoPath:
+            pass
+    for pc in pieces if field is None else ():
+        for _p, pose in world.parking_positions(pc.obj.id):
+            try:
+                field = grid.distances_from(pose.x, pose.y)
+                break
+            except NoPath:
+                continue
+        if field is not None:
+            break
+    if field is None:       # pragma: no cover - a kitchen's appliance always has a free front
+        raise HomeGenError("no parking position of the home is free")
+    kept = []
+    for pc in pieces:
+        ok = {p.id for p, pose in world.parking_positions(pc.obj.id)
+              if math.isfinite(field.length_to(pose.x, pose.y))}
+        pc.obj.parking = [p for p in pc.obj.parking if p.id in ok]
+        pc.parking = [p for p in pc.parking if p.id in ok]
+        room = next(r for r in rooms if pc.obj in r.objects)
+        if not pc.obj.parking:
+            room.objects.remove(pc.obj)
+            continue
+        if pc.obj.default_parking not in ok:
+            pc.obj.default_parking = pc.obj.parking[0].id
+        kept.append(pc)
+    return kept
+
+
+def _ensure_table(ctx: _Ctx, placed: list[_Placed], pieces, scratch) -> None:
     """Every home gets a table (fetching from a table is the first mission anyone runs)."""
     if any(p.obj.type == "table" for p in pieces):
         return
-    order = sorted(range(len(rooms)), key=lambda i: -(rooms[i].bounds[2] - rooms[i].bounds[0])
-                   * (rooms[i].bounds[3] - rooms[i].bounds[1]))
+    rooms = [p for p in placed if p.layout is not None]
+    order = sorted(range(len(rooms)), key=lambda i: -(rooms[i].room.bounds[2] - rooms[i].room.bounds[0])
+                   * (rooms[i].room.bounds[3] - rooms[i].room.bounds[1]))
     for i in order:
-        ctx.room_name = rooms[i].name
-        piece = _build_and_place(ctx, lambda: table(ctx, "side"), layouts[i], scratch, 6)
+        ctx.room_name = rooms[i].room.name
+        piece = _build_and_place(ctx, lambda: table(ctx, "side"), rooms[i].layout, scratch, 6)
         if piece is not None:
-            rooms[i].objects.append(piece.obj)
+            rooms[i].room.objects.append(piece.obj)
             pieces.append(piece)
             return
 

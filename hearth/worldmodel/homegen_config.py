@@ -22,8 +22,13 @@ class HomeConfig:
     its parking positions; they match hearth/robot/sim.py ``HeadMount`` and the simulated
     robot's reach (a test checks they agree)."""
     rooms: tuple[int, int] = (2, 5)
-    turned_room_probability: float = 0.5        #: room yaw anywhere, else a multiple of 90 deg
-    room_gap: float = 0.3                       #: between rooms' bounds (walls are 0.1 thick)
+    turned_room_probability: float = 0.5        #: the home turned by any angle, else by a multiple of 90 deg
+    room_gap: float = 0.3                       #: between rooms' floors (walls are 0.1 thick)
+    l_shaped_probability: float = 0.35          #: a room (3.2 m or more each way) with a corner cut out
+    corridor_probability: float = 0.35          #: a room reached through a corridor, not a doorway of its own
+    corridor_width: tuple[float, float] = (1.3, 1.7)
+    corridor_length: tuple[float, float] = (2.5, 6.0)
+    door_width: tuple[float, float] = (0.85, 1.0)    #: doorways (the robot is 0.6 m across)
     table_height: tuple[float, float] = (0.4, 1.1)
     round_table_probability: float = 0.35
     mesh_probability: float = 0.35              #: furniture parts drawn as PLY meshes
@@ -61,13 +66,20 @@ class HomeConfig:
     def check(self) -> None:
         """HomeGenError naming the first setting out of range."""
         for name in ("rooms", "table_height", "drawers", "shelf_levels", "knobs_per_appliance",
-                     "knob_states", "small_objects", "parking_distance"):
+                     "knob_states", "small_objects", "parking_distance", "corridor_width",
+                     "corridor_length", "door_width"):
             lo, hi = getattr(self, name)
             if not lo <= hi:
                 raise HomeGenError(f"home config: {name} must be (min, max) with min <= max, "
                                    f"not {(lo, hi)}")
         if not 1 <= self.rooms[0] <= self.rooms[1] <= 6:
             raise HomeGenError(f"home config: rooms must be within 1..6, not {self.rooms}")
+        if self.door_width[0] < 2 * self.robot_radius + 0.2:
+            raise HomeGenError(f"home config: door_width must leave the robot (radius "
+                               f"{self.robot_radius} m) 0.1 m each side, not {self.door_width}")
+        if self.corridor_width[0] < self.door_width[1] + 0.3:
+            raise HomeGenError(f"home config: corridor_width must be at least the widest door "
+                               f"and 0.3 m, not {self.corridor_width}")
         if self.knob_states[0] < 2 or self.knob_states[1] > 12:
             raise HomeGenError(f"home config: knob_states must be within 2..12, not "
                                f"{self.knob_states}")

@@ -25,7 +25,7 @@ from lxml import etree
 from hearth.util.files import read_limited
 from hearth.worldmodel.errors import WorldError, WorldValidationError
 from hearth.worldmodel.nodes import (
-    Apartment, DefaultPosition, GraspPoint, Handle, HistoryEntry, Joint, Knob, KnobState,
+    Apartment, DefaultPosition, Doorway, GraspPoint, Handle, HistoryEntry, Joint, Knob, KnobState,
     LargeArticulatedObject, LargeObject, Model, ParkingPosition, Part, Room, SearchStat,
     SmallObject, Surface, Switch, Visual, Charger,
 )
@@ -302,9 +302,20 @@ class _Reader:
 
     def room(self, el) -> Room:
         b = el.get("bounds")
+        outline_el = el.find("outline")
+        if outline_el is not None and b is not None:
+            raise WorldError(f"room {el.get('id')!r}: give bounds or an outline, not both",
+                             file=self.name, line=el.sourceline)
+        outline = None if outline_el is None else [
+            (float(c.get("x")), float(c.get("y"))) for c in outline_el.findall("corner")]
         return Room(id=el.get("id"), name=el.get("name"), pose=_pose_of(el),
                     pointcloud=el.get("pointcloud"),
                     bounds=_floats(b, 4, el, self.name, "bounds") if b else None,
+                    outline=outline,
+                    doorways=[Doorway(d.get("id"), _pose_of(d), float(d.get("width")),
+                                      float(d.get("depth", 0.5)), d.get("to", ""),
+                                      line=d.sourceline)
+                              for d in el.findall("doorway")],
                     switches=[Switch(s.get("id"), s.get("type"), _pose_of(s), s.get("name", ""),
                                      _b(s.get("on"), False), line=s.sourceline)
                               for s in el.findall("switch")],
@@ -579,9 +590,19 @@ def to_xml(apartment: Apartment) -> bytes:
         re_ = etree.SubElement(root, "room", id=r.id, name=r.name)
         if r.pointcloud:
             re_.set("pointcloud", r.pointcloud)
-        if r.bounds is not None:
+        if r.bounds is not None and r.outline is None:
             re_.set("bounds", _vec(r.bounds))
         _set_pose(re_, r.pose)
+        if r.outline is not None:
+            oe = etree.SubElement(re_, "outline")
+            for x, y in r.outline:
+                etree.SubElement(oe, "corner", x=_num(x), y=_num(y))
+        for d in r.doorways:
+            de = etree.SubElement(re_, "doorway", id=d.id, width=_num(d.width),
+                                  depth=_num(d.depth))
+            if d.to:
+                de.set("to", d.to)
+            _set_pose(de, d.pose)
         for s in r.switches:
             se = etree.SubElement(re_, "switch", id=s.id, type=s.type, on="true" if s.on else "false")
             if s.name:

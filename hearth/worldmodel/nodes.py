@@ -326,7 +326,33 @@ class Charger:
 
 
 @dataclass
+class Doorway:
+    """An opening in a room's walls that the robot can drive through (RAMCIP's rooms joined
+    by doorways). ``pose`` (room frame, x, y and yaw used): the centre of the opening on the
+    floor, +x pointing through it out of the room. The passage is the rectangle ``depth``
+    long along +x (centred on the pose: it cuts this room's wall and any gap to the next
+    room's) and ``width`` wide; walls are open there. ``to``: the room it leads to ("" for
+    one that leads out of the home)."""
+    id: str
+    pose: Pose
+    width: float
+    depth: float = 0.5
+    to: str = ""
+    line: Optional[int] = _line()
+
+    kind = "Doorway"
+
+    @property
+    def words(self) -> list[str]:
+        return ["doorway", self.id]
+
+
+@dataclass
 class Room:
+    """A room. Its floor is ``outline`` (a simple polygon, room frame, counter-clockwise) when
+    given, else the rectangle ``bounds`` (xmin, ymin, xmax, ymax; the format-1 form). A room
+    with an outline has ``bounds`` set to the outline's bounding box (for whatever wants an
+    extent); the file carries only the outline."""
     id: str
     name: str
     pose: Pose = field(default_factory=Pose)
@@ -336,8 +362,17 @@ class Room:
     chargers: list[Charger] = field(default_factory=list)
     objects: list[Union[LargeObject, LargeArticulatedObject]] = field(default_factory=list)
     line: Optional[int] = _line()
+    outline: Optional[list[tuple[float, float]]] = None
+    doorways: list[Doorway] = field(default_factory=list)
 
     kind = "Room"
+
+    def __post_init__(self) -> None:
+        if self.outline is not None:
+            self.outline = [(float(x), float(y)) for x, y in self.outline]
+            if self.outline and self.bounds is None:
+                xs, ys = [p[0] for p in self.outline], [p[1] for p in self.outline]
+                self.bounds = (min(xs), min(ys), max(xs), max(ys))
 
     @property
     def words(self) -> list[str]:
@@ -380,5 +415,5 @@ class Apartment:
     kind = "Apartment"
 
 
-AnyNode = Union[Apartment, Room, Switch, Charger, LargeObject, LargeArticulatedObject, Part, Handle, Knob,
+AnyNode = Union[Apartment, Room, Doorway, Switch, Charger, LargeObject, LargeArticulatedObject, Part, Handle, Knob,
                 SmallObject]

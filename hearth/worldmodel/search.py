@@ -5,9 +5,11 @@
 for object x and place y (a large object that can hold small objects, seen from one of its
 parking positions):
 
-- ``c_bat(y)``: the path length in metres from the robot to the place's nearest parking
-  position (straight-line distance times a detour factor, plus a fixed cost per room change);
-  the robot's battery and time go with it.
+- ``c_bat(y)``: the path length in metres from the robot to the place's nearest reachable
+  parking position, on the map's occupancy grid (walls, doorways, furniture, the robot's
+  radius: hearth/worldmodel/navigation.py); the robot's battery and time go with it. A
+  parking position no path reaches is not offered. On a map without rooms (no grid) it is
+  the straight-line distance times a detour factor plus a fixed cost per room change.
 - ``c_prob(x, y)``: the probability of finding x at y, learned from past searches kept with the
   map (``searchStats``): a Beta posterior ``(found + s * p0) / (searched + s)`` whose prior
   ``p0`` comes from the map (the believed parent, the object's default positions, other
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from hearth.worldmodel.frames import room_at
+from hearth.worldmodel.navigation import NoPath, nav_grid
 from hearth.worldmodel.nodes import LargeObject, SmallObject
 from hearth.worldmodel.pose import Pose
 
@@ -33,8 +36,8 @@ from hearth.worldmodel.pose import Pose
 class SearchWeights:
     k1: float = 20.0          # metres per unit of probability (at least; see k1_per_home_m)
     k2: float = 1.5           # metres of penalty for the user's room
-    detour: float = 1.3       # path length / straight-line distance
-    room_change_m: float = 2.0
+    detour: float = 1.3       # path length / straight-line distance (maps without a grid)
+    room_change_m: float = 2.0    # (maps without a grid)
     #: k1 grows with the home: at least this many times the largest path between two places
     #: (a place across a large flat is worth crossing it for when it is much likelier).
     k1_per_home_m: float = 1.5
@@ -87,12 +90,49 @@ def effective_k1(world, w: SearchWeights) -> float:
     for place in candidate_places(world):
         pp = world.parking_positions(place.id)
         if pp:
-            poses.append((pp[0][1].x, pp[0][1].y))
-    longest = 0.0
-    for i, a in enumerate(poses):
-        for b in poses[i + 1:]:
-            longest = max(longest, math.hypot(a[0] - b[0], a[1] - b[1]) * w.detour)
+            poses.append((round(pp[0][1].x, 4), round(pp[0][1].y, 4)))
+    grid = nav_grid(world)
+    longest = _longest_path(grid, tuple(poses)) if grid is not None else None
+    if longest is None:
+        longest = 0.0
+        for i, a in enumerate(poses):
+            for b in poses[i + 1:]:
+                longest = max(longest, math.hypot(a[0] - b[0], a[1] - b[1]) * w.detour)
     return max(w.k1, w.k1_per_home_m * longest)
+
+
+def _longest_path(grid, poses: tuple) -> Optional[float]:
+    """The longest grid path (m) between two of ``poses`` that a path joins (kept on the
+    grid: one Dijkstra per pose); None when no two are joined."""
+    cache = grid.memo.setdefault("longest_path", {})
+    if poses in cache:
+        return cache[poses]
+    longest = None
+    for i, a in enumerate(poses[:-1]):
+        try:
+            field = grid.distances_from(*a)
+        except NoPath:
+            continue
+        for b in poses[i + 1:]:
+            d = field.length_to(*b)
+            if math.isfinite(d):
+                longest = d if longest is None else max(longest, d)
+    cache[poses] = longest
+    return longest
+
+
+def travel(world, robot_pose: Pose, weights: "SearchWeights" = None):
+    """A function (x, y) -> metres of path from the robot to a floor point (inf: no path),
+    and whether it is the grid's path length (True) or the straight-line estimate."""
+    w = weights or SearchWeights()
+    grid = nav_grid(world)
+    if grid is not None:
+        try:
+            field = grid.distances_from(robot_pose.x, robot_pose.y)
+            return field.length_to, True
+        except NoPath:
+            pass        # the robot is off the map's free floor: estimate as before
+    return (lambda x, y: math.hypot(x - robot_pose.x, y - robot_pose.y) * w.detour), False
 
 
 def candidate_places(world) -> list[LargeObject]:
@@ -136,19 +176,21 @@ def search_order(world, object_id: str, robot_pose: Pose, user_room: Optional[st
     here = room_at(world, robot_pose.x, robot_pose.y)
     robot_room = here.id if here is not None else None
     k1 = effective_k1(world, weights)
+    length_to, on_grid = travel(world, robot_pose, weights)
     out = []
     for place in candidate_places(world):
         if place.id in exclude:
             continue
         best = None
         for pk, pose in world.parking_positions(place.id):
-            d = math.hypot(pose.x - robot_pose.x, pose.y - robot_pose.y) * weights.detour
-            if best is None or d < best[2]:
+            d = length_to(pose.x, pose.y)
+            if math.isfinite(d) and (best is None or d < best[2]):
                 best = (pk, pose, d)
         if best is None:
             continue
         room = world.room_of(place.id).id
-        path = best[2] + (weights.room_change_m if robot_room and room != robot_room else 0.0)
+        path = best[2] + (weights.room_change_m if not on_grid and robot_room
+                          and room != robot_room else 0.0)
         if learned:
             prob = probability(world, object_id, place.id, weights, believed_parent)
         else:

@@ -1,4 +1,5 @@
-"""A top-down picture of the home: rooms, large objects, parking positions, small objects,
+"""A top-down picture of the home: rooms (their floor polygons) and the doorways between
+them, large objects, parking positions, small objects,
 and overlays (the robot's path, the parking positions visited, where objects were found).
 
 Drawn with OpenCV on a numpy image; ``save_png`` writes it.
@@ -12,7 +13,8 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-from hearth.worldmodel.frames import room_corners
+from hearth.worldmodel.frames import T_world_room, room_corners, transform_xy
+from hearth.worldmodel.outline import doorway_rect
 from hearth.worldmodel.geometry import object_meshes
 from hearth.worldmodel.nodes import LargeArticulatedObject
 
@@ -45,8 +47,18 @@ def draw(world, overlay: Optional[Overlay] = None, px_per_m: int = 90, margin_m:
 
     for r, cs in zip(rooms, corners):
         poly = np.array([px(*c) for c in cs], np.int32)
-        cv2.fillPoly(img, [poly], (235, 232, 225))
+        cv2.fillPoly(img, [poly], FLOOR)
         cv2.polylines(img, [poly], True, (60, 60, 60), 3, cv2.LINE_AA)
+    # Doorways: the passage in floor colour across the walls, its jambs drawn.
+    for r in rooms:
+        T = T_world_room(r)
+        for d in r.doorways:
+            rect = transform_xy(T, doorway_rect(d))
+            q = np.array([px(*c) for c in rect], np.int32)
+            cv2.fillPoly(img, [q], FLOOR)
+            for a, b in ((0, 1), (2, 3)):          # the sides along the passage
+                cv2.line(img, tuple(int(v) for v in q[a]), tuple(int(v) for v in q[b]),
+                         DOORWAY, 2, cv2.LINE_AA)
     for obj in world.large_objects():
         pts = []
         for lm in object_meshes(world, obj, children=False):
@@ -90,6 +102,8 @@ def draw(world, overlay: Optional[Overlay] = None, px_per_m: int = 90, margin_m:
 
 
 PARKING = (170, 170, 170)
+FLOOR = (235, 232, 225)
+DOORWAY = (150, 90, 40)
 VISITED = (230, 120, 20)
 PATH = (30, 110, 230)
 FOUND = (20, 170, 40)
@@ -101,7 +115,7 @@ def room_corners_inset(room, inset: float) -> tuple[float, float]:
     cs = room_corners(room)
     i = int(np.argmin(cs[:, 0] - 1e-3 * cs[:, 1]))
     c = cs[i]
-    a, b = cs[(i + 1) % 4] - c, cs[(i - 1) % 4] - c
+    a, b = cs[(i + 1) % len(cs)] - c, cs[(i - 1) % len(cs)] - c
     p = c + inset * a / np.linalg.norm(a) + inset * b / np.linalg.norm(b)
     # Text sits above its origin: start from the lower of the two ways into the room.
     return float(p[0]), float(p[1])
@@ -133,13 +147,16 @@ def _overlap(a, b) -> bool:
 
 def _legend(img: np.ndarray, y: int, with_overlay: bool) -> None:
     x = 10
-    items = [("parking position", PARKING, "arrow")]
+    items = [("parking position", PARKING, "arrow"), ("doorway", DOORWAY, "jambs")]
     if with_overlay:
         items += [("pose driven to", VISITED, "arrow"), ("robot path", PATH, "line"),
                   ("object found", FOUND, "circle")]
     for text, color, mark in items:
         if mark == "arrow":
             cv2.arrowedLine(img, (x, y + 6), (x + 22, y + 6), color, 2, cv2.LINE_AA, tipLength=0.4)
+        elif mark == "jambs":
+            cv2.line(img, (x + 4, y), (x + 4, y + 12), color, 2, cv2.LINE_AA)
+            cv2.line(img, (x + 18, y), (x + 18, y + 12), color, 2, cv2.LINE_AA)
         elif mark == "line":
             cv2.line(img, (x, y + 6), (x + 22, y + 6), color, 2, cv2.LINE_AA)
         else:

@@ -15,6 +15,8 @@ from typing import Iterator, Optional
 
 from hearth.util.files import file_inside
 from hearth.worldmodel.errors import WorldError
+from hearth.worldmodel.outline import (outline_contains, outline_distance, outline_problem,
+                                       room_outline)
 from hearth.worldmodel.nodes import (
     HANDLE_KINDS, KNOB_TURNS, Apartment, Knob, LargeArticulatedObject, Model, Part, Visual,
 )
@@ -53,6 +55,8 @@ def iter_nodes(apartment: Apartment) -> Iterator[tuple[object, Optional[object]]
             yield s, room
         for c in room.chargers:
             yield c, room
+        for d in room.doorways:
+            yield d, room
         for o in room.objects:
             yield o, room
             if isinstance(o, LargeArticulatedObject):
@@ -211,6 +215,14 @@ def _node_value_problems(node) -> Iterator[str]:
     if kind == "Room" and node.bounds is not None:
         for i, v in enumerate(node.bounds):
             yield from _coord(f"bounds[{i}]", v, nid)
+    if kind == "Room" and node.outline is not None:
+        for i, (x, y) in enumerate(node.outline):
+            yield from _coord(f"outline corner {i} x", x, nid)
+            yield from _coord(f"outline corner {i} y", y, nid)
+    elif kind == "Doorway":
+        yield from _positive("width", node.width, nid)
+        yield from _positive("depth", node.depth, nid)
+        yield from _text("to", node.to, nid)
     elif kind == "Charger":
         yield from _pose("dock pose", node.dock, nid)
     elif kind in ("LargeObject", "LargeArticulatedObject"):
@@ -493,6 +505,7 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
     for mid in apartment.library:
         if mid in seen:
             bad(f"library model id {mid!r} is also a node id", apartment)
+    room_ids = {r.id for r in apartment.rooms}
 
     # What the schema cannot say about the learned search statistics: a count of finds
     # within the count of searches, a place that is in this map, one entry per pair.
@@ -618,12 +631,27 @@ def semantic_problems(apartment: Apartment, name: Optional[str],
             c, s_ = math.cos(node.pose.yaw), math.sin(node.pose.yaw)
             dx = node.pose.x + c * node.dock.x - s_ * node.dock.y
             dy = node.pose.y + s_ * node.dock.x + c * node.dock.y
-            x0, y0, x1, y1 = parent.bounds
-            if not (x0 <= dx <= x1 and y0 <= dy <= y1):
+            if not outline_contains(room_outline(parent), dx, dy, 1e-9):
                 bad(f"charger {node.id!r}: its dock pose ({dx:.2f}, {dy:.2f}) is "
                     f"outside room {parent.id!r}", node)
+        elif kind == "Doorway":
+            if node.to and (node.to not in room_ids or node.to == parent.id):
+                bad(f"doorway {node.id!r}: to names {node.to!r}, which is not another room",
+                    node)
+            if parent.bounds is not None:
+                # The opening is in a wall: the passage's centre line crosses the outline.
+                d = outline_distance(room_outline(parent), node.pose.x, node.pose.y)
+                if d > node.depth / 2 + 1e-6:
+                    bad(f"doorway {node.id!r}: its centre ({node.pose.x:.2f}, "
+                        f"{node.pose.y:.2f}) is {d:.2f} m from the walls of room "
+                        f"{parent.id!r}, more than half its depth ({node.depth / 2:.2f} m)",
+                        node)
         elif kind == "Room":
-            if node.bounds is not None:
+            if node.outline is not None:
+                why = outline_problem(node.outline)
+                if why:
+                    bad(f"room {node.id!r}: outline {why}", node)
+            elif node.bounds is not None:
                 x0, y0, x1, y1 = node.bounds
                 if x0 >= x1 or y0 >= y1:
                     bad(f"room {node.id!r}: bounds must be xmin ymin xmax ymax", node)

@@ -16,18 +16,25 @@ from hearth.skills.map import ClosedParts, Uncovered, UpdateObjectLocation
 from hearth.worldmodel.io import parse_world, to_xml
 from hearth.worldmodel.pose import Pose
 
-#: home:2 (generator version 9) has a pill box in the top drawer of a chest of drawers and a
-#: jar on a shelf of a wardrobe with two sliding doors on one track.
-HOME = "home:2"
+#: Generated homes (generator version 11): home:11 has a remote in the top drawer of a chest
+#: of drawers, home:10 a mug on a shelf of a wardrobe with two sliding doors on one track.
+#: (home:11 has such a wardrobe too, but from its one parking position the far half's pull is
+#: 1.70 m from the base, beyond the arm's 1.60 m: the search says that half did not open.)
+DRAWER_HOME, SLIDING_HOME = "home:11", "home:10"
 
 
 @pytest.fixture
-def home():
-    world = resolve_world(HOME)
-    drawer_obj = next(o for o in world.small_objects() if o.part)
+def drawer_home():
+    world = resolve_world(DRAWER_HOME)
+    return world, next(o for o in world.small_objects() if o.part)
+
+
+@pytest.fixture
+def sliding_home():
+    world = resolve_world(SLIDING_HOME)
     wardrobe = next(o for o in world.large_objects() if any(p.track for p in getattr(o, "parts", ())))
     inside = next(c for c in wardrobe.children if c.relation == "in")
-    return world, drawer_obj, wardrobe, inside
+    return world, wardrobe, inside
 
 
 def _fetch(belief, truth, words):
@@ -44,8 +51,8 @@ def _fetch(belief, truth, words):
     return h.result, robot, said, done
 
 
-def test_a_drawer_holds_an_object_that_moves_with_it_and_the_file_keeps_it(home):
-    world, obj, _, _ = home
+def test_a_drawer_holds_an_object_that_moves_with_it_and_the_file_keeps_it(drawer_home):
+    world, obj = drawer_home
     drawer = world.get(obj.part)
     assert drawer.surfaces and drawer.joint.type == "prismatic"
     before = world.T_world(obj.id)[:3, 3].copy()
@@ -60,8 +67,8 @@ def test_a_drawer_holds_an_object_that_moves_with_it_and_the_file_keeps_it(home)
     assert levels and levels[0].relation == "in"
 
 
-def test_an_object_seen_in_an_open_drawer_is_written_in_the_drawer(home, clean_blackboard):
-    world, obj, _, _ = home
+def test_an_object_seen_in_an_open_drawer_is_written_in_the_drawer(drawer_home, clean_blackboard):
+    world, obj = drawer_home
     drawer = world.get(obj.part)
     world.set_joint_state(drawer.id, 0.8 * drawer.joint.upper)
     seen = world.world_pose(obj.id)
@@ -81,8 +88,9 @@ def test_an_object_seen_in_an_open_drawer_is_written_in_the_drawer(home, clean_b
         world.T_world(obj.id)[1, 3] != pytest.approx(seen.y, abs=0.05)
 
 
-def test_the_search_opens_the_sliding_half_in_front_of_the_object_first(home, clean_blackboard):
-    world, _, wardrobe, inside = home
+def test_the_search_opens_the_sliding_half_in_front_of_the_object_first(sliding_home,
+                                                                        clean_blackboard):
+    world, wardrobe, inside = sliding_home
     from hearth.worldmodel.containers import covering_door
     skill = ClosedParts(bindings=Bindings({"place": Literal(wardrobe.id),
                                            "object_id": Literal(inside.id)},
@@ -96,12 +104,12 @@ def test_the_search_opens_the_sliding_half_in_front_of_the_object_first(home, cl
 
 
 def test_an_object_seen_behind_the_half_slid_over_it_is_not_taken_for_within_reach(
-        home, clean_blackboard):
+        sliding_home, clean_blackboard):
     """Looking in at an angle through the half slid open, the camera can see an object
     behind the other half (home:100, teal bottle, seed 101: then "could not pick it up"):
     Uncovered fails while a sliding door stands in front of it, so the search slides the
     halves and looks again."""
-    world, _, wardrobe, inside = home
+    world, wardrobe, inside = sliding_home
     from hearth.worldmodel.containers import covering_door, sliding_open_state
 
     def uncovered():
@@ -121,8 +129,8 @@ def test_an_object_seen_behind_the_half_slid_over_it_is_not_taken_for_within_rea
     assert uncovered() == (py_trees.common.Status.SUCCESS, f"no sliding door in front of {inside.id}")
 
 
-def test_an_object_in_a_drawer_is_fetched(home):
-    world, obj, _, _ = home
+def test_an_object_in_a_drawer_is_fetched(drawer_home):
+    world, obj = drawer_home
     drawer = world.get(obj.part).name
     result, robot, said, _ = _fetch(world, world.copy(), obj.id)
     assert result.outcome == "succeeded", result.reason
@@ -130,11 +138,11 @@ def test_an_object_in_a_drawer_is_fetched(home):
     assert said[-1].startswith(f"the {world.label(obj.id)} was in {drawer} of ")
 
 
-def test_a_bypass_wardrobe_is_searched_behind_one_half_then_the_other(home):
+def test_a_bypass_wardrobe_is_searched_behind_one_half_then_the_other(sliding_home):
     """The map believes the jar behind the right half; it stands behind the left one: the
     search opens the half in front of where it is believed, then closes it, opens the other
     and finds it there."""
-    world, _, wardrobe, jar = home
+    world, wardrobe, jar = sliding_home
     truth = world.copy()
     p = jar.pose
     truth.move_object(jar.id, wardrobe.id, Pose(p.x, -p.y, p.z, 0, 0, p.yaw), relation="in")

@@ -39,7 +39,15 @@ def test_navigation_takes_path_length_over_speed_and_can_be_cancelled(sim):
     start = r.base_pose()
     act = r.navigate_to(goal)
     assert act.status() == "running" and act.progress == 0.0
-    expected = start.planar_distance(goal) / r.speed + abs(goal.yaw_difference(start)) / r.turn_speed
+    drive = r.log[-1]
+    # The path goes round the furniture: longer than the straight line, and the time is
+    # its length over the speed plus the turning (to the goal's heading and at corners).
+    assert drive["path_m"] > drive["straight_m"] + 0.05
+    assert drive["straight_m"] == pytest.approx(r.true_pose().planar_distance(
+        Pose.from_matrix(goal.matrix() @ np.linalg.inv(r.localisation_error().matrix()))), abs=1e-3)
+    expected = act.duration
+    assert expected >= drive["path_m"] / r.speed + abs(goal.yaw_difference(start)) / r.turn_speed - 1e-6
+    assert expected < drive["path_m"] / r.speed + (abs(goal.yaw_difference(start)) + 2 * math.pi) / r.turn_speed
     clock.advance(expected / 2)
     assert act.status() == "running" and act.progress == pytest.approx(0.5, abs=0.01)
     act.cancel()

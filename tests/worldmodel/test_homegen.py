@@ -16,6 +16,7 @@ from hearth.worldmodel.geometry import object_meshes
 from hearth.worldmodel.homegen import HomeConfig, HomeGenError, generate_home, make_home
 from hearth.worldmodel.homegen_palette import CLOSE_HUES
 from hearth.worldmodel.nodes import LargeArticulatedObject
+from hearth.worldmodel.outline import room_outline
 
 SEEDS = range(50)
 APPLIANCES = ("oven", "cooker", "hob")
@@ -30,6 +31,21 @@ def homes(tmp_path_factory):
 @pytest.fixture(scope="module")
 def worlds(homes):
     return {s: load_world(p) for s, p in homes.items()}
+
+
+def _on_floor(points: np.ndarray, poly: np.ndarray, margin: float) -> np.ndarray:
+    """For (M, 2) points in a room's frame: inside its floor polygon (even-odd) or within
+    ``margin`` of its sides."""
+    a, b = poly, np.roll(poly, -1, axis=0)
+    P = points[:, None, :]
+    d = b - a
+    t = np.clip(np.einsum("mkj,kj->mk", P - a, d) / np.maximum((d * d).sum(1), 1e-12), 0, 1)
+    dist = np.linalg.norm(P - (a + t[..., None] * d), axis=2).min(1)
+    y = points[:, 1:2]
+    cross = (a[:, 1] > y) != (b[:, 1] > y)
+    xc = a[:, 0] + (y - a[:, 1]) * d[:, 0] / np.where(d[:, 1] == 0, 1e-12, d[:, 1])
+    inside = (cross & (points[:, 0:1] < xc)).sum(1) % 2 == 1
+    return inside | (dist <= margin)
 
 
 def _all(worlds, kind):
@@ -86,7 +102,9 @@ def test_a_home_in_memory_equals_the_written_one(homes, worlds, tmp_path):
 
 def test_every_home_has_two_to_five_rooms_with_bounds_and_a_kitchen_with_knobs(worlds):
     for s, w in worlds.items():
-        assert 2 <= len(w.rooms) <= 5, s
+        corridors = [r for r in w.rooms if r.id.startswith("corridor")]
+        assert 2 <= len(w.rooms) - len(corridors) <= 5, s      # furnished rooms
+        assert len(corridors) <= 2 and all(not r.objects for r in corridors), s
         assert all(r.bounds is not None for r in w.rooms), s
         kitchen = [r for r in w.rooms if r.name == "kitchen"]
         assert kitchen, s
@@ -102,23 +120,23 @@ def test_rooms_are_turned_and_offset_and_never_overlap(worlds):
         turned += any(abs(math.remainder(r.pose.yaw, math.pi / 2)) > 0.01 for r in w.rooms)
         offset += any(r.bounds[0] != 0 or r.bounds[1] != 0 for r in w.rooms)
         # Every world point on a 10 cm grid over the home is in at most one room (walls
-        # included: bounds grown by 10 cm).
+        # included: floors grown by 10 cm; an L-shaped room's floor is its outline, and
+        # another room may stand in the corner it lacks).
         corners = np.vstack([room_corners(r) for r in w.rooms])
         lo, hi = corners.min(0), corners.max(0)
         gx, gy = np.meshgrid(np.arange(lo[0], hi[0], 0.1), np.arange(lo[1], hi[1], 0.1))
         grid = np.c_[gx.ravel(), gy.ravel()]
         inside = np.zeros(len(grid), int)
         for r in w.rooms:
-            q = to_room(r, grid)
-            x0, y0, x1, y1 = r.bounds
-            inside += ((q[:, 0] >= x0 - 0.1) & (q[:, 0] <= x1 + 0.1)
-                       & (q[:, 1] >= y0 - 0.1) & (q[:, 1] <= y1 + 0.1))
+            inside += _on_floor(to_room(r, grid), np.array(room_outline(r)), 0.1)
         assert inside.max() <= 1, f"home {s}: rooms overlap at {grid[inside.argmax()]}"
         # the same test, point by point, where it is cheap: the room corners
         for r in w.rooms:
             for c in room_corners(r):
                 assert sum(room_contains(o, *c, margin=0.1) for o in w.rooms) == 1
-    assert turned >= 25 and offset >= 25
+    # A home is turned as a whole (its rooms face each other across their doorways) with
+    # probability 0.5: about 25 of 50, 18 is two standard deviations below.
+    assert turned >= 18 and offset >= 25
 
 
 # -- parking positions -------------------------------------------------------------------------
@@ -429,7 +447,9 @@ def test_small_objects_on_low_shelves_under_tables_and_inside_closed_cupboards(w
                 p = w.T_world(c.id)[:2, 3] * 1000
                 assert cv2.pointPolygonTest(hull, (float(p[0]), float(p[1])), False) > 0
                 closed += 1
-    assert low >= 15 and under >= 10 and closed >= 25
+    # "sometimes under a table": 9 of 50 homes in version 10, whose doorways' approaches
+    # leave fewer tables (599 large objects against version 8's 724)
+    assert low >= 15 and under >= 6 and closed >= 25
 
 
 # -- configuration and command line ------------------------------------------------------------
