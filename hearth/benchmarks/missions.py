@@ -127,14 +127,16 @@ def run(args) -> dict:
 
 def learned_cases(cases, seed: int, sets: dict, progress=None) -> list:
     """The fetch cases again, each with its world's model set (learned once per world and
-    cached: hearth.benchmarks.learning.model_set_for); ``sets`` gets world -> directory."""
+    cached: hearth.benchmarks.learning.model_set_for); ``sets`` gets world -> directory. Only
+    the cases with the learned search order (those ``success_rate`` counts): the fixed order's
+    twins would say nothing more of the models."""
     from dataclasses import replace
 
     from hearth.benchmarks.learning import model_set_for
     from hearth.executive.scenarios import FETCH
     out = []
     for c in cases:
-        if c.mission not in FETCH:
+        if c.mission not in FETCH or not c.learned:
             continue
         if c.world not in sets:
             sets[c.world] = str(model_set_for(c.world, seed, progress=progress))
@@ -158,8 +160,7 @@ def learned_figures(results: list[dict], sets: dict) -> dict:
     out = {}
     for m in sorted({r["mission"] for r in learned}):
         keep = ("cases", "success_rate", "unachievable_correct_rate", "wrong_success",
-                "failure_reasons", "success_rate_fixed_order", "success_rate_by_object_type",
-                "positions_visited_mean_learned")
+                "failure_reasons", "success_rate_by_object_type", "positions_visited_mean_learned")
         out[m] = {k: a[m][k] for k in keep if k in a[m]}
         sa, sb = a[m].get("success_rate"), b.get(m, {}).get("success_rate")
         out[m]["drawn_success_rate"] = sb

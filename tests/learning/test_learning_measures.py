@@ -108,3 +108,35 @@ def test_a_case_with_drawn_models_keeps_its_key_and_one_with_learned_models_diff
     assert case_key(c) == hashlib.sha256(json.dumps(old, sort_keys=True, default=str)
                                          .encode()).hexdigest()[:16]
     assert case_key(replace(c, models="/tmp/set")) != case_key(c)
+
+
+def test_the_missions_bench_runs_fetch_cases_again_with_learned_models_and_compares(tmp_path,
+                                                                                    monkeypatch):
+    """--learned-models: each fetch case with the learned search order once more with the
+    world's model set; the success with them over the success with the drawn ones."""
+    from dataclasses import asdict
+    import hearth.benchmarks.learning as learning
+    from hearth.benchmarks.missions import learned_cases, learned_figures
+    from hearth.executive.scenarios import Case
+    from hearth.worldmodel.learned import write_model_set
+    write_model_set(tmp_path, {}, {"jar": "fewer than two views see it"})
+    monkeypatch.setattr(learning, "model_set_for", lambda spec, seed=0, progress=None: tmp_path)
+    cases = [Case("fetch_object", s, learned=o, world="home:7", target=t)
+             for s, t in ((0, "cup"), (1, "jar")) for o in (True, False)]
+    cases.append(Case("turn_off_oven", 0, world="home:7", target="oven"))
+    sets: dict = {}
+    again = learned_cases(cases, 0, sets)
+    assert [(c.target, c.learned, c.models) for c in again] == [("cup", True, str(tmp_path)),
+                                                                ("jar", True, str(tmp_path))]
+
+    def result(c, ok):
+        return dict(asdict(c), outcome="succeeded" if ok else "failed", correct=ok,
+                    reason="" if ok else "no jar at the 2 places searched", sim_time_s=1.0,
+                    wall_time_s=1.0, positions_visited=1, target_type=c.target)
+    results = [result(c, True) for c in cases if c.mission == "fetch_object"]
+    results += [result(again[0], True), result(again[1], False)]
+    got = learned_figures(results, sets)
+    assert got["fetch_object"]["success_rate"] == 0.5
+    assert got["fetch_object"]["drawn_success_rate"] == 1.0
+    assert got["fetch_object"]["success_ratio"] == 0.5
+    assert got["model_sets"]["home:7"]["not_learned"] == {"jar": "fewer than two views see it"}
