@@ -21,6 +21,13 @@ for the generated homes alone (``generated``) and the demo home alone (``demo``)
 ``per_world`` success rates, and the ``slowest`` cases. Wall times are inflated when other
 work shares the CPU.
 
+``--learned-models`` (issue 42): each fetch case with the learned search order runs once more
+with the belief's small objects given the models learned from views
+(hearth.benchmarks.learning.model_set_for, cached per world; the truth the simulator renders
+keeps the drawn ones). The figures above are the drawn models'; ``learned_models`` per fetch
+mission has the same figures with the learned models, ``drawn_success_rate`` on the same
+cases and ``success_ratio`` (target >= 0.95), and ``model_sets``.
+
 ``--verbose`` (or ``HEARTH_BENCH_VERBOSE=1``) prints one line per case on stderr as it
 finishes; ``--missions`` picks missions; ``--warmup`` sets the warm-up searches.
 

@@ -40,6 +40,15 @@ this process's CPU time. ``per_kind_f1``: by surface kind (``top`` open above, `
 open furniture, ``inside`` closed furniture); ``per_type_f1`` by object type;
 ``per_object_f1`` (by object id) in each ``per_world`` entry. Reference (RAMCIP / HOBBIT,
 2016 laptop): F1 37-100 % per object at 3-8 s per object, given as ratios (ours / theirs).
+
+``--learned-models`` (issue 42): every small object of each world is first learned from
+views (hearth.benchmarks.learning.model_set_for: learned where it stands on a surface open
+above, or moved to a cleared one; cached per world), and every scene is detected a second
+time with a belief whose small objects have the learned models in place of the drawn ones
+(the same rendered view, the same truth). ``learned_models``: the detection figures with
+them, ``f1_ratio`` (learned F1 / drawn F1; target >= 0.95) and ``new_same_type_swaps``;
+``learned_model_sets``: per world, the set's directory, the objects learned and those that
+could not be. The look-alike scenes are run with the drawn models only.
 """
 from __future__ import annotations
 
