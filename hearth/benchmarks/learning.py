@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -326,12 +327,11 @@ def learn_model_set(spec: str, seed: int, directory, progress=None) -> dict:
     return read_model_set(directory)
 
 
-def model_set_dir(spec: str, seed: int = 0) -> "Path":
+def model_set_dir(spec: str, seed: int = 0) -> Path:
     """Where the model set of world ``spec`` is cached (``$HEARTH_HOME_DIR``'s sibling
     ``learned/``), keyed by the world file's and the learning code's contents."""
     import hashlib
     import inspect
-    from pathlib import Path
 
     from hearth.executive.scenarios import home_cache_dir, world_path
     from hearth.perception import object_learning, registration
@@ -344,7 +344,7 @@ def model_set_dir(spec: str, seed: int = 0) -> "Path":
     return home_cache_dir().parent / "learned" / f"{name}-{h.hexdigest()[:12]}"
 
 
-def model_set_for(spec: str, seed: int = 0, progress=None) -> "Path":
+def model_set_for(spec: str, seed: int = 0, progress=None) -> Path:
     """The model set of world ``spec`` (learned on first use, then cached)."""
     from hearth.worldmodel.learned import MODEL_SET_FILE
     d = model_set_dir(spec, seed)
