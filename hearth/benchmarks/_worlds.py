@@ -34,6 +34,8 @@ Picking from the map::
     opened(world, object_id)        # the furniture's doors and drawers open (in place)
     extent(world, object_id)        # (radius, height) of a small object's model
     spots = visible_spots(world, place, T_world_camera, K, heights)  # surface xy seen
+    fitting_objects(world, place)   # small objects of the map that fit on it
+    depth, color, rendering = observe(truth, T_world_camera, rng, K)  # Kinect-class noise
 
 A :class:`Place` is one surface small objects stand on (a table top, a shelf, the inside of a
 cupboard) with its free height (``headroom``, ray-cast up through the furniture) and one
@@ -388,3 +390,35 @@ def summary_stats(xs, nd: int = 1, q: Optional[float] = None):
         return None
     v = float(np.median(vals)) if q is None else float(np.percentile(vals, q))
     return round(v, nd)
+
+
+# -- scenes: what fits where, and what the camera sees (hearth.benchmarks.objects and others) --
+
+def fitting_objects(world, place) -> list[str]:
+    """Small objects of the map that fit on ``place``: their radius and height within its
+    extent and free height."""
+    out = []
+    for o in world.small_objects():
+        r, h = extent(world, o.id)
+        if 2 * r + 0.02 <= min(place.size) and h + 0.015 <= place.headroom:
+            out.append(o.id)
+    return out
+
+
+def observe(truth, T_world_camera, rng, K=None, scene=None, room=None):
+    """(depth m, colour uint8, noise-free Rendering) of the truth from ``T_world_camera``
+    (``robot.sim.render_view``: Kinect-class noise on depth and colour); ``room``: render
+    that room only (default: the room the camera stands in, else every room)."""
+    from hearth.perception.camera import Intrinsics
+    from hearth.perception.render import Scene
+    from hearth.robot.sim import render_view
+    from hearth.worldmodel.frames import room_at
+    from hearth.worldmodel.geometry import scene_meshes
+    K = K or Intrinsics.kinect()
+    if scene is None:
+        if room is None:
+            r = room_at(truth, float(T_world_camera[0, 3]), float(T_world_camera[1, 3]))
+            room = r.id if r is not None else None
+        scene = Scene(scene_meshes(truth, room_ids=None if room is None else [room]))
+    f = render_view(truth, K, T_world_camera, rng, scene=scene)
+    return np.asarray(f.depth, np.float64), f.color, f.rendering

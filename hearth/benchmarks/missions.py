@@ -31,6 +31,13 @@ straight line), ``path_m_median``, ``straight_m_median``, ``drives``, and the go
 no path to, ``refused_drives`` with ``refused_reasons`` counted by kind. Wall times are inflated when other
 work shares the CPU.
 
+``--learned-models`` (issue 42): each fetch case with the learned search order runs once more
+with the belief's small objects given the models learned from views
+(hearth.benchmarks.learning.model_set_for, cached per world; the truth the simulator renders
+keeps the drawn ones). The figures above are the drawn models'; ``learned_models`` per fetch
+mission has the same figures with the learned models, ``drawn_success_rate`` on the same
+cases and ``success_ratio`` (target >= 0.95), and ``model_sets``.
+
 ``--verbose`` (or ``HEARTH_BENCH_VERBOSE=1``) prints one line per case on stderr as it
 finishes; ``--missions`` picks missions; ``--warmup`` sets the warm-up searches.
 
@@ -68,6 +75,10 @@ def add_arguments(parser) -> None:
                         help="a world file to run on instead of generated homes (repeatable)")
     parser.add_argument("--no-demo", action="store_true", help="leave the demo home out")
     parser.add_argument("--verbose", action="store_true", help="per-case lines on stderr")
+    parser.add_argument("--learned-models", action="store_true",
+                        help="run every fetch case again with the belief's small objects "
+                             "learned from views (hearth bench learning's pipeline) in place "
+                             "of their drawn models: figures under learned_models")
     from hearth.robot.mujoco_render import add_renderer_argument
     add_renderer_argument(parser)       # the simulated robot's frames ($HEARTH_SIM_RENDERER)
     from hearth.executive.suite import add_engine_arguments
@@ -96,6 +107,12 @@ def run(args) -> dict:
     orders = ("learned", "fixed") if order == "both" else (order,)
     cases = suite_cases(n, seed=args.seed, missions=missions,
                         warmup=getattr(args, "warmup", 20), worlds=worlds, orders=orders)
+    learned_sets = {}
+    if getattr(args, "learned_models", False):
+        cases = cases + learned_cases(cases, args.seed, learned_sets,
+                                      None if getattr(args, "no_progress", False) else
+                                      (lambda s: print(f"[missions] learning {s}", file=sys.stderr,
+                                                       flush=True)))
     verbose = getattr(args, "verbose", False) or bool(os.environ.get("HEARTH_BENCH_VERBOSE"))
     engines = getattr(args, "engine", None) or ["local"]
     engines = [engines] if isinstance(engines, str) else list(engines)
@@ -124,7 +141,58 @@ def run(args) -> dict:
                      if suite_worker.comparable(x) != suite_worker.comparable(y)]
         out["same_results"] = not differing
         out["differing"] = differing
-    out.update(summarise(results))
+    drawn = [r for r in results if not r.get("models")]
+    out.update(summarise(drawn))
+    if learned_sets:
+        out["learned_models"] = learned_figures(results, learned_sets)
+    return out
+
+
+def learned_cases(cases, seed: int, sets: dict, progress=None) -> list:
+    """The fetch cases again, each with its world's model set (learned once per world and
+    cached: hearth.benchmarks.learning.model_set_for); ``sets`` gets world -> directory. Only
+    the cases with the learned search order (those ``success_rate`` counts): the fixed order's
+    twins would say nothing more of the models."""
+    from dataclasses import replace
+
+    from hearth.benchmarks.learning import model_set_for
+    from hearth.executive.scenarios import FETCH
+    out = []
+    for c in cases:
+        if c.mission not in FETCH or not c.learned:
+            continue
+        if c.world not in sets:
+            sets[c.world] = str(model_set_for(c.world, seed, progress=progress))
+        out.append(replace(c, models=sets[c.world]))
+    return out
+
+
+def learned_figures(results: list[dict], sets: dict) -> dict:
+    """Per fetch mission, the summary of the cases run with learned models, and
+    ``success_ratio``: their success rate over the drawn models' on the same cases (issue
+    42 asks >= 0.95); ``model_sets``: per world, its directory, the objects learned and
+    those that could not be (and why)."""
+    from hearth.executive.scenarios import summarise
+    from hearth.worldmodel.learned import read_model_set
+    learned = [r for r in results if r.get("models")]
+    drawn_keys = {(r["world"], r["mission"], r["seed"], r["target"], r["learned"])
+                  for r in learned}
+    drawn = [r for r in results if not r.get("models")
+             and (r["world"], r["mission"], r["seed"], r["target"], r["learned"]) in drawn_keys]
+    a, b = summarise(learned), summarise(drawn)
+    out = {}
+    for m in sorted({r["mission"] for r in learned}):
+        keep = ("cases", "success_rate", "unachievable_correct_rate", "wrong_success",
+                "failure_reasons", "success_rate_by_object_type", "positions_visited_mean_learned")
+        out[m] = {k: a[m][k] for k in keep if k in a[m]}
+        sa, sb = a[m].get("success_rate"), b.get(m, {}).get("success_rate")
+        out[m]["drawn_success_rate"] = sb
+        out[m]["success_ratio"] = round(sa / sb, 4) if sa is not None and sb else None
+    out["model_sets"] = {}
+    for w, d in sets.items():
+        m = read_model_set(d)
+        out["model_sets"][w] = dict(directory=d, learned=len(m["objects"]),
+                                    not_learned=m["not_learned"])
     return out
 
 

@@ -78,6 +78,10 @@ class Case:
     params: dict = field(default_factory=dict)     # extra mission parameters
     world: str = "demo"          # "demo", "home:SEED" (hearth.worldmodel.homegen) or a world file
     target: str = ""             # the node the mission is about ("": the first the map offers)
+    # A model set (hearth.worldmodel.learned: objects learned from views) whose models the
+    # belief's small objects get in place of the drawn ones ("": the drawn ones). The truth
+    # the simulator renders keeps the drawn models.
+    models: str = ""
 
 
 @dataclass
@@ -108,6 +112,7 @@ class CaseResult:
     drives: list = field(default_factory=list)
     #: Why the simulated robot refused each drive it had no path for (docs/navigation.md).
     refused_drives: list = field(default_factory=list)
+    models: str = ""
 
 
 # ---------------------------------------------------------------------------------------
@@ -333,6 +338,9 @@ def make_case_scenario(case: Case, world=None):
     world = world if world is not None else resolve_world(case.world)
     target = _target(case, world)
     sc = make_scenario(world, case.seed, _config(case.mission))
+    if case.models:
+        from hearth.worldmodel.learned import apply_model_set
+        apply_model_set(sc.belief, case.models)
     rng = np.random.default_rng(10_000 + case.seed)
     params: dict[str, Any] = {}
     if case.mission in FETCH:
@@ -490,7 +498,7 @@ def run_case(case: Case, on_event: Optional[Callable] = None, world=None,
                       log_path=str(res.log_path) if res.log_path else None, world=case.world,
                       target=target, target_type=getattr(node, "type", "") or "",
                       wrong_success=wrong, where=where, drives=_drives(sim),
-                      refused_drives=_refused_drives(sim))
+                      refused_drives=_refused_drives(sim), models=case.models)
 
 
 # ---------------------------------------------------------------------------------------

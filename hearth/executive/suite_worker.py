@@ -50,6 +50,8 @@ def hard_limit_s(timeout: float) -> float:
 def case_key(case) -> str:
     """A case's identity in a results file: a hash of all its fields."""
     d = case if isinstance(case, dict) else asdict(case)
+    if not d.get("models"):     # the drawn models: the key cases had before there was a choice
+        d = {k: v for k, v in d.items() if k != "models"}
     return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -325,10 +325,13 @@ def _planar_search(T, info, c, radius, scorer, search_range, search_step):
 def register_planar(source: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
                     T_init: Optional[np.ndarray] = None, cfg: ICPConfig = ICPConfig(),
                     tree: Optional[cKDTree] = None, scorer=None,
-                    search_range: float = 0.2, search_step: float = 0.01) -> ICPResult:
+                    search_range: float = 0.2, search_step: float = 0.01,
+                    turn: bool = True) -> ICPResult:
     """Registration restricted to a translation in x, y and a rotation about the world z axis
     (through the target's centroid, which keeps the three parameters well conditioned).
     Returns ``T_target_source``; ``information`` is 3x3 over (x, y, yaw [rad * radius]).
+    Without ``turn`` the yaw is held (a shift in x, y only): for a body of revolution, whose
+    surface leaves the yaw free, so that Gauss-Newton wanders along it.
 
     ``scorer(Ts) -> scores`` (higher is better) rates candidate transforms against the image
     (see ``DepthAgreement``). Point-to-plane leaves the direction along a flat front (a
@@ -366,9 +369,10 @@ def register_planar(source: np.ndarray, target: np.ndarray, target_normals: np.n
                                           np.concatenate([e[:, 0], e[:, 1]]),
                                           np.tile(cfg.point_weight * w, 2))
                 H, g = H + Hp, g + gp
-            x = solve(H, g)
+            x = solve(H, g) if turn else solve(H[:2, :2], g[:2])
             if x is None:
                 break
+            x = x if turn else np.r_[x, 0.0]
             # Trust region: correspondences gated at ``gate`` say nothing about moves much
             # larger than it; a full Gauss-Newton step from a first, mostly wrong matching
             # along a weakly constrained direction jumps into another minimum.

@@ -117,3 +117,76 @@ def support_colour(world, furniture_id: str, point) -> Optional[tuple]:
             if best is None or area > best[0]:
                 best = (area, tuple(float(c) for c in lm.color))
     return None if best is None else best[1]
+
+
+# -- model sets: learned models of objects the map already has --------------------------------
+#
+# The benchmarks compare recognition and fetching with drawn and with learned models of the
+# same objects. A model set is a directory: one PLY mesh per colour of each learned object
+# and ``models.json`` naming, per object id, its meshes (file, colour, pose in the object's
+# frame) and, under ``not_learned``, the objects that could not be learned and why.
+# ``apply_model_set`` gives a map those models in place of the drawn ones.
+
+#: The manifest of a model set.
+MODEL_SET_FILE = "models.json"
+
+
+def write_model_set(directory, models: dict, not_learned: dict, info: Optional[dict] = None) -> Path:
+    """Write a model set under ``directory``: ``models`` maps an object id to its meshes,
+    (vertices, triangles, RGB in [0, 1], 4x4 T_object_mesh: where the learned mesh stands
+    in the object's own frame). The manifest is written last (a set without it is
+    incomplete). Returns the manifest's path."""
+    import json
+    import os
+    folder = Path(directory)
+    folder.mkdir(parents=True, exist_ok=True)
+    entries = {}
+    for oid, meshes in sorted(models.items()):
+        vis = []
+        for k, (V, F, rgb, T) in enumerate(meshes):
+            name = f"{oid}-{k}.ply"
+            _write_ply(folder / name, V, F)
+            p = Pose.from_matrix(np.asarray(T, dtype=float))
+            vis.append(dict(file=name, color=[round(float(c), 4) for c in rgb],
+                            pose=[round(float(x), 6) for x in (p.x, p.y, p.z, p.roll, p.pitch, p.yaw)]))
+        entries[oid] = vis
+    manifest = dict(version=1, objects=entries, not_learned=dict(sorted(not_learned.items())),
+                    **(info or {}))
+    path = folder / MODEL_SET_FILE
+    tmp = folder / f".{MODEL_SET_FILE}.tmp"
+    tmp.write_text(json.dumps(manifest, indent=1))
+    os.replace(tmp, path)
+    return path
+
+
+def read_model_set(directory) -> dict:
+    """The manifest of the model set in ``directory``; WorldError (naming the file) when it
+    is missing or not one."""
+    import json
+    path = Path(directory) / MODEL_SET_FILE
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise WorldError(f"{path}: no model set here (no {MODEL_SET_FILE})") from None
+    except ValueError as err:
+        raise WorldError(f"{path}: not a model set ({err})") from None
+    if not isinstance(data, dict) or data.get("version") != 1 or not isinstance(data.get("objects"), dict):
+        raise WorldError(f"{path}: not a model set of version 1")
+    return data
+
+
+def apply_model_set(world, directory) -> list[str]:
+    """Give every small object of ``world`` that the model set in ``directory`` has learned
+    that model in place of its own (in place; the objects' poses stay: the learned meshes
+    carry their pose in the object's frame). Returns the ids replaced."""
+    folder = Path(directory).resolve()
+    data = read_model_set(folder)
+    done = []
+    for oid, vis in data["objects"].items():
+        if oid not in world:
+            continue
+        visuals = [Visual("mesh", pose=Pose(*v["pose"]), file=str(folder / v["file"]),
+                          color=tuple(float(c) for c in v["color"])) for v in vis]
+        world.get(oid).model = Model(visuals=visuals)
+        done.append(oid)
+    return done

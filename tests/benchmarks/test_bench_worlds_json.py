@@ -105,3 +105,33 @@ def test_a_world_without_any_surface_is_one_clear_line(capsys, tmp_path):
                  "--world", str(bare)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no surface" in err[0] and str(bare) in err[0]
+
+
+def test_objects_bench_with_learned_models_compares_them_on_the_same_scenes(capsys, tiny_home,
+                                                                              tmp_path, monkeypatch):
+    """--learned-models detects every scene again with the model set's models; a set made of
+    the drawn models' own meshes must detect exactly as the drawn models do (ratio 1, no new
+    swap). Learning the set (hearth bench learning's pipeline) is left out: minutes."""
+    import numpy as np
+    import hearth.benchmarks.learning as learning
+    from hearth.worldmodel import load_world
+    from hearth.worldmodel.geometry import small_object_meshes
+    from hearth.worldmodel.learned import write_model_set
+    world = load_world(tiny_home)
+    models = {}
+    for o in world.small_objects():
+        models[o.id] = [(np.asarray(lm.mesh.vertices), np.asarray(lm.mesh.triangles), lm.color,
+                         np.eye(4)) for lm in small_object_meshes(world, o, T_world_object=np.eye(4))]
+    ids = sorted(models)
+    write_model_set(tmp_path / "set", {k: models[k] for k in ids[1:]}, {ids[0]: "not learned here"})
+    monkeypatch.setattr(learning, "model_set_for", lambda spec, seed=0, progress=None: tmp_path / "set")
+    out = bench_json(capsys, "objects", "--quick", "--no-demo", "--world", str(tiny_home),
+                     "--scenarios", "3", "--learned-models")
+    got = out["learned_models"]
+    assert got["scenes"] == out["scenes"] == 3
+    assert got["true_positives"] == out["true_positives"]
+    assert got["false_positives"] == out["false_positives"]
+    assert got["f1_ratio"] == (1.0 if out["detection_f1"] else None)
+    assert got["new_same_type_swaps"] == 0
+    sets = out["learned_model_sets"][str(tiny_home)]
+    assert sets["learned"] == ids[1:] and sets["not_learned"] == {ids[0]: "not learned here"}
