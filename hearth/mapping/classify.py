@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin
 
-from hearth.perception.semantic_map import Draft, ObjectDraft, articulate
+from hearth.perception.semantic_map import Draft, ObjectDraft, articulate, handle_rows
 
 #: Training homes of the classifier: never the benchmark's seeds (100.. report, 0..99 tune).
 TRAIN_SEEDS = tuple(range(1000, 1041))
@@ -62,16 +62,8 @@ def room_context(draft_objects: list, obj: ObjectDraft, rooms: list) -> list[flo
 
 
 def _rows(handles: list) -> list[list]:
-    """Handles grouped into rows (centres within 15 cm in height)."""
-    rows: list[list] = []
-    for h in sorted(handles, key=lambda f: f.v):
-        for row in rows:
-            if abs(row[0].v - h.v) < 0.15:
-                row.append(h)
-                break
-        else:
-            rows.append([h])
-    return rows
+    """Handles grouped into rows (centres within 15 cm in height), lowest first."""
+    return handle_rows(sorted(handles, key=lambda f: f.v))
 
 
 def object_features(points_map: np.ndarray, normals_map: np.ndarray, colors: np.ndarray,

@@ -547,6 +547,20 @@ def _turn(obj: ObjectDraft, side: int) -> None:
 
 # -- stage 5: parts -----------------------------------------------------------------------------
 
+def handle_rows(handles: list) -> list[list]:
+    """Handles grouped into rows, in the order given: a handle joins the first row whose first
+    handle is within 15 cm of its height, else starts a row."""
+    rows: list[list] = []
+    for h in handles:
+        for row in rows:
+            if abs(row[0].v - h.v) < 0.15:
+                row.append(h)
+                break
+        else:
+            rows.append([h])
+    return rows
+
+
 def articulate(obj: ObjectDraft) -> list[PartDraft]:
     """Doors and drawers of a classified object with its front chosen (object frame: the
     front face at x = size_x / 2, y across, z up; see the module docstring)."""
@@ -568,14 +582,7 @@ def articulate(obj: ObjectDraft) -> list[PartDraft]:
         h = max(handles, key=lambda f: f.length)
         return [PartDraft("door", "bottom", -w, w, bottom, h.v + 0.06, h)]
     # side-hinged doors (a fixture's u on the front is the object's y)
-    rows: list[list[Fixture]] = []
-    for h in handles:
-        for row in rows:
-            if abs(row[0].v - h.v) < 0.15:
-                row.append(h)
-                break
-        else:
-            rows.append([h])
+    rows = handle_rows(handles)
     parts = []
     for k, row in enumerate(rows):
         z0 = bottom if k == 0 else (rows[k - 1][0].v + row[0].v) / 2
