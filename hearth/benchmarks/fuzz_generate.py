@@ -321,9 +321,10 @@ def mutate_mission(rng: random.Random, files: dict[str, bytes]) -> tuple[str, di
                 done.append(f"wrap in {wrap}")
             elif op < 0.88 and isinstance(data, dict):
                 k = rng.choice((3, 30, 60, 99, 200))
+                params = data.get("parameters")     # an earlier mutation may have made it a number
+                params = params if isinstance(params, dict) and params else {"nope": 0}
                 data["utterances"] = [rng.choice([
-                    "(x) " * k + "go", "(x|y) " * k + "{%s} go" % rng.choice(
-                        list(data.get("parameters") or {"nope": 0})),
+                    "(x) " * k + "go", "(x|y) " * k + "{%s} go" % rng.choice(list(params)),
                     "{a} {b}", "(" + "|".join(["x"] * k) + ") go", "", "\x00", "(" * k,
                     "x" * (100 * k)])]
                 done.append(f"utterance of {k} groups")

@@ -932,7 +932,7 @@ def verify_object(world, object_id: str, T_world_object: np.ndarray, depth: np.n
             local = np.linalg.inv(T) @ np.append(np.asarray(T_world_object)[:3, 3], 1.0)
             if abs(local[0]) < s.size_x / 2 + 0.05 and abs(local[1]) < s.size_y / 2 + 0.05 \
                     and abs(local[2]) < 0.05:
-                surface = f"{obj.id}/{s.id}"
+                surface = s.name
     det = detect_objects(world, depth, color, K, T_world_camera, surface=surface, config=config)
     p = np.asarray(T_world_object)[:2, 3]
     near = [h for h in det.hypotheses if h.object_id == object_id

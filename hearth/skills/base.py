@@ -140,7 +140,7 @@ def json_value(value: Any) -> Any:
 def words(value: Any, depth: int = 0) -> str:
     """A value in a few words for a sentence, the way the monitor page writes values:
     numbers to 3 significant places, ``yes``/``no``, a pose ``(1.2, 3) m, yaw 90°``, a
-    search place ``kitchen_table from kitchen_table_west (p 0.6)``, a dict ``key value, ...``,
+    search place ``sofa from sofa_front (p 0.6)``, a dict ``key value, ...``,
     a list its first four items and how many there are. Never Python's repr."""
     v = json_value(value)
     if v is None or v == "":

@@ -65,7 +65,7 @@ def test_hearth_step_non_interactive_prints_tree_and_blackboard(adapters, tmp_pa
                    "--ticks", "3", "--runs-dir", str(tmp_path)])
     out = capsys.readouterr().out
     assert status == 0
-    assert "*         |-- NavigateTo drive_out_of_the_way(target=$rest_out_of_the_way)" in out
+    assert "*         |-- NavigateTo drive_out_of_the_way(target={away_target})" in out
     assert re.search(r"^\$presence +=  'away'$".replace("=  ", "= "), out, re.M)
     assert adapters[0].stops == 1          # cancelled at the end of stepping: robot stopped
 
@@ -84,7 +84,7 @@ def test_hearth_step_interactive_commands(adapters, tmp_path, capsys, monkeypatc
     out = capsys.readouterr().out
     assert status == 1                                   # quit: the mission was cancelled
     assert "* `-- sequence choose_rest_place (memory)" in out
-    assert "$rest_near_user      = 'side_table'" in out
+    assert re.search(r"^near_target +=  'side_table'$".replace("=  ", "= "), out, re.M)  # RestPlace's
     assert "no node named 'nothing_like_it'" in out
     assert "t [N]: tick N times" in out                  # help after the unknown 'x'
     assert "go_to_rest: cancelled (quit from hearth step)" in out

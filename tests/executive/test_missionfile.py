@@ -233,7 +233,7 @@ def test_cli_wrong_parameter_type_is_one_line_naming_the_parameter(mission_file,
 def test_hearth_show_draws_ascii_and_dot(capsys):
     assert main(["show", "missions/go_to_rest.yaml"]) == 0
     out = capsys.readouterr().out
-    assert "NavigateTo drive_near_user(target=$rest_near_user)" in out
+    assert "NavigateTo drive_near_user(target={near_target})" in out
     assert main(["show", "missions/go_to_rest.yaml", "--format", "dot"]) == 0
     assert capsys.readouterr().out.startswith('digraph "go_to_rest"')
 
