@@ -17,6 +17,7 @@ from hearth.worldmodel.homegen import HomeConfig, HomeGenError, generate_home, m
 from hearth.worldmodel.homegen_palette import CLOSE_HUES
 from hearth.worldmodel.nodes import LargeArticulatedObject
 from hearth.worldmodel.outline import room_outline
+from polygon_check import inside_and_distance
 
 SEEDS = range(50)
 APPLIANCES = ("oven", "cooker", "hob")
@@ -36,15 +37,7 @@ def worlds(homes):
 def _on_floor(points: np.ndarray, poly: np.ndarray, margin: float) -> np.ndarray:
     """For (M, 2) points in a room's frame: inside its floor polygon (even-odd) or within
     ``margin`` of its sides."""
-    a, b = poly, np.roll(poly, -1, axis=0)
-    P = points[:, None, :]
-    d = b - a
-    t = np.clip(np.einsum("mkj,kj->mk", P - a, d) / np.maximum((d * d).sum(1), 1e-12), 0, 1)
-    dist = np.linalg.norm(P - (a + t[..., None] * d), axis=2).min(1)
-    y = points[:, 1:2]
-    cross = (a[:, 1] > y) != (b[:, 1] > y)
-    xc = a[:, 0] + (y - a[:, 1]) * d[:, 0] / np.where(d[:, 1] == 0, 1e-12, d[:, 1])
-    inside = (cross & (points[:, 0:1] < xc)).sum(1) % 2 == 1
+    inside, dist = inside_and_distance(points, poly)
     return inside | (dist <= margin)
 
 

@@ -11,7 +11,8 @@ from hearth.worldmodel import WorldError, load_world, parse_world, to_xml
 from hearth.worldmodel.frames import T_world_room, room_contains, transform_xy
 from hearth.worldmodel.geometry import room_visuals
 from hearth.worldmodel.navigation import NoPath, _footprints, nav_grid
-from hearth.worldmodel.outline import doorway_rect, outline_contains, room_outline
+from hearth.worldmodel.outline import doorway_rect, outline_contains
+from polygon_check import inside_and_distance
 
 # Two rooms: an L-shaped hall (its (4, 0)-(6, 2) corner cut out) and a kitchen beside it,
 # 0.3 m apart, joined by a doorway written in the hall; a store room with no doorway.
@@ -206,21 +207,6 @@ def test_the_search_orders_by_path_length_and_leaves_out_unreachable_places():
     assert grid.path((robot.x, robot.y), (south.x, south.y)).grid_length > 2.0
 
 
-def _inside_and_distance(points: np.ndarray, poly: np.ndarray):
-    """For (M, 2) points: inside the polygon (even-odd) and distance to its sides."""
-    a = poly
-    b = np.roll(poly, -1, axis=0)
-    P = points[:, None, :]
-    d = b - a
-    t = np.clip(np.einsum("mkj,kj->mk", P - a, d) / np.maximum((d * d).sum(1), 1e-12), 0, 1)
-    dist = np.linalg.norm(P - (a + t[..., None] * d), axis=2).min(1)
-    y = points[:, 1:2]
-    cross = (a[:, 1] > y) != (b[:, 1] > y)
-    xc = a[:, 0] + (y - a[:, 1]) * d[:, 0] / np.where(d[:, 1] == 0, 1e-12, d[:, 1])
-    inside = (cross & (points[:, 0:1] < xc)).sum(1) % 2 == 1
-    return inside, dist
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_no_path_in_a_generated_home_crosses_a_wall_or_furniture(seed):
     from hearth.worldmodel.homegen import generate_home
@@ -244,7 +230,7 @@ def test_no_path_in_a_generated_home_crosses_a_wall_or_furniture(seed):
     for poly in obstacles:
         # the robot's disc stays off every wall box and every piece's footprint (a few cm
         # of grid rounding allowed)
-        inside, dist = _inside_and_distance(samples, np.asarray(poly, float))
+        inside, dist = inside_and_distance(samples, np.asarray(poly, float))
         assert not inside.any(), (seed, samples[inside][:3])
         assert dist.min() > r - 0.06, (seed, samples[np.argmin(dist)], dist.min())
 

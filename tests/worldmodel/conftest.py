@@ -1,0 +1,7 @@
+"""World model tests: make the test helpers (polygon_check) importable."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
