@@ -12,6 +12,7 @@ import os
 import sys
 
 from hearth.cli.util import (DEFAULT_WORLD, MAX_TICK_HZ, MIN_TICK_HZ, add_map_arguments,
+                               add_topics_argument,
                                belief_file, close_map, close_robot, integer_in, keep_map,
                                make_world_and_robot, number_in, tick_rate)
 from hearth.cli.commands.run import add_groot2_arguments, start_groot2
@@ -50,14 +51,7 @@ def register(sub) -> None:
     p.add_argument("--scenario", default=None, metavar="DIR", help="simulation scenario")
     p.add_argument("--recording", default=None, metavar="PATH",
                    help="recording to replay (a Hearth recording or a ROS 2 bag)")
-    p.add_argument("--topics", default=None, metavar="FILE|KEY=VALUE,...",
-                   help="with a ROS 2 bag or --ros2: its topics and tf frames "
-                        "(docs/ros2-foxglove.md)")
-    p.add_argument("--ros2", nargs="?", const="tcp/localhost:7447", default=None,
-                   metavar="ENDPOINT",
-                   help="drive a live ROS 2 robot running rmw_zenoh_cpp through its Zenoh "
-                        "router at ENDPOINT (default tcp/localhost:7447); needs the ros extra "
-                        "(docs/ros2-foxglove.md, A live robot)")
+    add_topics_argument(p)
     p.add_argument("--tick-hz", type=tick_rate, default=10.0,
                    help=f"tick rate (Hz, {MIN_TICK_HZ:g} to {MAX_TICK_HZ:g}; default 10)")
     p.add_argument("--runs-dir", default="runs", help="where execution logs go")
