@@ -56,7 +56,7 @@ class KnobViews(Skill):
         from hearth.robot.sim import HEAD, camera_pose, pan_tilt_to
         from hearth.skills.map import robot_pose
         from hearth.worldmodel.pose import Pose
-        from hearth.worldmodel.viewing import BASE_CLEARANCE
+        from hearth.worldmodel.viewing import BASE_CLEARANCE, floor_clear
         obj, ids = self.input("object"), self.input("knobs")
         try:
             priors = knob_priors(self.world, obj)
@@ -80,7 +80,7 @@ class KnobViews(Skill):
             top = float(np.linalg.norm(flat)) < 0.42 * float(np.linalg.norm(axis))  # within 25 deg of up
             bearings = (range(0, 360, TOP_BEARING_STEP) if top else BEARINGS)
             boxes = {o.id: self.world.bounds_world(o.id) for o in self.world.large_objects()}
-            free = free_floor(self.world, boxes, BASE_CLEARANCE)
+            free = floor_clear(self.world, BASE_CLEARANCE, boxes)
             candidates = [c for c in ring(centre[:2], None if top else flat, DISTANCES, bearings)
                           if free(c[0], c[1])]
             blockers = [tuple(b) for o, b in boxes.items() if o != own]
@@ -112,22 +112,6 @@ class KnobViews(Skill):
                                  + ("; ".join(said) if said else "none reads its unread knobs better")
                                  + "".join(f"; {m}" for m in limits))
         return S.SUCCESS if places else S.FAILURE
-
-
-def free_floor(world, boxes: dict, clearance: float):
-    """Whether a base at (x, y) stands inside a room and ``clearance`` clear of every large
-    object's footprint (``boxes``: id -> world bounds, computed once), as
-    hearth.worldmodel.viewing's poses are chosen."""
-    from hearth.worldmodel.frames import room_at
-    bounded = [r for r in world.rooms if r.bounds is not None]
-    footprints = [(np.asarray(lo, float)[:2], np.asarray(hi, float)[:2]) for lo, hi in boxes.values()]
-
-    def free(x: float, y: float) -> bool:
-        if bounded and room_at(bounded, float(x), float(y), margin=-clearance) is None:
-            return False
-        return all(math.hypot(max(lo[0] - x, 0.0, x - hi[0]), max(lo[1] - y, 0.0, y - hi[1]))
-                   >= clearance for lo, hi in footprints)
-    return free
 
 
 def limit(world, view) -> str:

@@ -25,21 +25,28 @@ _UPRIGHT = 0.9
 TOP_VIEW_NEARER = 0.5
 
 
-def _clear_of(world, x: float, y: float, clearance: float, skip: str = "") -> bool:
-    """Whether a base at (x, y) stands inside a room and ``clearance`` clear of every large
-    object's footprint (its axis-aligned world bounds) but ``skip``'s."""
+def floor_clear(world, clearance: float, boxes: dict | None = None, skip: str = ""):
+    """A test ``free(x, y)``: whether a base at (x, y) stands inside a room and ``clearance``
+    clear of every large object's footprint (its axis-aligned world bounds) but ``skip``'s.
+    ``boxes`` (id -> world bounds) when the caller has them already; the footprints are read
+    once, so the test is cheap to ask of many poses."""
+    if boxes is None:
+        boxes = {o.id: world.bounds_world(o.id) for o in world.large_objects()}
     bounded = [r for r in world.rooms if r.bounds is not None]
-    if bounded and room_at(bounded, float(x), float(y), margin=-clearance) is None:
-        return False
-    for obj in world.large_objects():
-        if obj.id == skip:
-            continue
-        lo, hi = world.bounds_world(obj.id)
-        dx = max(lo[0] - x, 0.0, x - hi[0])
-        dy = max(lo[1] - y, 0.0, y - hi[1])
-        if math.hypot(dx, dy) < clearance:
+    footprints = [(np.asarray(lo, float)[:2], np.asarray(hi, float)[:2])
+                  for oid, (lo, hi) in boxes.items() if oid != skip]
+
+    def free(x: float, y: float) -> bool:
+        if bounded and room_at(bounded, float(x), float(y), margin=-clearance) is None:
             return False
-    return True
+        return all(math.hypot(max(lo[0] - x, 0.0, x - hi[0]), max(lo[1] - y, 0.0, y - hi[1]))
+                   >= clearance for lo, hi in footprints)
+    return free
+
+
+def _clear_of(world, x: float, y: float, clearance: float, skip: str = "") -> bool:
+    """``floor_clear`` for one pose."""
+    return floor_clear(world, clearance, skip=skip)(x, y)
 
 
 def knob_view_pose(world, node_id: str, distance: float = KNOB_VIEW_DISTANCE,

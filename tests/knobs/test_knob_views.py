@@ -130,10 +130,11 @@ def test_a_knob_no_free_pose_reads_is_said_with_its_size_in_pixels(demo_world, r
 
 
 def test_free_poses_are_on_the_floor_of_a_room_and_clear_of_furniture(demo_world):
-    from hearth.skills.knob_views import BEARINGS, DISTANCES, free_floor
+    from hearth.skills.knob_views import BEARINGS, DISTANCES
+    from hearth.worldmodel.viewing import floor_clear
     world = demo_world
     boxes = {o.id: world.bounds_world(o.id) for o in world.large_objects()}
-    free = free_floor(world, boxes, 0.3)
+    free = floor_clear(world, 0.3, boxes)
     for lo, hi in boxes.values():                   # nobody parks inside a cupboard
         assert not free(*((np.asarray(lo) + np.asarray(hi)) / 2)[:2])
     parking = world.parking_positions("oven")[0][1]
