@@ -279,3 +279,14 @@ def ring(centre_xy, normal_xy: Optional[Sequence[float]], distances: Sequence[fl
             x, y = cx + d * math.cos(a), cy + d * math.sin(a)
             out.append((x, y, math.atan2(cy - y, cx - x)))
     return out
+
+
+def marker_width(shape) -> Optional[float]:
+    """The width (m) of a knob's marker across its length (``shape``: a KnobShape), from the
+    marker's vertices seen along the knob's axis; None for a knob without a marker."""
+    pts = [v[:, :2] for v, r in zip(shape.vertices, shape.roles) if r == "marker"]
+    if not pts:
+        return None
+    m = np.concatenate(pts)
+    m = m - m.mean(0)
+    return float(np.ptp(m @ np.linalg.svd(m, full_matrices=False)[2][-1]))

@@ -124,11 +124,9 @@ def limit(world, view) -> str:
         shape = knob_shape(world.get(view.knob_id), world.apartment.library, world.base_dir)
     except (KeyError, ValueError, AttributeError):
         return said
-    pts = [v[:, :2] for v, r in zip(shape.vertices, shape.roles) if r == "marker"]
-    if not pts or view.radius_px <= 0:
+    from hearth.perception.knob_views import marker_width
+    width = marker_width(shape)
+    if width is None or view.radius_px <= 0:
         return said
-    m = np.concatenate(pts)
-    m = m - m.mean(0)
-    width = float(np.ptp(m @ np.linalg.svd(m, full_matrices=False)[2][-1]))   # across its length
     px = width * view.radius_px / shape.radius
     return said[:-1] + f"; its marker, {width * 1000:.1f} mm wide, is {px:.1f} px across there)"
