@@ -142,6 +142,15 @@ def to_room(room, points_world) -> np.ndarray:
     return P @ T_room_world[:3, :3].T + T_room_world[:3, 3]
 
 
+def room_centre(room) -> tuple[float, float]:
+    """World (x, y) of the centre of a room's bounds (its pose without bounds)."""
+    if room.bounds is None:
+        return float(room.pose.x), float(room.pose.y)
+    x0, y0, x1, y1 = room.bounds
+    c = transform_xy(T_world_room(room), [((x0 + x1) / 2, (y0 + y1) / 2)])[0]
+    return float(c[0]), float(c[1])
+
+
 def room_contains(room, x: float, y: float, margin: float = 0.0) -> bool:
     """Whether the world floor point (x, y) lies on the room's floor (its outline, or its
     bounds) grown by ``margin`` (negative: shrunk; see ``outline.outline_contains``). A room

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Iterable, Optional
 
-from hearth.worldmodel.frames import T_world_room, room_contains, transform_xy
+from hearth.worldmodel.frames import room_centre, room_contains
 from hearth.worldmodel.pose import Pose
 
 #: The search-statistics key under which the map counts where the user was looked for.
@@ -44,7 +44,7 @@ def room_visit_pose(world, room_id: str) -> Pose:
     if getattr(room, "kind", "") != "Room":
         from hearth.worldmodel.errors import UnknownNode
         raise UnknownNode("not a room", node=room_id)
-    cx, cy = _centre(room)
+    cx, cy = room_centre(room)
     best: Optional[tuple[float, Pose]] = None
     for obj in room.objects:
         for _, pose in world.parking_positions(obj.id):
@@ -58,11 +58,3 @@ def room_visit_pose(world, room_id: str) -> Pose:
     p = best[1]
     yaw = math.atan2(cy - p.y, cx - p.x) if best[0] > 1e-6 else p.yaw
     return Pose.planar(p.x, p.y, yaw)
-
-
-def _centre(room) -> tuple[float, float]:
-    if room.bounds is None:
-        return float(room.pose.x), float(room.pose.y)
-    x0, y0, x1, y1 = room.bounds
-    c = transform_xy(T_world_room(room), [((x0 + x1) / 2, (y0 + y1) / 2)])[0]
-    return float(c[0]), float(c[1])

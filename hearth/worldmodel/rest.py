@@ -21,7 +21,7 @@ from typing import Optional
 import numpy as np
 
 from hearth.worldmodel.chargers import AWAY, CLEARANCE
-from hearth.worldmodel.frames import T_world_room, room_at, transform_xy
+from hearth.worldmodel.frames import T_world_room, room_at, room_centre, transform_xy
 from hearth.worldmodel.pose import Pose
 
 #: Affordance of a large object the robot rests at (its default parking position) while the
@@ -124,7 +124,7 @@ def free_floor_near(world, room_id: str) -> tuple[Optional[Pose], Optional[str]]
     the id of the room it is in: that room when it has free floor, else the room whose free
     floor comes nearest its centre. (None, None) when no room has any."""
     target = world.get(room_id)
-    cx, cy = _centre(target)
+    cx, cy = room_centre(target)
     obstacles = _obstacles(world)
     spots = free_floor(world, target, obstacles)
     if spots:
@@ -146,11 +146,3 @@ def _facing(spot, centre) -> Pose:
     dx, dy = centre[0] - spot[0], centre[1] - spot[1]
     yaw = math.atan2(dy, dx) if math.hypot(dx, dy) > 0.3 else 0.0
     return Pose.planar(round(spot[0], 3), round(spot[1], 3), round(yaw, 4))
-
-
-def _centre(room) -> tuple[float, float]:
-    if room.bounds is None:
-        return float(room.pose.x), float(room.pose.y)
-    x0, y0, x1, y1 = room.bounds
-    c = transform_xy(T_world_room(room), [((x0 + x1) / 2, (y0 + y1) / 2)])[0]
-    return float(c[0]), float(c[1])
