@@ -19,6 +19,10 @@ from hearth.worldmodel.pose import Pose
 STATUSES = ("running", "succeeded", "failed", "cancelled")
 
 
+#: How a grasp that came back empty starts its reason (RobotAdapter.grasp).
+EMPTY_GRASP = "the gripper closed on nothing"
+
+
 class Action:
     """A request in progress. ``status()`` is one of running, succeeded, failed, cancelled;
     ``progress`` 0..1; ``reason`` says why it failed or was cancelled; ``result`` what it
@@ -201,7 +205,10 @@ class RobotAdapter(Protocol):
         """Turn a knob to an angle (rad, the knob's frame)."""
 
     def grasp(self, object_id: str, pose: Pose) -> Action:
-        """Grasp a small object seen at ``pose`` (world)."""
+        """Grasp a small object seen at ``pose`` (world). A grasp that reached the pose and
+        came back with nothing in the gripper fails with a reason starting with
+        ``EMPTY_GRASP``: the object was not where it was seen (a false detection), which a
+        mission may answer by searching on."""
 
     def place(self, parent_id: str, pose: Pose) -> Action:
         """Put the held object down on/in large object ``parent_id`` at world ``pose``."""

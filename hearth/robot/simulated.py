@@ -35,7 +35,8 @@ from typing import Callable, Iterable, Optional
 import numpy as np
 
 from hearth.perception.camera import Intrinsics
-from hearth.robot.adapter import Action, DoneAction, FailedAction, TimedAction, as_base_pose
+from hearth.robot.adapter import (EMPTY_GRASP, Action, DoneAction, FailedAction, TimedAction,
+                                  as_base_pose)
 from hearth.robot.battery import Battery, BatteryState
 from hearth.robot.clock import SimClock
 from hearth.robot.errors import RobotError
@@ -335,15 +336,19 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         if not isinstance(obj, SmallObject):
             return self._refuse("grasp", f"{object_id} is not a small object here",
                                 object=object_id)
-        far = self._out_of_reach(object_id)
-        if far:
-            return self._refuse("grasp", far, object=object_id)
+        reached = None
         if pose is not None:
             p = pose.position if isinstance(pose, Pose) else np.asarray(pose, float)[:3]
             reached = self._physical(np.r_[p, 1.0])[:3]
+        # the arm goes where it is told: the reach is checked at that point (a false
+        # detection far from the object is a grasp that closes on nothing, not "out of reach")
+        far = self._out_of_reach(object_id, point=reached)
+        if far:
+            return self._refuse("grasp", far, object=object_id)
+        if reached is not None:
             off = float(np.linalg.norm(self.truth.T_world(object_id)[:3, 3] - reached))
             if off > self.grasp_tolerance:
-                return self._timed_failure("grasp", f"the gripper closed on nothing at "
+                return self._timed_failure("grasp", f"{EMPTY_GRASP} at "
                                            f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})",
                                            object=object_id)
         closed = self._closed_container(obj)

@@ -31,6 +31,9 @@ class RobotActionSkill(Skill):
     def succeeded(self, action) -> None:
         """Write outputs after the action succeeded."""
 
+    def failed(self, action) -> None:
+        """Write outputs after the action failed (``action.reason`` says why)."""
+
     def initialise(self) -> None:
         self.action = None
         self.error = None
@@ -53,6 +56,7 @@ class RobotActionSkill(Skill):
             self.succeeded(self.action)
             self.feedback_message = f"{self.describe()}: done"
             return py_trees.common.Status.SUCCESS
+        self.failed(self.action)
         self.feedback_message = (f"{self.describe()}: "
                                  f"{getattr(self.action, 'reason', '') or status}")
         return py_trees.common.Status.FAILURE

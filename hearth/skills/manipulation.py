@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 
+from hearth.robot.adapter import EMPTY_GRASP
 from hearth.skills.actions import RobotActionSkill
 from hearth.skills.base import Port
 from hearth.skills.values import as_pose
@@ -74,7 +75,9 @@ class CloseArticulated(OpenArticulated):
 
 
 class Grasp(RobotActionSkill):
-    """Grasp a small object at its (observed) world pose."""
+    """Grasp a small object at its (observed) world pose. ``empty`` says whether a failed
+    grasp came back with nothing in the gripper (the robot's reason starts with
+    ``EMPTY_GRASP``): the object was not where it was seen."""
 
     NAME = "Grasp"
     AUTONOMY = 3
@@ -82,7 +85,14 @@ class Grasp(RobotActionSkill):
     INPUTS = (Port("object_id", "node_id"),
               Port("pose", "pose", required=False, default=None,
                    description="observed world pose; default: the map's"))
-    OUTPUTS = ()
+    OUTPUTS = (Port("empty", "boolean", required=False,
+                    description="the gripper closed on nothing (set when the grasp ends)"),)
+
+    def succeeded(self, action) -> None:
+        self.set_output("empty", False)
+
+    def failed(self, action) -> None:
+        self.set_output("empty", str(getattr(action, "reason", "")).startswith(EMPTY_GRASP))
 
     def start(self):
         oid = self.input("object_id")

@@ -72,7 +72,7 @@ class PlanSearch(Skill):
     INPUTS = (Port("object_id", "node_id"),
               Port("user_room", "string", required=False, default=None),
               Port("learned", "boolean", required=False, default=True),
-              Port("max_places", "integer", required=False, default=6),
+              Port("max_places", "integer", required=False, default=100),
               Port("exclude", "list", required=False, default=None),
               Port("among", "list", required=False, default=None,
                    description="only these places (the first plan): planning again from "

@@ -5,11 +5,12 @@ import math
 
 import py_trees
 
+from hearth.robot.adapter import DoneAction
 from hearth.skills.actions import RobotActionSkill
 from hearth.skills.base import Port, Skill
 from hearth.skills.values import as_pose
 from hearth.worldmodel.errors import WorldError
-from hearth.worldmodel.viewing import KNOB_VIEW_DISTANCE, knob_view_pose
+from hearth.worldmodel.viewing import ARM_REACH, KNOB_VIEW_DISTANCE, knob_view_pose, reach_pose
 from hearth.worldmodel.search import travel
 
 
@@ -23,6 +24,12 @@ NEAREST = "nearest"
 #: nearer, looking down); another view of knobs the parking positions left unread
 #: (hearth.worldmodel.viewing.knob_view_pose).
 KNOBS = "knobs"
+#: ``parking: reach``: within the arm's reach of ``target`` (a handle, a door or drawer: its
+#: handle, a knob): staying where the robot is when it is already, else the parking position
+#: nearest to it, else free floor in front of it (hearth.worldmodel.viewing.reach_pose).
+REACH = "reach"
+#: Metres kept from the arm's full reach for the base's localisation error.
+REACH_MARGIN = 0.15
 #: The distances (m) ``parking: knobs`` accepts.
 KNOB_DISTANCES = (0.3, 3.0)
 #: A robot closer than this (m) to a parking position is at it.
@@ -72,7 +79,9 @@ class NavigateTo(RobotActionSkill):
                                "'another': the nearest one the robot is not at (a second "
                                "view of the same thing), or 'nearest': the nearest one "
                                "(back within reach of the node from a view further away), or "
-                               "'knobs': straight in front of its knob panel, facing it"),
+                               "'knobs': straight in front of its knob panel, facing it, or "
+                               "'reach': within the arm's reach of the target (a handle, door, "
+                               "drawer or knob; no drive when it is already)"),
               Port("near", "pose", required=False, default=None,
                    description="with parking 'nearest': the one nearest this pose (world) "
                                "instead of the robot: where an object to grasp was seen, so "
@@ -85,11 +94,18 @@ class NavigateTo(RobotActionSkill):
     def start(self):
         target = self.input("target")
         parking = self.input("parking")
+        if parking == REACH and isinstance(target, dict) and target.get("part"):
+            target = str(target.get("handle") or target["part"])    # {part, handle}
         if isinstance(target, str):
             if parking == ANOTHER:
                 parking, goal = self._another(target)
             elif parking == NEAREST:
                 parking, goal = self._nearest(target, self.input("near"))
+            elif parking == REACH:
+                goal = self._within_reach(target)
+                if goal is None:
+                    self._what, self._goal = f"within reach of {target}", self.robot.base_pose()
+                    return DoneAction("navigate_to", result=self._goal)
             elif parking == KNOBS:
                 goal = knob_view_pose(self.world, target,
                                       _knob_distance(self.input("distance")))
@@ -108,6 +124,21 @@ class NavigateTo(RobotActionSkill):
             goal = as_pose(target)
         self._goal = goal
         return self.robot.navigate_to(goal)
+
+    def _within_reach(self, target: str):
+        """None when the believed base is within the arm's reach of ``target`` already, else
+        the pose to drive to (ValueError when no free pose reaches it)."""
+        reach = float(getattr(self.robot, "reach", ARM_REACH)) - REACH_MARGIN
+        node = self.world.get(target)
+        handles = getattr(node, "handles", None)
+        point = self.world.T_world(handles[0].id if handles else target)[:3, 3]
+        here = self.robot.base_pose()
+        if math.hypot(point[0] - here.x, point[1] - here.y) <= reach:
+            return None
+        goal = reach_pose(self.world, target, reach)
+        if goal is None:
+            raise ValueError(f"no free floor within reach ({reach:.2f} m) of {target}")
+        return goal
 
     def _another(self, target: str):
         """The parking position of ``target`` nearest to the robot among those more than

@@ -89,3 +89,47 @@ def knob_view_pose(world, node_id: str, distance: float = KNOB_VIEW_DISTANCE,
     if not _clear_of(world, x, y, clearance, skip=own):
         return None
     return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
+
+
+#: What the arm reaches, base centre to a handle (metres), when the robot does not say: the
+#: generator keeps every handle this near a parking position (HomeConfig.reach).
+ARM_REACH = 1.45
+#: Base centre to a handle, along the front's normal, of a pose made to reach it (metres): the
+#: generator's nearest parking distances.
+REACH_STANDOFFS = (0.6, 0.7, 0.8, 0.5, 0.9)
+
+
+def reach_pose(world, node_id: str, reach: float = ARM_REACH,
+               clearance: float = BASE_CLEARANCE) -> Optional[Pose]:
+    """A world base pose from which the arm reaches ``node_id`` (a handle, a part: its first
+    handle, a knob; its position in the map, so an open door's handle where it now is): the
+    parking position of its large object nearest to it when that is within ``reach``, else
+    a pose on free floor in front of it (``REACH_STANDOFFS`` out along the mean direction from
+    the large object to its parking positions, facing it, ``clearance`` clear of every
+    footprint); None when neither is found. A sliding door's pull at the far end of a wide
+    wardrobe, or a door opened from a second parking position, may be out of reach of the one
+    the robot stands at."""
+    node = world.get(node_id)
+    handles = getattr(node, "handles", None)
+    point = world.T_world(handles[0].id if handles else node_id)[:3, 3]
+    large = world.large_object_of(node_id)
+    parkings = sorted(world.parking_positions(large.id),
+                      key=lambda pp: math.hypot(pp[1].x - point[0], pp[1].y - point[1]))
+    if parkings and math.hypot(parkings[0][1].x - point[0], parkings[0][1].y - point[1]) <= reach:
+        return parkings[0][1]
+    centre = world.T_world(large.id)[:3, 3]
+    if parkings:
+        away = np.mean([[p.x - centre[0], p.y - centre[1]] for _, p in parkings], axis=0)
+    else:
+        away = world.T_world(large.id)[:2, 0]       # the object's front (+x)
+    if np.linalg.norm(away) < 1e-6:
+        return None
+    h = away / np.linalg.norm(away)
+    free = floor_clear(world, clearance)
+    for d in REACH_STANDOFFS:
+        if d > reach:
+            continue
+        x, y = point[:2] + d * h
+        if free(x, y):
+            return Pose.planar(float(x), float(y), math.atan2(-h[1], -h[0]))
+    return None

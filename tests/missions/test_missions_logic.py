@@ -459,12 +459,46 @@ def test_refine_localisation_without_a_fix_says_to_try_elsewhere(world):
 def test_a_missed_grasp_is_retried_after_relocalising_and_looking_again(world):
     seen = on_top_of(world, "kitchen_table")
     result, sub = run("fetch_object.yaml", world, [
-        Script("/fetch_object/pick_up/Grasp", outcomes=["failure"]),
+        Script("/fetch_object/find_and_pick_up/find_and_pick/sequence/pick_up/Grasp", outcomes=["failure"]),
         Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
         + ROBOT_SCRIPTS, object="blue cup")
     assert result.outcome == "succeeded", result.reason
-    assert sub.made["/fetch_object/pick_up/relocalise_and_grasp/grasp_again_or_where_seen/"
+    assert sub.made["/fetch_object/find_and_pick_up/find_and_pick/sequence/pick_up/relocalise_and_grasp/grasp_again_or_where_seen/"
                     "sequence/grasp_again"].activations == 1
+
+
+PICK_UP = "/fetch_object/find_and_pick_up/find_and_pick/sequence/pick_up"
+
+
+def test_a_grasp_that_comes_back_empty_searches_the_other_places(world):
+    # A false detection on the kitchen table: every grasp there closes on nothing (the robot
+    # says so); the search goes on at the places not searched yet and the grasp there holds.
+    robot = FakeRobot()
+    seen = on_top_of(world, "kitchen_table")
+    result, sub = run("fetch_object.yaml", world, [
+        Script(f"{PICK_UP}/Grasp", outcomes=["failure", "success"], outputs={"empty": True}),
+        Script(f"{PICK_UP}/relocalise_and_grasp/*", outcomes=["failure"], outputs={"empty": True}),
+        Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
+        + ROBOT_SCRIPTS, robot=robot, object="blue cup")
+    assert result.outcome == "succeeded", result.reason
+    assert "the blue cup was not where I saw it" in robot.said
+    searched = [p["place"] for p in result.outputs["searched"]]
+    assert searched[0] == "kitchen_table" and len(searched) == 2 and "kitchen_table" not in searched[1:]
+
+
+def test_a_grasp_that_fails_otherwise_ends_the_mission_saying_where_the_object_is(world):
+    # the gripper did not come back empty (the object is there, the arm cannot take it):
+    # no second search, and the sentence says where it is
+    robot = FakeRobot()
+    seen = on_top_of(world, "kitchen_table")
+    result, sub = run("fetch_object.yaml", world, [
+        Script("Grasp", outcomes=["failure"], outputs={"empty": False}),
+        Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
+        + ROBOT_SCRIPTS, robot=robot, object="blue cup")
+    assert result.outcome == "failed"
+    assert result.reason.endswith("I found the blue cup but could not pick it up; the blue cup "
+                                  "was on the kitchen table in the kitchen")
+    assert [p["place"] for p in result.outputs["searched"]] == ["kitchen_table"]
 
 
 def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_seen(world):
@@ -472,12 +506,12 @@ def test_a_grasp_out_of_reach_comes_back_within_reach_and_grasps_where_it_was_se
     # is not seen again: the robot grasps it where the far view saw it.
     seen = on_top_of(world, "kitchen_table")
     result, sub = run("fetch_object.yaml", world, [
-        Script("/fetch_object/pick_up/Grasp", outcomes=["failure"]),
+        Script("/fetch_object/find_and_pick_up/find_and_pick/sequence/pick_up/Grasp", outcomes=["failure"]),
         Script("*/detect_again", outcomes=["failure"]),
         Script("LookAtLandmark"), Script("DetectObject", outputs={"pose": seen})]
         + ROBOT_SCRIPTS, object="blue cup")
     assert result.outcome == "succeeded", result.reason
-    base = "/fetch_object/pick_up/relocalise_and_grasp"
+    base = "/fetch_object/find_and_pick_up/find_and_pick/sequence/pick_up/relocalise_and_grasp"
     back = sub.made[f"{base}/come_closer/sequence/back_within_reach"]
     assert back.activations == 1
     assert back.seen_inputs[0] == {"target": "kitchen_table", "parking": "nearest",
