@@ -82,6 +82,11 @@ class Case:
     # belief's small objects get in place of the drawn ones ("": the drawn ones). The truth
     # the simulator renders keeps the drawn models.
     models: str = ""
+    # Where a fetch case's object starts in truth, when not drawn from its places: "stay"
+    # (where the home has it, in a drawer or behind a sliding door; the map believes it
+    # there), "sliding:FURNITURE" (on a shelf of that furniture behind one of its sliding
+    # doors; the map believes it where the home has it). "": drawn (object_places).
+    hide: str = ""
 
 
 @dataclass
@@ -297,6 +302,56 @@ def place_observably(truth, object_id: str, place_id: str, rng, fallback=(),
     return False
 
 
+def place_behind_sliding_door(truth, object_id: str, furniture: str, rng,
+                              tries: int = 40) -> bool:
+    """Put the object on a surface of ``furniture`` where one of its sliding doors (closed,
+    as the home has them) stands in front of it and some pose of the search sees it once
+    that door is slid aside (:func:`observable`). Returns whether such a spot was found
+    (else the object stays at the last spot drawn)."""
+    from hearth.worldmodel.containers import covering_door
+    levels = [s.id for s in truth.get(furniture).surfaces if s.relation == "in"]
+    for _ in range(tries):
+        level = str(rng.choice(levels)) if levels else None
+        if not place_on(truth, object_id, furniture, rng, level=level):
+            continue
+        if covering_door(truth, object_id) and _reachable_behind(truth, object_id) \
+                and observable(truth, object_id):
+            return True
+    return False
+
+
+def _reachable_behind(truth, object_id: str) -> bool:
+    """Whether sliding the covering door aside uncovers the object (not where the closed
+    doors overlap in the middle: covered by one or the other, whichever is open)."""
+    from hearth.worldmodel.containers import covering_door, search_states
+    states = search_states(truth, object_id)
+    before = {pid: truth.get(pid).joint.state for pid in states}
+    try:
+        for pid, value in states.items():
+            truth.set_joint_state(pid, value, source="scenario")
+        return covering_door(truth, object_id) is None
+    finally:
+        for pid, value in before.items():
+            truth.set_joint_state(pid, value, source="scenario")
+
+
+def hidden_cases(world) -> list[tuple[str, str]]:
+    """(object, hide) of the fetch cases a home adds to its drawn ones: every graspable object
+    the home has in a drawer or behind a sliding door ("stay"), and for each furniture with
+    sliding doors that holds none, its first fetch target put behind one of them
+    ("sliding:FURNITURE"): the suite then holds every such object (issue 43)."""
+    from hearth.worldmodel.validate import all_parts
+    found = fetch_targets(world)
+    out = [(o, "stay") for o in found if hidden_where(world, o)]
+    holding = {world.parent(o).id for o, _ in out}
+    for lo in world.large_objects():
+        if lo.id in holding or not any(p.track for p in all_parts(lo)):
+            continue
+        if found and any(s.relation == "in" for s in lo.surfaces):
+            out.append((found[0], f"sliding:{lo.id}"))
+    return out
+
+
 def observable(truth, object_id: str) -> bool:
     """Whether a search can see the object where it stands in the truth: some pose it can take
     (a parking position of its furniture or a next-best-view candidate, doors open) shows at
@@ -346,10 +401,12 @@ def make_case_scenario(case: Case, world=None):
     if case.mission in FETCH:
         params = {"object": object_words(world, target), "learned": case.learned}
         places = object_places(world, target)
-        if case.achievable:
+        if case.achievable and case.hide.startswith("sliding:"):
+            place_behind_sliding_door(sc.truth, target, case.hide.split(":", 1)[1], rng)
+        elif case.achievable and case.hide != "stay":
             place_observably(sc.truth, target, sample_place(places, rng), rng,
                              fallback=[p for p, _ in places] + [world.parent(target).id])
-        else:
+        elif not case.achievable:
             sc.truth.remove_small_object(target, source="scenario")
         if case.warmup:
             warm_up(sc.belief, target, case.warmup, np.random.default_rng(20_000 + case.seed),
@@ -510,14 +567,16 @@ ORDERS = ("learned", "fixed")
 
 def suite_cases(n: int, seed: int = 0, missions=NAMED, warmup: int = 20,
                 unachievable_every: int = 4, worlds=("demo",), fetch_every_type: bool = True,
-                orders=ORDERS) -> list[Case]:
+                orders=ORDERS, hidden: bool = True) -> list[Case]:
     """Cases per world and mission. Targets come from each world's map (:func:`targets`):
     fetch and search cases cover every kind of small object of the home (one case per type,
     at least ``n``), the oven cases cycle through its appliances with knobs, the localisation
     cases through its landmarks. Every ``unachievable_every``-th fetch or oven case is
     unachievable (object absent, knob stuck). Each achievable fetch case runs twice, with the
     learned and with the fixed search order, after ``warmup`` searches (``orders``: only
-    those named; an unachievable case runs with the first)."""
+    those named; an unachievable case runs with the first). With ``hidden``, each home's
+    fetch cases also hold every object in a drawer or behind a sliding door
+    (:func:`hidden_cases`)."""
     orders = tuple(orders) or ORDERS
     if any(o not in ORDERS for o in orders):
         raise ValueError(f"search orders are {', '.join(ORDERS)}, not {orders!r}")
@@ -542,6 +601,11 @@ def suite_cases(n: int, seed: int = 0, missions=NAMED, warmup: int = 20,
                                           warmup=warmup, world=w, target=target))
                 else:
                     cases.append(Case(m, s, achievable, world=w, target=target))
+            if m in FETCH and hidden:
+                for i, (target, hide) in enumerate(hidden_cases(world)):
+                    for order in orders:
+                        cases.append(Case(m, seed + count + i, True, learned=order == "learned",
+                                          warmup=warmup, world=w, target=target, hide=hide))
     return cases
 
 

@@ -12,8 +12,9 @@ from hearth.worldmodel.nodes import Part
 
 
 class OpenArticulated(RobotActionSkill):
-    """Open a door or drawer by its handle to ``target`` (rad or m; default: 90 degrees, 80 %
-    of a drawer's travel, a sliding door all the way; within the joint's limits) and write
+    """Open a door or drawer by its handle to ``target`` (rad or m; default: 90 degrees, a
+    sliding door or a drawer holding surfaces all the way, another drawer 80 % of its travel:
+    ``containers.sliding_open_state``; within the joint's limits) and write
     the new state to the map."""
 
     NAME = "OpenArticulated"
@@ -41,7 +42,7 @@ class OpenArticulated(RobotActionSkill):
         t = self.input("target")
         j = node.joint
         if t is None:
-            # a sliding door all the way (its half uncovered), a drawer 80 % of its travel
+            # a sliding door all the way (its half uncovered), a drawer to look into too
             t = math.radians(90) if j.type == "revolute" else sliding_open_state(node)
         return min(max(float(t), j.lower), j.upper)
 

@@ -137,9 +137,14 @@ def _covers(world, obj, door: Part, point) -> float:
 
 def sliding_open_state(part: Part) -> float:
     """Where a search slides a door or drawer to: a sliding door all the way (its half is
-    then uncovered), a drawer 80 % of its travel (OpenArticulated's default)."""
+    then uncovered), a drawer that holds surfaces all the way too (a person pulls a drawer
+    out to look in: at 80 % of its travel a small object at the back of the tray stays under
+    the carcass top, hidden from every view; issue 43), another drawer 80 % of its travel
+    (OpenArticulated's default)."""
     j = part.joint
-    return j.upper if part.track else j.lower + 0.8 * (j.upper - j.lower)
+    if part.track or part.surfaces:
+        return j.upper
+    return j.lower + 0.8 * (j.upper - j.lower)
 
 
 def search_states(world, object_id: str) -> dict:
