@@ -406,7 +406,11 @@ def make_case_scenario(case: Case, world=None):
         elif case.achievable and case.hide != "stay":
             place_observably(sc.truth, target, sample_place(places, rng), rng,
                              fallback=[p for p, _ in places] + [world.parent(target).id])
-        elif not case.achievable:
+        elif case.achievable:       # "stay": where the home has it, whatever the scenario moved
+            home = world.get(target)
+            sc.truth.move_object(target, world.parent(target).id, home.pose,
+                                 relation=home.relation, source="scenario", part=home.part)
+        else:
             sc.truth.remove_small_object(target, source="scenario")
         if case.warmup:
             warm_up(sc.belief, target, case.warmup, np.random.default_rng(20_000 + case.seed),
