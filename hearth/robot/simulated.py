@@ -333,13 +333,21 @@ class SimulatedRobot(PanTiltHead, SpokenAndLogged):
         if self.held is not None:
             return self._refuse("grasp", f"already holding {self.held.id}", object=object_id)
         obj = self._node(object_id)
-        if not isinstance(obj, SmallObject):
-            return self._refuse("grasp", f"{object_id} is not a small object here",
-                                object=object_id)
         reached = None
         if pose is not None:
             p = pose.position if isinstance(pose, Pose) else np.asarray(pose, float)[:3]
             reached = self._physical(np.r_[p, 1.0])[:3]
+        if not isinstance(obj, SmallObject):
+            if obj is None and reached is not None:
+                # not in the home at all (a false detection of an absent object): the arm
+                # goes to the pose and the gripper closes on nothing there
+                far = self._out_of_reach(None, point=reached)
+                if far:
+                    return self._refuse("grasp", far, object=object_id)
+                return self._timed_failure("grasp", f"{EMPTY_GRASP} at ({p[0]:.2f}, "
+                                           f"{p[1]:.2f}, {p[2]:.2f})", object=object_id)
+            return self._refuse("grasp", f"{object_id} is not a small object here",
+                                object=object_id)
         # the arm goes where it is told: the reach is checked at that point (a false
         # detection far from the object is a grasp that closes on nothing, not "out of reach")
         far = self._out_of_reach(object_id, point=reached)

@@ -118,6 +118,9 @@ def test_grasped_object_moves_with_the_robot_and_stop_cancels(sim):
     # the object is
     far = r.grasp("blue_cup", Pose(0.0, 0.0, 0.0))
     assert wait(far, clock) == "failed" and "out of reach" in far.reason
+    # an object the home does not hold (a false detection): the gripper closes on nothing
+    ghost = r.grasp("no_such_cup", Pose(cup.x, cup.y, cup.z))
+    assert wait(ghost, clock) == "failed" and ghost.reason.startswith("the gripper closed on nothing")
     assert wait(r.grasp("blue_cup", world.world_pose("blue_cup")), clock) == "succeeded"
     assert r.held.id == "blue_cup" and "blue_cup" not in r.truth
     act = r.navigate_to(world.parking_positions("side_table")[0][1])
@@ -129,7 +132,7 @@ def test_grasped_object_moves_with_the_robot_and_stop_cancels(sim):
     frame = r.capture()
     assert frame.mask(["blue_cup"]).sum() > 500           # carried in front of the robot
     assert wait(r.hand_over(), clock) == "succeeded" and r.handed_over == ["blue_cup"]
-    assert [e["action"] for e in r.log].count("grasp") == 3
+    assert [e["action"] for e in r.log].count("grasp") == 4
 
 
 def test_capture_has_believed_and_true_camera_poses_and_sees_the_oven(sim):
