@@ -673,6 +673,10 @@ class _Compiler:
                 return None
         else:
             doc = scope.data if file == scope.file else self.load_doc(file)
+        if not isinstance(doc, dict):       # an empty or truncated file (a document of nothing)
+            self.error(f"include {target!r}: {Path(file).name} holds no mission document",
+                       scope.file, line)
+            return None
         key = (file, sub)
         if key in scope.stack:
             chain = " -> ".join(f"{Path(f).name}#{s}" if s else Path(f).name

@@ -143,7 +143,7 @@ def test_the_search_reads_an_edge_on_door_from_another_place_and_does_not_open_i
     assert drive and drive[0].seen_inputs[0]["parking"] == "another"
     assert register.looks == [None, ["cupboard_door_left"]]
     assert math.degrees(demo_world.get("cupboard_door_left").joint.state) == 90
-    opened = [i["part"]["part"] for n in _made(sub, "open_door/OpenArticulated")
+    opened = [i["part"]["part"] for n in _made(sub, "open_door/sequence/OpenArticulated")
               for i in n.seen_inputs]
     assert opened == ["cupboard_door_right"]       # the open one is not opened again
 
