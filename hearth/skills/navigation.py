@@ -10,7 +10,8 @@ from hearth.skills.actions import RobotActionSkill
 from hearth.skills.base import Port, Skill
 from hearth.skills.values import as_pose
 from hearth.worldmodel.errors import WorldError
-from hearth.worldmodel.viewing import ARM_REACH, KNOB_VIEW_DISTANCE, knob_view_pose, reach_pose
+from hearth.worldmodel.viewing import (ARM_REACH, KNOB_VIEW_DISTANCE, knob_view_pose, reach_point,
+                                       reach_pose)
 from hearth.worldmodel.search import travel
 
 
@@ -129,9 +130,7 @@ class NavigateTo(RobotActionSkill):
         """None when the believed base is within the arm's reach of ``target`` already, else
         the pose to drive to (ValueError when no free pose reaches it)."""
         reach = float(getattr(self.robot, "reach", ARM_REACH)) - REACH_MARGIN
-        node = self.world.get(target)
-        handles = getattr(node, "handles", None)
-        point = self.world.T_world(handles[0].id if handles else target)[:3, 3]
+        point = reach_point(self.world, target)
         here = self.robot.base_pose()
         if math.hypot(point[0] - here.x, point[1] - here.y) <= reach:
             return None

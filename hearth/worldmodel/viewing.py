@@ -99,6 +99,13 @@ ARM_REACH = 1.45
 REACH_STANDOFFS = (0.6, 0.7, 0.8, 0.5, 0.9)
 
 
+def reach_point(world, node_id: str) -> np.ndarray:
+    """The world point the arm goes to for ``node_id``: a part's first handle, else the node
+    itself (a handle, a knob), where the map has it now (an open door's handle moved)."""
+    handles = getattr(world.get(node_id), "handles", None)
+    return world.T_world(handles[0].id if handles else node_id)[:3, 3]
+
+
 def reach_pose(world, node_id: str, reach: float = ARM_REACH,
                clearance: float = BASE_CLEARANCE) -> Optional[Pose]:
     """A world base pose from which the arm reaches ``node_id`` (a handle, a part: its first
@@ -109,9 +116,7 @@ def reach_pose(world, node_id: str, reach: float = ARM_REACH,
     footprint); None when neither is found. A sliding door's pull at the far end of a wide
     wardrobe, or a door opened from a second parking position, may be out of reach of the one
     the robot stands at."""
-    node = world.get(node_id)
-    handles = getattr(node, "handles", None)
-    point = world.T_world(handles[0].id if handles else node_id)[:3, 3]
+    point = reach_point(world, node_id)
     large = world.large_object_of(node_id)
     parkings = sorted(world.parking_positions(large.id),
                       key=lambda pp: math.hypot(pp[1].x - point[0], pp[1].y - point[1]))
