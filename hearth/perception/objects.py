@@ -57,6 +57,13 @@ class DetectionConfig:
     icp_iterations: int = 12
     yaw_steps: int = 8              #: initial yaws for models that are not rotationally symmetric
     occlusion_margin: float = 0.02  #: a model point is hidden when measured this much nearer
+    #: A model point whose surface the ray meets at more than this angle from its normal,
+    #: with no return at its pixel, does not speak against the hypothesis (as on glass): a
+    #: Kinect-class sensor drops most returns at grazing incidence (beyond 75-85 degrees;
+    #: hearth.robot.noise). A book standing in an open drawer, seen from above along its
+    #: covers, lost half its expected points that way and was refused at the right pose
+    #: (0.42). A return elsewhere along the ray still counts against it (``hidden``).
+    grazing_deg: float = 80.0
     accept_confidence: float = 0.45  #: ``Detection.accepted`` threshold
     #: ``Detection.accepted`` also needs this share of the model's facing surface in sight
     #: (not hidden behind nearer measurements) when the supporting furniture is what hides
@@ -519,13 +526,20 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     else:
         hsv_all = np.zeros((len(P), 3))
 
-    plane = find_support_plane(P, T_ws[2, 3], config)
-    height0 = -plane[3] if plane is not None else T_ws[2, 3]
-    # Height above the plane, and position in the surface's frame (its extent).
-    h = P @ plane[:3] + plane[3] if plane is not None else P[:, 2] - height0
+    # Position in the surface's frame (its extent). The plane is sought among the points
+    # over the surface only: beside an open drawer, another horizontal face 2 cm under the
+    # drawer's floor held more points within the window than the floor itself (a book at
+    # the back of the drawer was then fitted 2 cm low and refused as "taller" than its
+    # model). With too few points over the surface, the whole view's.
     local = (P - T_ws[:3, 3]) @ T_ws[:3, :3]
     inside = (np.abs(local[:, 0]) < sx / 2 + config.surface_margin) & \
              (np.abs(local[:, 1]) < sy / 2 + config.surface_margin)
+    plane = find_support_plane(P[inside], T_ws[2, 3], config)
+    if plane is None:           # too little of it in view: the plane of the whole view
+        plane = find_support_plane(P, T_ws[2, 3], config)
+    height0 = -plane[3] if plane is not None else T_ws[2, 3]
+    # Height above the plane.
+    h = P @ plane[:3] + plane[3] if plane is not None else P[:, 2] - height0
     # On a shelf, what stands on the shelf above is not on this one: the column ends below it.
     top = min(config.max_height, _headroom(world, name, T_ws, sx, sy) - config.min_height)
     above = inside & (h > config.min_height) & (h < top)
@@ -778,7 +792,11 @@ def _verify(model: ObjectModel, T: np.ndarray, ci: int, pts, hsv, normals, tree_
     # dark or shiny visuals a missing return is what the sensor gives: no reading there does
     # not speak against the hypothesis (a reading elsewhere along the ray would: ``hidden``).
     dm, _ = tree_xyz.query(mp_w[visible], distance_upper_bound=config.inlier_distance * 1.5)
-    lost = (model.dropout & (measured <= 0))[visible]
+    eye = -T_cw[:3, :3].T @ T_cw[:3, 3]
+    ray = mp_w - eye
+    cos_in = -np.einsum("ij,ij->i", mn_w, ray) / np.maximum(np.linalg.norm(ray, axis=1), 1e-9)
+    grazing = cos_in < math.cos(math.radians(config.grazing_deg))
+    lost = ((model.dropout | grazing) & (measured <= 0))[visible]
     inlier_fraction = float((np.isfinite(dm) | lost).mean()) if n_vis else 0.0
 
     # Scene -> model: points in the hypothesis' column (its footprint, any height: a taller
