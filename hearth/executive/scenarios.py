@@ -274,6 +274,8 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
     others = [c for c in place.children if c.id != object_id and c.part == pid
               and abs(c.pose.z - surf.pose.z) < 0.05]
     T = surf.pose.matrix()      # surface frame in the place's (or part's) frame
+    obj = world.get(object_id)
+    before = (world.parent(object_id).id, obj.pose, obj.relation, obj.part)
     for _ in range(60):
         u = rng.uniform(-0.35, 0.35) * surf.size_x
         v = rng.uniform(-0.35, 0.35) * surf.size_y
@@ -283,8 +285,34 @@ def place_on(world, object_id: str, place_id: str, rng, source: str = "scenario"
                               Pose(float(x), float(y), float(z), 0.0, 0.0,
                                    float(rng.uniform(-math.pi, math.pi))),
                               relation=surf.relation, source=source, part=pid)
-            return True
+            if not _in_furniture(world, object_id, place_id):
+                return True
+    world.move_object(object_id, before[0], before[1], relation=before[2] or "on",
+                      source=source, part=before[3] or "")
     return False
+
+
+def _in_furniture(world, object_id: str, place_id: str) -> bool:
+    """Whether the small object, where it stands, runs into its furniture's own geometry:
+    above its bottom, a point of its surface within 4 mm of the furniture's (a remote on the
+    floor "under" a pedestal table, sunk in the pedestal's foot; a surface's extent is a
+    rectangle, the furniture's shape is not)."""
+    import open3d as o3d
+    from hearth.worldmodel.geometry import object_meshes, small_object_meshes
+    meshes = object_meshes(world, world.get(place_id), children=False)
+    own = [np.asarray(lm.mesh.sample_points_uniformly(300).points)
+           for lm in small_object_meshes(world, world.get(object_id)) if len(lm.mesh.triangles)]
+    if not meshes or not own:
+        return False
+    pts = np.vstack(own)
+    pts = pts[pts[:, 2] > pts[:, 2].min() + 0.004]
+    if not len(pts):
+        return False
+    scene = o3d.t.geometry.RaycastingScene()
+    for lm in meshes:
+        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+    d = scene.compute_distance(o3d.core.Tensor(pts.astype(np.float32))).numpy()
+    return bool((d < 0.004).any())
 
 
 def place_observably(truth, object_id: str, place_id: str, rng, fallback=(),
