@@ -534,9 +534,14 @@ def detect_objects(world, depth: np.ndarray, color: Optional[np.ndarray], K: Int
     local = (P - T_ws[:3, 3]) @ T_ws[:3, :3]
     inside = (np.abs(local[:, 0]) < sx / 2 + config.surface_margin) & \
              (np.abs(local[:, 1]) < sy / 2 + config.surface_margin)
-    plane = find_support_plane(P[inside], T_ws[2, 3], config)
-    if plane is None:           # too little of it in view: the plane of the whole view
-        plane = find_support_plane(P, T_ws[2, 3], config)
+    plane = None
+    # A surface at or above the camera shows its underside, not its top: a plane found near
+    # its height there is the board's lower face, a board's thickness too low (a shelf at
+    # 1.39 m seen by a 1.31 m head: 1.4 cm). The map's height is used then.
+    if T_ws[2, 3] < T_world_camera[2, 3] - config.plane_window / 2:
+        plane = find_support_plane(P[inside], T_ws[2, 3], config)
+        if plane is None:           # too little of it in view: the plane of the whole view
+            plane = find_support_plane(P, T_ws[2, 3], config)
     height0 = -plane[3] if plane is not None else T_ws[2, 3]
     # Height above the plane.
     h = P @ plane[:3] + plane[3] if plane is not None else P[:, 2] - height0
@@ -726,7 +731,7 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
                                                   / config.yaw_steps)
         out.append([(float(x), float(y), float(a)) for a in yaws])
         if not model.symmetric and model.height < model.radius and len(g) >= 10:
-            out.append(_rectangle_seeds(xy[g], model))
+            out.append(_rectangle_seeds(xy[g], model) + _edge_seeds(xy[g], model, cam))
     return out
 
 
@@ -756,6 +761,40 @@ def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, fl
     (cx, cy), _, angle = cv2.minAreaRect(np.asarray(xy, np.float32))
     base = math.radians(angle) - _principal_angle(model)
     return [(float(cx), float(cy), float(base + k * math.pi / 2)) for k in range(4)]
+
+
+def _edge_seeds(xy: np.ndarray, model: ObjectModel, cam: np.ndarray
+                ) -> list[tuple[float, float, float]]:
+    """Seeds for a flat object seen from the side (a book lying on a shelf at the head's
+    height, its top out of sight): only its near faces are in view, so the piece is a strip
+    along one of its edges, and ``_rectangle_seeds`` centre the model on that strip. Here
+    the strip's long axis (OpenCV ``minAreaRect``) is taken for the object's long side, then
+    for its short side, and the centre is put half the other side behind the strip, away
+    from the camera; two yaws a half turn apart for each."""
+    import cv2
+    (cx, cy), (w, h), angle = cv2.minAreaRect(np.asarray(xy, np.float32))
+    a = math.radians(angle) + (0.0 if w >= h else math.pi / 2)   # the strip's long axis
+    length, width = _footprint_sides(model)
+    normal = np.array([-math.sin(a), math.cos(a)])
+    if np.dot(normal, np.array([cx, cy]) - cam[:2]) < 0:
+        normal = -normal                                           # away from the camera
+    out = []
+    for behind, turn in ((width, 0.0), (length, math.pi / 2)):
+        x, y = np.array([cx, cy]) + normal * behind / 2
+        yaw = a + turn - _principal_angle(model)
+        out += [(float(x), float(y), float(yaw)), (float(x), float(y), float(yaw + math.pi))]
+    return out
+
+
+def _footprint_sides(model: ObjectModel) -> tuple[float, float]:
+    """Extents (m) of the model's footprint along its major and minor axes (cached)."""
+    got = model.__dict__.get("_sides")
+    if got is None:
+        a = _principal_angle(model)
+        xy = model.points[:, :2] @ np.array([[math.cos(a), -math.sin(a)],
+                                             [math.sin(a), math.cos(a)]])
+        got = model.__dict__["_sides"] = (float(np.ptp(xy[:, 0])), float(np.ptp(xy[:, 1])))
+    return got
 
 
 def _footprint_tree(model: ObjectModel) -> cKDTree:

@@ -1,5 +1,8 @@
-"""A small object in an open drawer is detected from the pose that sees it best, and the
-suite never puts an object where it runs into its furniture (issue 43's remaining misses)."""
+"""Small objects where the fetch suite missed them (issue 43), each detected from the pose
+that sees it best while looking at its surface as the search does: standing at the back of
+an open drawer, lying on a shelf at the head's height (its top out of sight), on a shelf
+above the head (seen from below); and the suite never puts an object where it runs into its
+furniture."""
 from __future__ import annotations
 
 import math
@@ -33,27 +36,59 @@ def _view(truth, belief, object_id, aim):
     return capture(robot)
 
 
-def test_a_book_standing_at_the_back_of_an_open_drawer_is_detected_where_it_is():
-    world = resolve_world(DRAWER_HOME)
-    sc, _, target = make_case_scenario(Case("fetch_object", 1, True, world=DRAWER_HOME,
-                                            target=BOOK, hide="stay"), world)
+def _detected(world_spec, object_id, seed, hide=""):
+    """The scenario's truth and belief, and the detection of the object on its surface from
+    the pose that sees it best, the head aimed at the surface's middle (the search does not
+    know where on the surface the object stands)."""
+    world = resolve_world(world_spec)
+    sc, _, target = make_case_scenario(Case("fetch_object", seed, True, world=world_spec,
+                                            target=object_id, hide=hide), world)
     truth, belief = sc.truth, sc.belief
-    assert truth.get(target).part, "the book is in a drawer"
-    floor = next(s for s in truth.surfaces_of(truth.parent(target).id)
-                 if s.name.endswith("_floor"))
-    # the search looks at the middle of the drawer's floor (not at the object: it does not
-    # know where in the drawer the book stands)
+    z = truth.T_world(target)[2, 3]
+    level = min(truth.surfaces_of(truth.parent(target).id),
+                key=lambda s: abs(s.T_world_surface[2, 3] - z))
     depth, color, K, T_wc = _view(truth, belief, target,
-                                  floor.T_world_surface[:3, 3] + (0, 0, 0.05))
-    floor = floor.name
-    det = detect_objects(belief, depth, color, K, T_wc, candidates=[target], surface=floor)
+                                  level.T_world_surface[:3, 3] + (0, 0, 0.05))
+    det = detect_objects(belief, depth, color, K, T_wc, candidates=[target], surface=level.name)
+    return truth, target, det, T_wc
+
+
+def _accepted_where_it_is(truth, target, det, within):
+    found = [h for h in det.accepted if h.object_id == target]
+    assert found, [(round(h.confidence, 2), h.position.round(3).tolist())
+                   for h in det.hypotheses[:3]]
+    assert np.linalg.norm(found[0].position - truth.T_world(target)[:3, 3]) < within
+
+
+def test_a_book_standing_at_the_back_of_an_open_drawer_is_detected_where_it_is():
+    truth, target, det, _ = _detected(DRAWER_HOME, BOOK, 1, hide="stay")
+    assert truth.get(target).part, "the book is in a drawer"
     # the drawer's floor, not another face under it
     assert abs(-det.plane[3] - truth.T_world(target)[2, 3]) < 0.006
-    found = [h for h in det.accepted if h.object_id == target]
-    assert found, [(h.confidence, h.position.round(3).tolist()) for h in det.hypotheses[:3]]
     # within the arm's grasp tolerance (8 cm); seen from above along its covers the fit
     # can settle a few centimetres off
-    assert np.linalg.norm(found[0].position - truth.T_world(target)[:3, 3]) < 0.05
+    _accepted_where_it_is(truth, target, det, 0.05)
+
+
+def test_a_book_lying_on_a_shelf_at_the_heads_height_is_found_from_its_edges():
+    """Generated home 306, seed 300: a brown book on a 1.26 m shelf, the head at 1.30 m:
+    only its spine and one side are in view (before: fitted 5 cm off at 0.15)."""
+    truth, target, det, T_wc = _detected("home:306", "brown_book", 300)
+    assert abs(T_wc[2, 3] - truth.T_world(target)[2, 3]) < 0.06, "seen from its own height"
+    # within the grasp tolerance: along the face in view the fit can slide (6 cm here with
+    # the head aimed at the shelf's middle; 3 mm aimed at the book)
+    _accepted_where_it_is(truth, target, det, 0.08)
+
+
+def test_a_bowl_on_a_shelf_above_the_head_stands_at_the_shelfs_height_not_its_underside():
+    """Generated home 302, seed 301: a blue bowl on a 1.39 m shelf, the head at 1.31 m
+    sees the board's lower face (before: the plane 1.4 cm low, the bowl refused at 0.14)."""
+    truth, target, det, T_wc = _detected("home:302", "blue_bowl", 301)
+    assert truth.T_world(target)[2, 3] > T_wc[2, 3], "above the head"
+    assert det.plane is None
+    _accepted_where_it_is(truth, target, det, 0.02)
+    found = next(h for h in det.accepted if h.object_id == target)
+    assert abs(found.position[2] - truth.T_world(target)[2, 3]) < 0.003
 
 
 def _inside_box(points, mesh, shrink=0.001):
