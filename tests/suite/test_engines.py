@@ -74,7 +74,8 @@ def test_ray_engine_gives_every_scenario_the_local_engines_result(ray_instance):
     local = run(suite.LocalEngine(jobs=2), cases)
     # Shipping the code as a cluster would get it: the tasks run from a copy, not this tree.
     on_ray = run(suite.RayEngine(ship_code=True), cases)
-    assert [r["outcome"] for r in local] == [r["outcome"] for r in on_ray]
+    assert [r["outcome"] for r in local] == [r["outcome"] for r in on_ray], \
+        [(r.get("error"), r["reason"]) for r in local + on_ray]
     assert not any(r.get("error") for r in local + on_ray), [r["reason"] for r in on_ray]
     for a, b in zip(local, on_ray):
         assert suite_worker.comparable(a) == suite_worker.comparable(b), (a["key"], a["mission"])
