@@ -297,22 +297,14 @@ def _in_furniture(world, object_id: str, place_id: str) -> bool:
     above its bottom, a point of its surface within 4 mm of the furniture's (a remote on the
     floor "under" a pedestal table, sunk in the pedestal's foot; a surface's extent is a
     rectangle, the furniture's shape is not)."""
-    import open3d as o3d
-    from hearth.worldmodel.geometry import object_meshes, small_object_meshes
-    meshes = object_meshes(world, world.get(place_id), children=False)
+    from hearth.worldmodel.geometry import distance_to_object, small_object_meshes
     own = [np.asarray(lm.mesh.sample_points_uniformly(300).points)
            for lm in small_object_meshes(world, world.get(object_id)) if len(lm.mesh.triangles)]
-    if not meshes or not own:
+    if not own:
         return False
     pts = np.vstack(own)
     pts = pts[pts[:, 2] > pts[:, 2].min() + 0.004]
-    if not len(pts):
-        return False
-    scene = o3d.t.geometry.RaycastingScene()
-    for lm in meshes:
-        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
-    d = scene.compute_distance(o3d.core.Tensor(pts.astype(np.float32))).numpy()
-    return bool((d < 0.004).any())
+    return bool((distance_to_object(world, place_id, pts) < 0.004).any())
 
 
 def place_observably(truth, object_id: str, place_id: str, rng, fallback=(),

@@ -666,16 +666,9 @@ def _headroom(world, surface: str, T_ws: np.ndarray, sx: float, sy: float) -> fl
 def _explained_by_furniture(world, object_id: str, points_world: np.ndarray,
                             distance: float) -> np.ndarray:
     """Which points lie within ``distance`` of the large object's own model (its parts in
-    their believed states; not the small objects it holds), by open3d's distance query."""
-    from hearth.worldmodel.geometry import object_meshes
-    meshes = object_meshes(world, world.get(object_id), children=False)
-    if not meshes or not len(points_world):
-        return np.zeros(len(points_world), bool)
-    scene = o3d.t.geometry.RaycastingScene()
-    for lm in meshes:
-        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
-    d = scene.compute_distance(o3d.core.Tensor(np.asarray(points_world, np.float32))).numpy()
-    return d < distance
+    their believed states; not the small objects it holds)."""
+    from hearth.worldmodel.geometry import distance_to_object
+    return distance_to_object(world, object_id, points_world) < distance
 
 
 def _surface_by_name(world, surface: str):
@@ -731,7 +724,9 @@ def _initial_poses(cp: np.ndarray, hsv: np.ndarray, model: ObjectModel, cam: np.
                                                   / config.yaw_steps)
         out.append([(float(x), float(y), float(a)) for a in yaws])
         if not model.symmetric and model.height < model.radius and len(g) >= 10:
-            out.append(_rectangle_seeds(xy[g], model) + _edge_seeds(xy[g], model, cam))
+            import cv2
+            rect = cv2.minAreaRect(np.asarray(xy[g], np.float32))
+            out.append(_rectangle_seeds(rect, model) + _edge_seeds(rect, model, cam))
     return out
 
 
@@ -748,7 +743,7 @@ def _gate_colours(model: ObjectModel) -> list[np.ndarray]:
     return got
 
 
-def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, float, float]]:
+def _rectangle_seeds(rect, model: ObjectModel) -> list[tuple[float, float, float]]:
     """Seeds for a flat object (lower than its radius: a book lying down, a remote) seen
     from above: its whole top is in view, so the smallest rectangle around the piece
     (OpenCV ``minAreaRect``) has the object's centre and its sides along the object's
@@ -757,22 +752,19 @@ def _rectangle_seeds(xy: np.ndarray, model: ObjectModel) -> list[tuple[float, fl
     has a model point within the sampling distance, so only the few points beyond an edge
     move it, and a seed shifted away from the camera (the other seeds) stalls centimetres
     off."""
-    import cv2
-    (cx, cy), _, angle = cv2.minAreaRect(np.asarray(xy, np.float32))
+    (cx, cy), _, angle = rect
     base = math.radians(angle) - _principal_angle(model)
     return [(float(cx), float(cy), float(base + k * math.pi / 2)) for k in range(4)]
 
 
-def _edge_seeds(xy: np.ndarray, model: ObjectModel, cam: np.ndarray
-                ) -> list[tuple[float, float, float]]:
+def _edge_seeds(rect, model: ObjectModel, cam: np.ndarray) -> list[tuple[float, float, float]]:
     """Seeds for a flat object seen from the side (a book lying on a shelf at the head's
     height, its top out of sight): only its near faces are in view, so the piece is a strip
     along one of its edges, and ``_rectangle_seeds`` centre the model on that strip. Here
     the strip's long axis (OpenCV ``minAreaRect``) is taken for the object's long side, then
     for its short side, and the centre is put half the other side behind the strip, away
     from the camera; two yaws a half turn apart for each."""
-    import cv2
-    (cx, cy), (w, h), angle = cv2.minAreaRect(np.asarray(xy, np.float32))
+    (cx, cy), (w, h), angle = rect
     a = math.radians(angle) + (0.0 if w >= h else math.pi / 2)   # the strip's long axis
     length, width = _footprint_sides(model)
     normal = np.array([-math.sin(a), math.cos(a)])

@@ -354,6 +354,20 @@ def part_in_object_T(obj, part_id: str, states: Optional[dict] = None) -> np.nda
     return found
 
 
+def distance_to_object(world, object_id: str, points_world: np.ndarray) -> np.ndarray:
+    """Distance (m) from each world point to a large object's own meshes (its parts in the
+    map's states; not the small objects it holds), by open3d's distance query; inf where
+    the object has no mesh."""
+    pts = np.asarray(points_world, np.float32).reshape(-1, 3)
+    meshes = object_meshes(world, world.get(object_id), children=False)
+    if not meshes or not len(pts):
+        return np.full(len(pts), np.inf)
+    scene = o3d.t.geometry.RaycastingScene()
+    for lm in meshes:
+        scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(lm.mesh))
+    return scene.compute_distance(o3d.core.Tensor(pts)).numpy()
+
+
 def small_object_meshes(world, obj: SmallObject, T_world_object: Optional[np.ndarray] = None):
     T = world.T_world(obj.id) if T_world_object is None else T_world_object
     out: list[LabelledMesh] = []
